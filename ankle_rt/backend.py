@@ -1,0 +1,133 @@
+"""The one small interface between the daemon and a device, and the registry that picks a backend
+by name from the config (``backend: sim | serial | canopen``), the way python-can picks an interface.
+
+Lifecycle (after ros2_control's hardware components)::
+
+    open_backend(cfg, clock)  -> configured   (transport opened, parameters checked, amplifiers off)
+    activate()                -> active       (amplifiers enabled, set values start at zero)
+    read(frame) / write(i1, i2)               (once per cycle, no allocation, no blocking I/O)
+    deactivate()              -> configured   (set values zero, amplifiers disabled)
+    close()                                   (transport released)
+
+``read`` fills a preallocated :class:`SensorFrame` in place and reports transport or device problems
+as :class:`BackendFault` bits in ``frame.faults``; the daemon's safety layer decides what to do.
+The core never imports a backend's module directly: :data:`BACKENDS` maps names to import paths.
+"""
+
+from __future__ import annotations
+
+import enum
+import importlib
+from abc import ABC, abstractmethod
+from typing import TYPE_CHECKING, ClassVar
+
+import numpy as np
+
+from ankle_rt.config import ConfigError
+
+if TYPE_CHECKING:
+    from ankle_rt.clock import Clock
+    from ankle_rt.config import Config
+
+BACKENDS: dict[str, str] = {
+    "sim": "sim_backend.backend:SimBackend",
+    "serial": "hardware.serial_backend:SerialBackend",
+    "canopen": "hardware.canopen_backend:CanopenBackend",
+}
+
+
+class BackendFault(enum.IntFlag):
+    """Problems a backend reports in a sample. Zero means healthy."""
+
+    NONE = 0
+    LINK_LOST = enum.auto()        # no sample within the stated detection time
+    CRC_ERROR = enum.auto()        # a corrupted frame was dropped
+    SEQUENCE_GAP = enum.auto()     # samples were lost between two received ones
+    STALE_SAMPLE = enum.auto()     # the newest sample is older than one period
+    AMP_NOT_READY = enum.auto()    # an ESCON's ready output is low while enabled
+    ENCODER_FAULT = enum.auto()    # an encoder is stuck or jumped implausibly
+    STRAIN_GAUGE_RAIL = enum.auto()  # a strain-gauge channel sits at its rail / broken wire
+    BUS_OFF = enum.auto()          # CAN controller bus-off
+    DEVICE_FAULT = enum.auto()     # the bridge or I/O module reported a fault of its own
+
+
+class BackendError(RuntimeError):
+    """A backend could not be configured, activated or opened (names the device and the reason)."""
+
+
+class SensorFrame:
+    """One cycle's sensor sample, preallocated once and filled in place by :meth:`Backend.read`.
+
+    Units: t in s (the backend's sample time), angles in rad, torques in N m. Motor quantities are
+    at the gearbox output. ``ankle_pos`` is NaN when the device has no joint encoders.
+    """
+
+    __slots__ = ("t", "seq", "motor_pos", "sg_torque", "ankle_pos", "amp_ready", "faults")
+
+    def __init__(self) -> None:
+        self.t = 0.0
+        self.seq = 0
+        self.motor_pos = np.zeros(2)          # rad, [motor 1, motor 2]
+        self.sg_torque = np.zeros(2)          # N m, [DP, IE] from the strain gauges (tared)
+        self.ankle_pos = np.full(2, np.nan)   # rad, [DP, IE] joint encoders, if any
+        self.amp_ready = [True, True]
+        self.faults = BackendFault.NONE
+
+
+class Backend(ABC):
+    """A device the daemon can drive: the simulator, or a transport to the real amplifiers."""
+
+    name: ClassVar[str] = ""
+
+    def __init__(self, cfg: "Config", clock: "Clock"):
+        """Configure: open the transport and check the settings. Amplifiers stay disabled."""
+        self.cfg = cfg
+        self.clock = clock
+
+    @abstractmethod
+    def activate(self) -> None:
+        """Enable the amplifiers with zero set values."""
+
+    @abstractmethod
+    def read(self, frame: SensorFrame) -> None:
+        """Fill ``frame`` with the newest sample. Must not allocate or block beyond one period."""
+
+    @abstractmethod
+    def write(self, current_1: float, current_2: float) -> None:
+        """Send the current set values (A) for this cycle. Ignored (zero sent) unless active."""
+
+    @abstractmethod
+    def deactivate(self) -> None:
+        """Zero the set values and disable the amplifiers. Safe to call in any state, repeatedly."""
+
+    def close(self) -> None:
+        """Release the transport. Deactivates first."""
+        self.deactivate()
+
+    def counters(self) -> dict[str, int]:
+        """Diagnostic counters (CRC errors, gaps, ...) for status reports; not for the hot loop."""
+        return {}
+
+    def __enter__(self) -> "Backend":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def backend_class(name: str) -> type[Backend]:
+    """Import and return the backend class registered under ``name``."""
+    if name not in BACKENDS:
+        raise ConfigError(f"unknown backend {name!r} (expected one of: {', '.join(BACKENDS)})", key="backend")
+    module_name, _, cls_name = BACKENDS[name].partition(":")
+    return getattr(importlib.import_module(module_name), cls_name)
+
+
+def open_backend(cfg: "Config", clock: "Clock") -> Backend:
+    """Build and configure the backend the config names (``backend:`` key)."""
+    try:
+        cls = backend_class(cfg["backend"])
+    except ConfigError as exc:
+        raise ConfigError(str(exc).split(": ", 1)[-1], cfg.source if hasattr(cfg, "source") else None,
+                          "backend") from None
+    return cls(cfg, clock)

@@ -1,0 +1,38 @@
+"""Command-line entry point of ankle-rt: real-time control, simulation and model tools for a
+two-DOF cable-driven ankle-foot prosthesis.
+
+Each subcommand lives in its own module under ``ankle_rt.commands`` and
+exposes ``register(subparsers)``; heavy imports (scipy, matplotlib, backends) happen inside the
+handlers, so ``ankle-rt --help`` stays fast on the prosthesis computer."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from ankle_rt.config import ConfigError
+
+# Module names under ankle_rt.commands, in the order `--help` lists them.
+COMMANDS: tuple[str, ...] = ()
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="ankle-rt", description="Real-time control, simulation and model tools for a two-DOF cable-driven ankle-foot prosthesis.")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for name in COMMANDS:
+        importlib.import_module(f"ankle_rt.commands.{name}").register(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.handler(args) or 0)
+    except ConfigError as exc:
+        print(f"ankle-rt: config error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,150 @@
+"""The measured-data interchange format (DESIGN.md): one CSV row per control cycle, SI units.
+
+Reading checks the file the way a person would want it checked: a missing required column, a
+non-numeric cell or time that does not increase is an :class:`InterchangeError` naming the column
+and the row (1-based data row, the header being row 0... reported as the file's line number too).
+Unknown columns are ignored.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Iterable, Mapping
+
+import numpy as np
+
+KNOWN_COLUMNS = (
+    "t", "motor_pos_1", "motor_pos_2", "current_cmd_1", "current_cmd_2",
+    "motor_torque_1", "motor_torque_2", "sg_torque_dp", "sg_torque_ie",
+    "ankle_dp", "ankle_ie", "ref_dp", "ref_ie",
+)
+
+
+class InterchangeError(ValueError):
+    """A data file does not follow the interchange format; the message names column and row."""
+
+    def __init__(self, message: str, path: str | Path | None = None, column: str | None = None,
+                 row: int | None = None):
+        self.path, self.column, self.row = (str(path) if path else None), column, row
+        parts = [str(path)] if path else []
+        if column is not None:
+            parts.append(f"column {column!r}")
+        if row is not None:
+            parts.append(f"row {row} (line {row + 1})")
+        super().__init__(f"{', '.join(parts)}: {message}" if parts else message)
+
+
+@dataclass
+class Recording:
+    """Columns of one interchange file as float arrays, keyed by column name."""
+
+    columns: dict[str, np.ndarray]
+    source: str = "<memory>"
+    extra: dict[str, object] = field(default_factory=dict)
+
+    def __contains__(self, name: str) -> bool:
+        return name in self.columns
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self.columns[name]
+
+    def __len__(self) -> int:
+        return len(self.columns["t"])
+
+    @property
+    def two_motors(self) -> bool:
+        return "motor_pos_2" in self.columns
+
+    @property
+    def input_kind(self) -> str:
+        """'current' (set values in A) or 'torque' (motor torques in N m, used as-is)."""
+        return "current" if "current_cmd_1" in self.columns else "torque"
+
+    def motor_input(self, kt: float | None) -> np.ndarray:
+        """N x motors array of motor torque (N m, or N for a linear axis): torques as-is, or kt * current."""
+        n = 2 if self.two_motors else 1
+        if self.input_kind == "torque":
+            return np.column_stack([self.columns[f"motor_torque_{i}"] for i in range(1, n + 1)])
+        if kt is None:
+            raise InterchangeError("current set values need a torque constant (give a config)", self.source,
+                                   "current_cmd_1")
+        return kt * np.column_stack([self.columns[f"current_cmd_{i}"] for i in range(1, n + 1)])
+
+    @property
+    def dt(self) -> float:
+        """Median sample period (s)."""
+        return float(np.median(np.diff(self.columns["t"])))
+
+
+def _required_columns(header: list[str], path: str | Path) -> None:
+    if "t" not in header:
+        raise InterchangeError("required column missing (time in s)", path, "t", 0)
+    if "motor_pos_1" not in header:
+        raise InterchangeError("required column missing (motor angle in rad)", path, "motor_pos_1", 0)
+    two = "motor_pos_2" in header
+    pairs = ("current_cmd", "motor_torque")
+    suffixes = ("_1", "_2") if two else ("_1",)
+    if not any(all(p + s in header for s in suffixes) for p in pairs):
+        want = " or ".join("+".join(p + s for s in suffixes) for p in pairs)
+        raise InterchangeError(f"required input columns missing: need {want}", path,
+                               "current_cmd_1", 0)
+
+
+def read_csv(path: str | Path, min_rows: int = 2) -> Recording:
+    """Read and check an interchange CSV. Raises :class:`InterchangeError` naming column and row."""
+    path = Path(path)
+    try:
+        handle = path.open(newline="")
+    except OSError as exc:
+        raise InterchangeError(f"cannot read: {exc.strerror}", path) from None
+    with handle:
+        reader = csv.reader(handle)
+        try:
+            header = [h.strip() for h in next(reader)]
+        except StopIteration:
+            raise InterchangeError("empty file (expected a header row)", path) from None
+        _required_columns(header, path)
+        dupes = {h for h in header if header.count(h) > 1 and h in KNOWN_COLUMNS}
+        if dupes:
+            raise InterchangeError("column appears more than once", path, sorted(dupes)[0], 0)
+        keep = [(i, h) for i, h in enumerate(header) if h in KNOWN_COLUMNS]
+        data: dict[str, list[float]] = {h: [] for _, h in keep}
+        for row_no, row in enumerate(reader, start=1):
+            if not row or all(not c.strip() for c in row):
+                continue
+            if len(row) < len(header):
+                raise InterchangeError(f"row has {len(row)} cells, header has {len(header)}", path,
+                                       header[len(row)], row_no)
+            for i, name in keep:
+                cell = row[i].strip()
+                try:
+                    value = float(cell)
+                except ValueError:
+                    raise InterchangeError(f"not a number: {cell!r}", path, name, row_no) from None
+                if not math.isfinite(value):
+                    raise InterchangeError(f"not a finite number: {cell!r}", path, name, row_no)
+                data[name].append(value)
+    columns = {k: np.asarray(v, dtype=float) for k, v in data.items()}
+    n = len(columns["t"])
+    if n < min_rows:
+        raise InterchangeError(f"too short: {n} data rows, need at least {min_rows}", path, "t", n)
+    steps = np.diff(columns["t"])
+    bad = np.flatnonzero(steps <= 0)
+    if bad.size:
+        raise InterchangeError("time does not increase", path, "t", int(bad[0]) + 2)
+    return Recording(columns, str(path))
+
+
+def write_csv(path: str | Path, columns: Mapping[str, Iterable[float]]) -> None:
+    """Write columns (all the same length) as an interchange CSV, in the order given."""
+    names = list(columns)
+    arrays = [np.asarray(columns[n], dtype=float) for n in names]
+    lengths = {len(a) for a in arrays}
+    if len(lengths) > 1:
+        raise ValueError(f"columns differ in length: {dict(zip(names, map(len, arrays)))}")
+    with Path(path).open("w", newline="") as handle:
+        handle.write(",".join(names) + "\n")
+        np.savetxt(handle, np.column_stack(arrays) if arrays else np.zeros((0, 0)), delimiter=",", fmt="%.9g")

@@ -1,0 +1,56 @@
+"""The simulated backend: the daemon's view of :class:`~sim_backend.plant.SimulatedPlant`.
+
+``read`` first advances the plant to the clock's time in whole control ticks, with the last set
+values held, then samples its sensors. Under a :class:`~ankle_rt.clock.SimClock` that is exactly one
+tick per cycle (lockstep); under the real clock, cycles the loop skipped still pass for the plant.
+"""
+
+from __future__ import annotations
+
+from ankle_rt.backend import Backend, BackendFault, SensorFrame
+from ankle_rt.clock import Clock
+from ankle_rt.config import Config
+from sim_backend.plant import SimulatedPlant
+
+MAX_CATCH_UP_TICKS = 1000
+
+
+class SimBackend(Backend):
+    name = "sim"
+
+    def __init__(self, cfg: Config, clock: Clock):
+        super().__init__(cfg, clock)
+        self.plant = SimulatedPlant(cfg, getattr(cfg, "source", "config"))
+        self.period_ns = round(1e9 / cfg["controller"]["rate_hz"])
+        self.start_ns = clock.now_ns()
+        self.active = False
+        self.set_values = [0.0, 0.0]
+        self.injected = BackendFault.NONE  # faults a test or tool injects into the samples
+
+    def activate(self) -> None:
+        self.set_values[0] = self.set_values[1] = 0.0
+        self.active = True
+
+    def deactivate(self) -> None:
+        self.set_values[0] = self.set_values[1] = 0.0
+        self.active = False
+
+    def write(self, current_1: float, current_2: float) -> None:
+        if self.active:
+            self.set_values[0] = current_1
+            self.set_values[1] = current_2
+
+    def read(self, frame: SensorFrame) -> None:
+        plant = self.plant
+        due = (self.clock.now_ns() - self.start_ns) // self.period_ns
+        todo = min(due - plant.ticks, MAX_CATCH_UP_TICKS)
+        for _ in range(todo):
+            plant.step(self.set_values[0], self.set_values[1])
+        frame.t = plant.t
+        frame.seq = plant.ticks
+        frame.motor_pos[0], frame.motor_pos[1] = plant.motor_positions()
+        frame.sg_torque[0], frame.sg_torque[1] = plant.strain_gauge_torques()
+        frame.ankle_pos[0], frame.ankle_pos[1] = plant.ankle_positions()
+        ready = not (self.injected & BackendFault.AMP_NOT_READY)
+        frame.amp_ready[0] = frame.amp_ready[1] = ready
+        frame.faults = self.injected

@@ -1,0 +1,10 @@
+"""The effects library: physical effects the nominal model lacks, switched on from the config.
+
+Each effect is a class registered under a name; ``sim.effects`` in the config lists
+``{type: NAME, ...parameters}``. See :mod:`sim_backend.effects.base` for the hooks an effect can use.
+"""
+
+from sim_backend.effects.base import EFFECTS, Effect, build_effects, register_effect
+from sim_backend.effects import friction  # noqa: F401  (registers the friction effects)
+
+__all__ = ["EFFECTS", "Effect", "build_effects", "register_effect"]

@@ -1,0 +1,83 @@
+"""Effect interface and registry.
+
+An effect changes the plant through up to three hooks, all in SI units at the gearbox output:
+
+- ``motor_torque(th1, th2, w1, w2, tc1, tc2)``: torques (N m) that *resist* each motor, like friction.
+  ``th`` are motor angles (rad), ``w`` motor rates (rad/s) and ``tc`` the cable torques each motor
+  feels (N m, the motor-side image R^-T tau_j of the joint torque; its size is the cable tension
+  times the pulley radius). Evaluated at every integration substep.
+- ``cable_torque(phi_dp, phi_ie, dphi_dp, dphi_ie)``: a correction (N m) added to the linear joint
+  torque K (phi + beta phi') from the cable stretch phi (rad, ankle coordinates). The strain gauges
+  measure it and the motors feel its R^-T image. Evaluated at every substep.
+- ``command(tau1, tau2)``: transforms the motor torque command (N m) once per control tick, before it
+  is held for the tick (actuation delay, torque-constant changes).
+
+An effect overrides only the hooks it needs; the model collects the overridden ones once, so an
+unused hook costs nothing per step. Parameters are validated with the config schema machinery, so a
+bad effect entry names its key like any other config error.
+"""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+from ankle_rt.config import ConfigError, Section, validate
+from ankle_rt.params import PlantParams
+
+EFFECTS: dict[str, type["Effect"]] = {}
+
+
+def register_effect(name: str):
+    """Class decorator: make an effect available to the config under ``name``."""
+
+    def deco(cls: type["Effect"]) -> type["Effect"]:
+        cls.name = name
+        EFFECTS[name] = cls
+        return cls
+
+    return deco
+
+
+class Effect:
+    name: ClassVar[str] = ""
+    PARAMS: ClassVar[Section] = Section({})
+    #: the vocabulary word of DESIGN.md this effect stands for (used by the diagnosis)
+    cause: ClassVar[str] = "unknown"
+
+    def __init__(self, params: dict[str, Any], plant: PlantParams, dt: float):
+        """``params`` are validated already; ``dt`` is the control period (s)."""
+        self.params = params
+        self.plant = plant
+        self.dt = dt
+
+    def motor_torque(self, th1: float, th2: float, w1: float, w2: float,
+                     tc1: float, tc2: float) -> tuple[float, float]:
+        raise NotImplementedError
+
+    def cable_torque(self, phi_dp: float, phi_ie: float, dphi_dp: float, dphi_ie: float) -> tuple[float, float]:
+        raise NotImplementedError
+
+    def command(self, tau1: float, tau2: float) -> tuple[float, float]:
+        raise NotImplementedError
+
+    def reset(self) -> None:
+        """Forget internal state (delay lines); called when the plant is reset."""
+
+    @classmethod
+    def uses(cls, hook: str) -> bool:
+        return getattr(cls, hook) is not getattr(Effect, hook)
+
+
+def build_effects(entries: list[dict], plant: PlantParams, dt: float, source: str = "config") -> list[Effect]:
+    """Instantiate ``sim.effects`` entries, validating each one's parameters against its schema."""
+    effects = []
+    for i, entry in enumerate(entries):
+        name = entry.get("type")
+        if name not in EFFECTS:
+            raise ConfigError(f"unknown effect {name!r} (known: {', '.join(sorted(EFFECTS))})",
+                              source, f"sim.effects.{i}.type")
+        cls = EFFECTS[name]
+        body = {k: v for k, v in entry.items() if k != "type"}
+        params = validate(body, cls.PARAMS, lambda _p: source, ("sim", "effects", str(i)))
+        effects.append(cls(params, plant, dt))
+    return effects

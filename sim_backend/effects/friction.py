@@ -1,0 +1,30 @@
+"""Friction effects on the motor side."""
+
+from __future__ import annotations
+
+import math
+
+from ankle_rt.config import Section, positive, non_negative
+from sim_backend.effects.base import Effect, register_effect
+
+
+@register_effect("coulomb")
+class CoulombFriction(Effect):
+    """The baseline Coulomb friction kc tanh(w / v_eps) of each motor (the paper's tau_F).
+
+    The viscous part D is linear and lives in the model's linear part, so it is integrated exactly."""
+
+    PARAMS = Section({
+        "coulomb": non_negative("N m, kc"),
+        "smoothing_velocity": positive("rad/s, v_eps of the tanh"),
+    })
+    cause = "none"
+
+    def __init__(self, params, plant, dt):
+        super().__init__(params, plant, dt)
+        self.kc = params["coulomb"]
+        self.inv_v = 1.0 / params["smoothing_velocity"]
+
+    def motor_torque(self, th1, th2, w1, w2, tc1, tc2):
+        kc, iv = self.kc, self.inv_v
+        return kc * math.tanh(w1 * iv), kc * math.tanh(w2 * iv)

@@ -1,0 +1,175 @@
+"""The compliant model of the prosthesis (DESIGN.md "Nominal model"), stepped at control ticks.
+
+The linear part (foot and motor inertias, cable stiffness and damping, viscous friction, linearised
+gravity) is discretised exactly once for the substep h = dt / substeps, so the ~100 Hz cable modes
+cost nothing in accuracy. What is not linear (Coulomb friction, the rest of gravity, effects) enters
+as generalised forces held over each substep. The motor torque command is held over the whole tick.
+A fixed-step RK4 on the same equations serves as the reference solution in the tests.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ankle_rt.linear_model import N_X, LinearModel
+from ankle_rt.params import PlantParams
+from sim_backend.discretize import zoh
+from sim_backend.effects import Effect
+from sim_backend.effects.friction import CoulombFriction
+
+
+def baseline_friction(p: PlantParams, dt: float) -> CoulombFriction:
+    """The nominal Coulomb friction of the actuator parameters, as an effects-library entry."""
+    return CoulombFriction({"coulomb": p.actuator.coulomb,
+                            "smoothing_velocity": p.actuator.friction_smoothing_velocity}, p, dt)
+
+
+class CompliantModel:
+    """State x = [theta_DP, theta_IE, theta_1, theta_2, and their rates] (rad, rad/s)."""
+
+    def __init__(self, params: PlantParams, *, dt: float, substeps: int = 4, friction: bool = True,
+                 cables: bool = True, gravity: bool = True, effects: list[Effect] | tuple = ()):
+        self.params = params
+        self.dt = dt
+        self.substeps = substeps
+        self.cables = cables
+        self.linear = LinearModel.from_params(params, cables=cables, gravity=gravity)
+        self.effects: list[Effect] = ([baseline_friction(params, dt)] if friction else []) + list(effects)
+        self._motor_fx = [e.motor_torque for e in self.effects if e.uses("motor_torque")]
+        self._cable_fx = [e.cable_torque for e in self.effects if e.uses("cable_torque")] if cables else []
+        self._command_fx = [e.command for e in self.effects if e.uses("command")]
+        self._needs_cable = bool(self._cable_fx) or any(
+            e.uses("motor_torque") and getattr(e, "needs_cable_torque", False) for e in self.effects)
+
+        kin = self.linear.kin
+        self._Ri = kin.R_inv.ravel().tolist()          # phi = Ri theta_m - theta
+        self._RiT = kin.R_inv_T.ravel().tolist()
+        self._K = [kin.K[0, 0], kin.K[1, 1]] if cables else [0.0, 0.0]
+        self._beta = params.transmission.stiffness_proportional_damping
+        self._motor_cable = self.linear.cable_Kq[2:4].ravel().tolist()  # motor-felt cable torque rows
+        self._grav = params.foot.gravity_gain if gravity else 0.0
+
+        Ad, Bd = zoh(self.linear.A, self.linear.B, dt / substeps)
+        self._phi = np.hstack([Ad, Bd])  # x[k+1] = phi @ [x[k]; f]
+        self._z = np.zeros(N_X + 4)
+        self._x_next = np.zeros(N_X)
+        self.x = self._z[:N_X]  # a view: the state lives in the first 8 entries of z
+        self.tau_applied = [0.0, 0.0]   # N m, motor torque command after command effects (last tick)
+
+    # -- state -----------------------------------------------------------------------------------
+    def reset(self, x0: np.ndarray | None = None) -> None:
+        self._z[:] = 0.0
+        if x0 is not None:
+            self._z[:N_X] = x0
+        for e in self.effects:
+            e.reset()
+
+    def set_rest_at(self, theta: tuple[float, float]) -> None:
+        """Put the foot at ankle angles ``theta`` (rad) with slack-free cables and no motion."""
+        x0 = np.zeros(N_X)
+        x0[0:2] = theta
+        x0[2:4] = self.linear.kin.R @ np.asarray(theta, dtype=float)
+        self.reset(x0)
+
+    # -- forces ----------------------------------------------------------------------------------
+    def cable_state(self, s: list[float]) -> tuple[float, float, float, float]:
+        """(phi_dp, phi_ie, dphi_dp, dphi_ie): cable stretch and its rate in ankle coordinates (rad)."""
+        Ri = self._Ri
+        return (Ri[0] * s[2] + Ri[1] * s[3] - s[0], Ri[2] * s[2] + Ri[3] * s[3] - s[1],
+                Ri[0] * s[6] + Ri[1] * s[7] - s[4], Ri[2] * s[6] + Ri[3] * s[7] - s[5])
+
+    def joint_torque_of(self, s: list[float]) -> tuple[float, float]:
+        """N m: the joint torque the cables deliver (what the strain gauges measure), effects included."""
+        p0, p1, d0, d1 = self.cable_state(s)
+        K, b = self._K, self._beta
+        t0, t1 = K[0] * (p0 + b * d0), K[1] * (p1 + b * d1)
+        for fx in self._cable_fx:
+            c0, c1 = fx(p0, p1, d0, d1)
+            t0 += c0
+            t1 += c1
+        return t0, t1
+
+    def generalized_forces(self, s: list[float], tau1: float, tau2: float,
+                           td_dp: float, td_ie: float) -> tuple[float, float, float, float]:
+        """The non-linear generalised forces f of the state ``s`` (list of 8 floats), in N m."""
+        f0 = td_dp - self._grav * (math.sin(s[0]) - s[0])
+        f1 = td_ie
+        f2, f3 = tau1, tau2
+        tc1 = tc2 = 0.0
+        if self._needs_cable:
+            p0, p1, d0, d1 = self.cable_state(s)
+            dt0 = dt1 = 0.0
+            for fx in self._cable_fx:
+                c0, c1 = fx(p0, p1, d0, d1)
+                dt0 += c0
+                dt1 += c1
+            RiT, mc, b = self._RiT, self._motor_cable, self._beta
+            f0 += dt0
+            f1 += dt1
+            d2 = RiT[0] * dt0 + RiT[1] * dt1
+            d3 = RiT[2] * dt0 + RiT[3] * dt1
+            f2 -= d2
+            f3 -= d3
+            tc1 = mc[0] * s[0] + mc[1] * s[1] + mc[2] * s[2] + mc[3] * s[3] \
+                + b * (mc[0] * s[4] + mc[1] * s[5] + mc[2] * s[6] + mc[3] * s[7]) + d2
+            tc2 = mc[4] * s[0] + mc[5] * s[1] + mc[6] * s[2] + mc[7] * s[3] \
+                + b * (mc[4] * s[4] + mc[5] * s[5] + mc[6] * s[6] + mc[7] * s[7]) + d3
+        for fx in self._motor_fx:
+            r1, r2 = fx(s[2], s[3], s[6], s[7], tc1, tc2)
+            f2 -= r1
+            f3 -= r2
+        return f0, f1, f2, f3
+
+    def command_torque(self, tau1: float, tau2: float) -> tuple[float, float]:
+        """Apply the command effects (delay, ...) to a motor torque command; call once per tick."""
+        for fx in self._command_fx:
+            tau1, tau2 = fx(tau1, tau2)
+        return tau1, tau2
+
+    # -- integration -----------------------------------------------------------------------------
+    def step(self, tau1: float, tau2: float, td_dp: float = 0.0, td_ie: float = 0.0) -> None:
+        """Advance one control tick with motor torques (N m) and ankle disturbances (N m) held."""
+        tau1, tau2 = self.command_torque(tau1, tau2)
+        self.tau_applied[0] = tau1
+        self.tau_applied[1] = tau2
+        z, phi, x_next = self._z, self._phi, self._x_next
+        forces = self.generalized_forces
+        for _ in range(self.substeps):
+            f = forces(z[:N_X].tolist(), tau1, tau2, td_dp, td_ie)
+            z[8] = f[0]
+            z[9] = f[1]
+            z[10] = f[2]
+            z[11] = f[3]
+            np.dot(phi, z, out=x_next)
+            z[:N_X] = x_next
+
+    def derivative(self, x: np.ndarray, tau1: float, tau2: float, td_dp: float, td_ie: float) -> np.ndarray:
+        """dx/dt of the full model, for the RK4 reference (torques already through command effects)."""
+        f = np.array(self.generalized_forces(x.tolist(), tau1, tau2, td_dp, td_ie))
+        return self.linear.A @ x + self.linear.B @ f
+
+    # -- outputs ---------------------------------------------------------------------------------
+    def joint_torque(self) -> tuple[float, float]:
+        return self.joint_torque_of(self.x.tolist())
+
+    def energy(self) -> float:
+        """J: kinetic + cable + gravity energy (meaningful for the reciprocal transmission)."""
+        x = self.x
+        q, v = x[0:4], x[4:8]
+        lin = self.linear
+        cable = 0.5 * q @ lin.cable_Kq @ q
+        gravity = self._grav * (1.0 - math.cos(q[0]))
+        return float(0.5 * v @ lin.Mq @ v + cable + gravity)
+
+
+def rk4_step(model: CompliantModel, x: np.ndarray, h: float, tau1: float, tau2: float,
+             td_dp: float = 0.0, td_ie: float = 0.0) -> np.ndarray:
+    """One classical RK4 step of the full model (reference solution for tests)."""
+    f = model.derivative
+    k1 = f(x, tau1, tau2, td_dp, td_ie)
+    k2 = f(x + 0.5 * h * k1, tau1, tau2, td_dp, td_ie)
+    k3 = f(x + 0.5 * h * k2, tau1, tau2, td_dp, td_ie)
+    k4 = f(x + h * k3, tau1, tau2, td_dp, td_ie)
+    return x + (h / 6.0) * (k1 + 2 * k2 + 2 * k3 + k4)

@@ -1,0 +1,105 @@
+"""The simulated device: the compliant model behind ESCON current limits, with the device's sensors.
+
+Shared by the simulated backend and by the hardware emulators, so every path to "the device" runs
+the same plant. Stepped once per control tick with the amplifier set values held (zero-order hold).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ankle_rt.config import ConfigError
+from ankle_rt.params import PlantParams
+from sim_backend.amplifier import EsconCurrentLimit
+from sim_backend.effects import build_effects
+from sim_backend.model import CompliantModel
+
+NOISE_BLOCK = 4096  # strain-gauge noise samples drawn at a time (refilled in place, no allocation)
+
+
+class SimulatedPlant:
+    """Time ``t`` (s) counts from construction; disturbances in the config use that time."""
+
+    def __init__(self, cfg: dict, source: str = "config"):
+        self.params = p = PlantParams.from_config(cfg)
+        sim = cfg["sim"]
+        self.dt = 1.0 / cfg["controller"]["rate_hz"]
+        effects = build_effects(sim["effects"], p, self.dt, source)
+        self.model = CompliantModel(p, dt=self.dt, substeps=sim["substeps"], friction=sim["friction"],
+                                    cables=sim["cables"], effects=effects)
+        self.amps = [EsconCurrentLimit(p.amplifier, self.dt) for _ in range(2)]
+        self.kt = p.actuator.torque_constant
+        self.counts_per_rad = p.actuator.encoder_counts_per_rev / (2.0 * math.pi)
+        self.quantize = sim["quantization"]
+        self.noise_rms = p.strain_gauge_noise_rms if sim["sensor_noise"] else 0.0
+        self.sg_offset = list(sim["strain_gauge_offset"])
+        self.disturbances = sim["disturbances"]
+        for i, d in enumerate(self.disturbances):
+            if d["stop"] <= d["start"]:
+                raise ConfigError("stop must be after start", source, f"sim.disturbances.{i}.stop")
+        self.rng = np.random.default_rng(sim["seed"])
+        self._noise = np.empty((NOISE_BLOCK, 2))
+        self._noise_i = NOISE_BLOCK
+        self.extra_disturbance = [0.0, 0.0]  # N m at the ankle [DP, IE], set by tests and tools
+        self.current = [0.0, 0.0]            # A actually driven in the last tick
+        self.ticks = 0
+        self.model.set_rest_at((0.0, 0.0))
+
+    @property
+    def t(self) -> float:
+        return self.ticks * self.dt
+
+    def disturbance(self) -> tuple[float, float]:
+        """N m at the ankle [DP, IE] at the current time."""
+        dp, ie = self.extra_disturbance
+        t = self.t
+        for d in self.disturbances:
+            if d["start"] <= t < d["stop"]:
+                dp += d["torque_dp"]
+                ie += d["torque_ie"]
+        return dp, ie
+
+    def step(self, current_1: float, current_2: float) -> None:
+        """Advance one tick with the set values (A) held; the amplifiers clamp them."""
+        i1 = self.amps[0].apply(current_1)
+        i2 = self.amps[1].apply(current_2)
+        self.current[0] = i1
+        self.current[1] = i2
+        dp, ie = self.disturbance()
+        self.model.step(self.kt * i1, self.kt * i2, dp, ie)
+        self.ticks += 1
+
+    # -- sensors ---------------------------------------------------------------------------------
+    def encoder_counts(self) -> tuple[int, int]:
+        """Quadrature counts at the gearbox output (floor, as a counter does)."""
+        x = self.model.x
+        c = self.counts_per_rad
+        return math.floor(x[2] * c), math.floor(x[3] * c)
+
+    def motor_positions(self) -> tuple[float, float]:
+        """rad: what the encoders report (quantised if configured)."""
+        if self.quantize:
+            c1, c2 = self.encoder_counts()
+            return c1 / self.counts_per_rad, c2 / self.counts_per_rad
+        x = self.model.x
+        return float(x[2]), float(x[3])
+
+    def strain_gauge_torques(self) -> tuple[float, float]:
+        """N m [DP, IE]: joint torque plus the sensor's offset and noise."""
+        t0, t1 = self.model.joint_torque()
+        if self.noise_rms > 0.0:
+            if self._noise_i >= NOISE_BLOCK:
+                self.rng.standard_normal(out=self._noise)
+                self._noise_i = 0
+            n = self._noise[self._noise_i]
+            self._noise_i += 1
+            t0 += self.noise_rms * n[0]
+            t1 += self.noise_rms * n[1]
+        return t0 + self.sg_offset[0], t1 + self.sg_offset[1]
+
+    def ankle_positions(self) -> tuple[float, float]:
+        """rad [DP, IE]: the true joint angles (a bench's joint encoders)."""
+        x = self.model.x
+        return float(x[0]), float(x[1])

@@ -1,0 +1,96 @@
+"""Config loading: every kind of bad input stops with a message naming file, key and expectation."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import yaml
+
+from ankle_rt.config import ConfigError, load_config
+from tests.conftest import ROOT, SIM_CONFIG
+
+
+def write(tmp_path: Path, body: dict, name: str = "c.yaml") -> Path:
+    path = tmp_path / name
+    path.write_text(yaml.safe_dump({"include": [str(ROOT / "config" / "nominal-params.yaml")], **body}))
+    return path
+
+
+def test_shipped_config_loads_with_nominal_values():
+    cfg = load_config(SIM_CONFIG)
+    assert cfg["backend"] == "sim"
+    assert cfg["actuator"]["inertia"] == pytest.approx(0.048)
+    assert cfg["controller"]["rate_hz"] == 1000
+    assert cfg["transmission"]["form"] == "reciprocal"
+    assert cfg["sim"]["effects"] == []
+
+
+@pytest.mark.parametrize("body, key, expect", [
+    ({"backend": "sim", "actuator": {"inertai": 0.05}}, "actuator.inertai", "unknown key"),
+    ({"backend": "sim", "actuator": {"inertia": -0.05}}, "actuator.inertia", "must be >"),
+    ({"backend": "sim", "actuator": {"inertia": "heavy"}}, "actuator.inertia", "expected a number"),
+    ({"backend": "sim", "controller": {"rate_hz": 0}}, "controller.rate_hz", "must be >= 250"),
+    ({"backend": "sim", "transmission": {"form": "magic"}}, "transmission.form", "expected one of"),
+    ({"backend": "sim", "sim": {"strain_gauge_offset": [0.1]}}, "sim.strain_gauge_offset", "2 items"),
+    ({}, "backend", "missing key"),
+])
+def test_bad_values_name_file_key_and_expectation(tmp_path, body, key, expect):
+    path = write(tmp_path, body)
+    with pytest.raises(ConfigError) as err:
+        load_config(path)
+    msg = str(err.value)
+    assert key in msg and expect in msg
+    assert err.value.key == key
+
+
+def test_missing_physical_parameter_is_an_error_not_a_default(tmp_path):
+    data = yaml.safe_load((ROOT / "config" / "nominal-params.yaml").read_text())
+    del data["foot"]["inertia_ie"]
+    path = tmp_path / "p.yaml"
+    path.write_text(yaml.safe_dump({"backend": "sim", **data}))
+    with pytest.raises(ConfigError, match=r"foot\.inertia_ie: missing key"):
+        load_config(path)
+
+
+def test_error_names_the_file_the_key_came_from(tmp_path):
+    data = yaml.safe_load((ROOT / "config" / "nominal-params.yaml").read_text())
+    data["foot"]["mass"] = -1.0
+    (tmp_path / "params.yaml").write_text(yaml.safe_dump(data))
+    (tmp_path / "main.yaml").write_text(yaml.safe_dump({"include": ["params.yaml"], "backend": "sim"}))
+    with pytest.raises(ConfigError) as err:
+        load_config(tmp_path / "main.yaml")
+    assert err.value.source.endswith("params.yaml")
+
+
+def test_include_cycle_and_missing_include_are_errors(tmp_path):
+    (tmp_path / "a.yaml").write_text("include: [b.yaml]\n")
+    (tmp_path / "b.yaml").write_text("include: [a.yaml]\n")
+    with pytest.raises(ConfigError, match="include cycle"):
+        load_config(tmp_path / "a.yaml")
+    (tmp_path / "c.yaml").write_text("include: [nowhere.yaml]\n")
+    with pytest.raises(ConfigError, match="nowhere.yaml"):
+        load_config(tmp_path / "c.yaml")
+
+
+def test_invalid_yaml_and_unknown_backend(tmp_path):
+    (tmp_path / "bad.yaml").write_text("backend: [sim\n")
+    with pytest.raises(ConfigError, match="not valid YAML"):
+        load_config(tmp_path / "bad.yaml")
+    from ankle_rt.backend import open_backend
+    from ankle_rt.clock import SimClock
+    cfg = load_config(write(tmp_path, {"backend": "simulatr"}))
+    with pytest.raises(ConfigError, match="unknown backend 'simulatr'"):
+        open_backend(cfg, SimClock())
+
+
+def test_unknown_effect_and_bad_effect_parameter(tmp_path):
+    from sim_backend.plant import SimulatedPlant
+    cfg = load_config(write(tmp_path, {"backend": "sim", "sim": {"effects": [{"type": "warp_drive"}]}}))
+    with pytest.raises(ConfigError, match=r"sim\.effects\.0\.type.*unknown effect 'warp_drive'"):
+        SimulatedPlant(cfg)
+    cfg = load_config(write(tmp_path, {"backend": "sim",
+                                       "sim": {"effects": [{"type": "coulomb", "coulomb": -1.0,
+                                                            "smoothing_velocity": 0.01}]}}))
+    with pytest.raises(ConfigError, match=r"sim\.effects\.0\.coulomb: must be >= 0"):
+        SimulatedPlant(cfg)
