@@ -1,0 +1,279 @@
+"""The command protocol of the daemon: JSON lines over a Unix-domain socket.
+
+One request per line, one reply line per request, UTF-8, at most :data:`MAX_LINE_BYTES` bytes
+including the newline. A request is a JSON object whose ``"cmd"`` names the command; the other keys
+are its fields, in SI units (angles in rad, gains as the controller uses them)::
+
+    {"cmd": "status"}
+    {"cmd": "activate"}                                   {"cmd": "deactivate"}
+    {"cmd": "reset"}                                      {"cmd": "stop"}
+    {"cmd": "set_reference", "dp": 0.17, "ie": -0.05, "ramp": 1.0}
+    {"cmd": "set_gains", "kp": 90.0, "kd": 5.0}
+    {"cmd": "start_profile", "name": "sine", "params": {"amplitude_dp": 0.1, "freq_hz": 0.5}}
+
+Replies are ``{"ok": true, ...data}`` or ``{"ok": false, "error": MESSAGE, "field": FIELD}``.
+``field`` names what was wrong: a request key (``"dp"``, ``"params.freq_hz"``), ``"cmd"`` for the
+command itself (unknown, or refused in the current state) and ``"line"`` for the line as a whole
+(too long, not UTF-8, not JSON, not an object). Every check happens here, before the daemon sees the
+command, so a bad request can never reach the controller: parsing either returns a complete, valid
+command or raises :class:`CommandError`.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from typing import Any, Mapping, Union
+
+MAX_LINE_BYTES = 4096
+"""Longest accepted request line in bytes, newline included."""
+
+PROFILE_NAMES = ("hold", "step", "sine", "chirp", "gait", "csv")
+MAX_PROFILE_PARAMS = 16
+MAX_STRING_CHARS = 256
+
+
+class CommandError(ValueError):
+    """A request was rejected. ``field`` names the offending key (see the module docstring)."""
+
+    def __init__(self, field: str, message: str):
+        self.field = field
+        self.message = message
+        super().__init__(f"field '{field}': {message}")
+
+
+@dataclass(frozen=True)
+class CommandLimits:
+    """The ranges requests are checked against, taken from the daemon's configuration."""
+
+    reference_limit_rad: float = math.radians(40.0)
+    """|dp| and |ie| references must not exceed this (rad); the ankle's software range."""
+    max_ramp_s: float = 60.0
+    """Longest accepted reference ramp (s)."""
+
+    @classmethod
+    def from_config(cls, cfg: Mapping[str, Any]) -> "CommandLimits":
+        return cls(reference_limit_rad=math.radians(cfg["limits"]["ankle_range_deg"]))
+
+
+@dataclass(frozen=True)
+class Status:
+    """Report the daemon's state, estimates, references and loop statistics."""
+
+
+@dataclass(frozen=True)
+class Activate:
+    """configured/safe -> active: enable the amplifiers (gains ramp in: soft start)."""
+
+
+@dataclass(frozen=True)
+class Deactivate:
+    """active -> safe: zero the set values and disable the amplifiers."""
+
+
+@dataclass(frozen=True)
+class ResetFault:
+    """fault -> safe: acknowledge a fault; the only way out of the fault state."""
+
+
+@dataclass(frozen=True)
+class Stop:
+    """Shut the daemon down cleanly, as SIGTERM does: safe state first, log flushed, exit 0."""
+
+
+@dataclass(frozen=True)
+class SetReference:
+    """Hold the ankle at (dp, ie) rad, reached by a linear ramp of ``ramp`` s (None: the daemon's default)."""
+
+    dp: float
+    ie: float
+    ramp: float | None = None
+
+
+GAIN_FIELDS: dict[str, str] = {
+    "kp": "N m/rad, motor-side PD position gain",
+    "kd": "N m s/rad, motor-side PD velocity gain",
+    "stiffness_dp": "N m/rad, ankle impedance stiffness in DP",
+    "stiffness_ie": "N m/rad, ankle impedance stiffness in IE",
+    "damping_dp": "N m s/rad, ankle impedance damping in DP",
+    "damping_ie": "N m s/rad, ankle impedance damping in IE",
+}
+
+
+@dataclass(frozen=True)
+class SetGains:
+    """Change controller gains at run time (bumpless). Only the given fields change (None = keep)."""
+
+    kp: float | None = None
+    kd: float | None = None
+    stiffness_dp: float | None = None
+    stiffness_ie: float | None = None
+    damping_dp: float | None = None
+    damping_ie: float | None = None
+
+    def given(self) -> dict[str, float]:
+        """The fields the request set, name -> value."""
+        return {name: getattr(self, name) for name in GAIN_FIELDS if getattr(self, name) is not None}
+
+
+@dataclass(frozen=True)
+class StartProfile:
+    """Start a reference profile by name. ``params`` are the profile's own keys (numbers in SI
+    units, or strings such as a CSV path); the daemon checks their names and ranges and names
+    a bad one as ``params.<key>``."""
+
+    name: str
+    params: Mapping[str, float | str] = field(default_factory=dict)
+
+
+Command = Union[Status, Activate, Deactivate, ResetFault, Stop, SetReference, SetGains, StartProfile]
+
+_NO_FIELDS = {"status": Status, "activate": Activate, "deactivate": Deactivate, "reset": ResetFault, "stop": Stop}
+COMMAND_NAMES = (*_NO_FIELDS, "set_reference", "set_gains", "start_profile")
+
+
+def _number(obj: Mapping[str, Any], key: str, where: str | None = None) -> float:
+    """A finite JSON number (not a boolean) as float."""
+    where = where or key
+    value = obj[key]
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise CommandError(where, f"expected a number, got {_short(value)}")
+    try:
+        number = float(value)
+    except OverflowError:
+        raise CommandError(where, "number out of range") from None
+    if not math.isfinite(number):
+        raise CommandError(where, "expected a finite number")
+    return number
+
+
+def _short(value: Any) -> str:
+    text = json.dumps(value)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def _check_keys(obj: Mapping[str, Any], allowed: tuple[str, ...], required: tuple[str, ...] = ()) -> None:
+    for key in obj:
+        if key != "cmd" and key not in allowed:
+            expected = f"expected one of: {', '.join(allowed)}" if allowed else "this command takes no fields"
+            raise CommandError(str(key), f"unknown field ({expected})")
+    for key in required:
+        if key not in obj:
+            raise CommandError(key, "missing")
+
+
+def _angle(obj: Mapping[str, Any], key: str, limits: CommandLimits) -> float:
+    value = _number(obj, key)
+    if abs(value) > limits.reference_limit_rad:
+        raise CommandError(key, f"{value:.4g} rad is outside the ankle range "
+                                f"+/-{limits.reference_limit_rad:.4g} rad ({math.degrees(limits.reference_limit_rad):.3g} deg)")
+    return value
+
+
+def _set_reference(obj: Mapping[str, Any], limits: CommandLimits) -> SetReference:
+    _check_keys(obj, ("dp", "ie", "ramp"), required=("dp", "ie"))
+    ramp = None
+    if "ramp" in obj:
+        ramp = _number(obj, "ramp")
+        if not 0.0 <= ramp <= limits.max_ramp_s:
+            raise CommandError("ramp", f"must be between 0 and {limits.max_ramp_s:g} s, got {ramp:g}")
+    return SetReference(_angle(obj, "dp", limits), _angle(obj, "ie", limits), ramp)
+
+
+def _set_gains(obj: Mapping[str, Any]) -> SetGains:
+    names = tuple(GAIN_FIELDS)
+    _check_keys(obj, names)
+    values = {}
+    for name in names:
+        if name in obj:
+            value = _number(obj, name)
+            if value < 0.0:
+                raise CommandError(name, f"must be >= 0 ({GAIN_FIELDS[name]}), got {value:g}")
+            values[name] = value
+    if not values:
+        raise CommandError("cmd", f"set_gains needs at least one of: {', '.join(names)}")
+    return SetGains(**values)
+
+
+def _start_profile(obj: Mapping[str, Any]) -> StartProfile:
+    _check_keys(obj, ("name", "params"), required=("name",))
+    name = obj["name"]
+    if name not in PROFILE_NAMES:
+        raise CommandError("name", f"unknown profile {_short(name)} (expected one of: {', '.join(PROFILE_NAMES)})")
+    raw = obj.get("params", {})
+    if not isinstance(raw, dict):
+        raise CommandError("params", f"expected an object, got {_short(raw)}")
+    if len(raw) > MAX_PROFILE_PARAMS:
+        raise CommandError("params", f"at most {MAX_PROFILE_PARAMS} parameters")
+    params: dict[str, float | str] = {}
+    for key, value in raw.items():
+        where = f"params.{key}"
+        if isinstance(value, str):
+            if len(value) > MAX_STRING_CHARS:
+                raise CommandError(where, f"string longer than {MAX_STRING_CHARS} characters")
+            params[key] = value
+        else:
+            params[key] = _number(raw, key, where)
+    return StartProfile(name, params)
+
+
+def parse_command(line: bytes, limits: CommandLimits | None = None) -> Command:
+    """Parse and check one request line (with or without its newline).
+
+    Raises :class:`CommandError` naming the field for anything malformed or out of range; never
+    raises anything else, whatever the bytes.
+    """
+    limits = limits or CommandLimits()
+    if len(line) > MAX_LINE_BYTES:
+        raise CommandError("line", f"longer than {MAX_LINE_BYTES} bytes")
+    try:
+        text = line.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise CommandError("line", f"not valid UTF-8 (byte {exc.start})") from None
+    try:
+        obj = json.loads(text)  # NaN/Infinity parse, then fail the finiteness check naming their field
+    except RecursionError:
+        raise CommandError("line", "not valid JSON (nested too deeply)") from None
+    except ValueError as exc:
+        raise CommandError("line", f"not valid JSON ({exc})") from None
+    if not isinstance(obj, dict):
+        raise CommandError("line", f"expected a JSON object like {{\"cmd\": \"status\"}}, got {_short(obj)}")
+    if "cmd" not in obj:
+        raise CommandError("cmd", "missing (the command name)")
+    name = obj["cmd"]
+    if not isinstance(name, str):
+        raise CommandError("cmd", f"expected a string, got {_short(name)}")
+    if name in _NO_FIELDS:
+        _check_keys(obj, ())
+        return _NO_FIELDS[name]()
+    if name == "set_reference":
+        return _set_reference(obj, limits)
+    if name == "set_gains":
+        return _set_gains(obj)
+    if name == "start_profile":
+        return _start_profile(obj)
+    raise CommandError("cmd", f"unknown command {_short(name)} (expected one of: {', '.join(COMMAND_NAMES)})")
+
+
+def _jsonable(value: Any) -> Any:
+    """Plain JSON types; non-finite floats become null (NaN is not JSON), numpy values plain numbers."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if hasattr(value, "tolist"):  # numpy scalars and arrays
+        return _jsonable(value.tolist())
+    return value
+
+
+def format_reply(ok: bool, **data: Any) -> bytes:
+    """One reply line: ``{"ok": ok, ...data}`` + newline. NaN/inf become null."""
+    return json.dumps({"ok": ok, **_jsonable(data)}, allow_nan=False, separators=(",", ":")).encode() + b"\n"
+
+
+def error_reply(exc: CommandError) -> bytes:
+    """The reply line for a rejected request."""
+    return format_reply(False, error=exc.message, field=exc.field)
