@@ -84,6 +84,23 @@ SIM = Section({
                                   default=[0.0, 0.0], length=2),
 }, optional=True)
 
+CANOPEN = Section({
+    "interface": Field(str, "python-can interface: socketcan on the device, virtual in tests", default="socketcan"),
+    "channel": Field(str, "python-can channel, e.g. can0", default="can0"),
+    "bitrate": Field(int, "bit/s of the CAN bus (physical limit 1 Mbit/s)", default=1_000_000, low=10_000, high=1_000_000),
+    "io_node_id": Field(int, "node id of the CiA 401 I/O node (set values, enables, ready, strain gauges, counters)",
+                        default=1, low=1, high=127),
+    "eds": Field(str, "object dictionary of the I/O node; empty: the shipped hardware/ankle_io.eds", default=""),
+    "heartbeat_producer_ms": Field(int, "heartbeat period the I/O node is configured with (0x1017); "
+                                   "the SYNC period is always the control period (0x1006)", default=10,
+                                   low=1, high=1000),
+    "heartbeat_consumer_ms": Field(int, "no heartbeat for this long: LINK_LOST (> producer time)", default=25,
+                                   low=2, high=5000),
+    "tpdo_wait_us": Field(int, "after the SYNC, poll up to this long for the cycle's TPDOs (real clock only)",
+                          default=400, low=0, high=5000),
+    "sdo_timeout_s": positive("SDO response timeout during configuration", default=0.5),
+}, optional=True, doc="CANopen transport (backend: canopen)")
+
 SCHEMA = Section({
     "backend": Field(str, "backend name: sim, serial or canopen"),
     "actuator": ACTUATOR,
@@ -94,4 +111,5 @@ SCHEMA = Section({
     "limits": LIMITS,
     "sensors": SENSORS,
     "sim": SIM,
+    "canopen": CANOPEN,
 }, open=False)
