@@ -101,6 +101,29 @@ CANOPEN = Section({
     "sdo_timeout_s": positive("SDO response timeout during configuration", default=0.5),
 }, optional=True, doc="CANopen transport (backend: canopen)")
 
+
+def _octal_mode(value: str | int) -> None:
+    """Socket permissions: an octal string ('0660') or the int YAML makes of unquoted 0660."""
+    bits = int(value, 8) if isinstance(value, str) and value and set(value) <= set("01234567") else value
+    if not isinstance(bits, int) or not 0 <= bits <= 0o777:
+        raise ValueError(f"expected octal permission bits such as '0660', got {value!r}")
+
+
+SERVICE = Section({
+    "enabled": Field(bool, "open the command socket (ankle-rt ctl)", default=True),
+    "socket_path": Field(str, "Unix socket of the command interface; 'auto': /run/ankle-rt/control.sock when "
+                              "/run/ankle-rt exists, else $XDG_RUNTIME_DIR/ankle-rt.sock, else /tmp/ankle-rt-UID.sock",
+                         default="auto"),
+    "socket_mode": Field((str, int), "permissions of the socket file, octal: '0660' lets the service group command",
+                         default="0660", check=_octal_mode),
+    "poll_period": Field(float, "s between command-socket polls from the loop", default=0.01, low=0.001, high=0.1),
+    "command_timeout": non_negative("s; while active, fault when no valid request arrives for this long "
+                                    "(a lost command channel); 0 = off", default=0.0),
+    "watchdog": Field(bool, "feed systemd's watchdog (WATCHDOG=1) from the loop's health when WatchdogSec is set",
+                      default=True),
+}, optional=True)
+
+
 SCHEMA = Section({
     "backend": Field(str, "backend name: sim, serial or canopen"),
     "actuator": ACTUATOR,
@@ -112,4 +135,5 @@ SCHEMA = Section({
     "sensors": SENSORS,
     "sim": SIM,
     "canopen": CANOPEN,
+    "service": SERVICE,
 }, open=False)

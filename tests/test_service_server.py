@@ -6,13 +6,16 @@ import json
 import os
 import socket
 import stat
+from pathlib import Path
 
 import pytest
 
+from ankle_rt.config import load_config
 from ankle_rt.service import sdnotify
 from ankle_rt.service.protocol import MAX_LINE_BYTES, CommandError, SetReference, Status
 from ankle_rt.service.server import CommandServer, ServiceError
 
+SIM_CONFIG = Path(__file__).resolve().parent.parent / "config" / "sim.yaml"
 GUARD_POLLS = 2000  # generous bound on polls while waiting for a reply; no wall-clock timing
 
 
@@ -246,3 +249,74 @@ def test_notify_failure_returns_false(tmp_path):
 ])
 def test_watchdog_interval(env, expected):
     assert sdnotify.watchdog_interval(env) == expected
+
+
+# -- the loop's link: polling cadence, watchdog from health, lost command channel ----------------------
+
+def link_cfg(tmp_path, **service):
+    """config/sim.yaml with the socket in the test's tmp dir."""
+    return load_config(SIM_CONFIG, {"service": {"socket_path": str(tmp_path / "ctl.sock"), **service}})
+
+
+def test_link_polls_at_its_period_and_pings_only_while_healthy(tmp_path, notify_socket):
+    from ankle_rt.service.link import ServiceLink
+    cfg = link_cfg(tmp_path, poll_period=0.01)
+    env = {"NOTIFY_SOCKET": notify_socket.getsockname(), "WATCHDOG_USEC": "1000000"}
+    link = ServiceLink(cfg, Recorder(), environ=env)
+    assert link.ping_period == 0.5
+    sock = connect(link.server)
+    sock.sendall(b'{"cmd":"status"}\n')
+    link.tick(0.0, healthy=True)        # polls (accepts) and pings
+    assert notify_socket.recv(100) == b"WATCHDOG=1"
+    link.tick(0.005, healthy=True)      # before the next poll period: the request waits
+    assert link.server.commands_handled == 0
+    link.tick(0.010, healthy=False)     # polls, answers; unhealthy: no ping
+    assert link.server.commands_handled == 1 and json.loads(sock.recv(1000))["ok"] is True
+    link.tick(0.6, healthy=False)
+    link.tick(0.7, healthy=True)        # healthy again: pings
+    notify_socket.settimeout(0.0)
+    assert notify_socket.recv(100) == b"WATCHDOG=1"
+    with pytest.raises(BlockingIOError):
+        notify_socket.recv(100)         # exactly one ping since the first: none while unhealthy
+    link.ready("active")
+    link.close()
+    assert notify_socket.recv(100) == b"READY=1\nSTATUS=active"
+    assert not (tmp_path / "ctl.sock").exists()
+
+
+def test_link_without_watchdog_or_socket(tmp_path):
+    from ankle_rt.service.link import ServiceLink
+    link = ServiceLink(link_cfg(tmp_path, enabled=False, watchdog=False), Recorder(), environ={"WATCHDOG_USEC": "1000000"})
+    assert link.server is None and link.ping_period is None and not (tmp_path / "ctl.sock").exists()
+    link.tick(0.0, healthy=True)
+    link.close()
+
+
+def test_link_detects_a_lost_command_channel(tmp_path):
+    from ankle_rt.service.link import ServiceLink
+    link = ServiceLink(link_cfg(tmp_path, command_timeout=0.5), Recorder(), environ={})
+    link.mark_command_channel(1.0)
+    assert not link.command_channel_lost(1.4)
+    sock = connect(link.server)
+    sock.sendall(b'{"cmd":"status"}\n')
+    for i in range(20):
+        link.tick(1.4 + i * 0.01, healthy=True)
+    assert link.server.commands_handled == 1
+    assert not link.command_channel_lost(1.8) and link.command_channel_lost(2.0)
+    link.close()
+
+
+def test_socket_path_and_mode_from_config(tmp_path, monkeypatch):
+    from ankle_rt.service import link
+    cfg = link_cfg(tmp_path, socket_mode=0o600)
+    assert link.socket_path(cfg) == tmp_path / "ctl.sock" and link.socket_mode(cfg) == 0o600
+    cfg["service"]["socket_mode"] = "0640"
+    assert link.socket_mode(cfg) == 0o640
+    cfg["service"]["socket_path"] = "auto"
+    monkeypatch.setattr(link, "SERVICE_RUNTIME_DIR", tmp_path / "absent")
+    monkeypatch.setenv("XDG_RUNTIME_DIR", str(tmp_path))
+    assert link.socket_path(cfg) == tmp_path / "ankle-rt.sock"
+    monkeypatch.delenv("XDG_RUNTIME_DIR")
+    assert link.socket_path(cfg) == Path(f"/tmp/ankle-rt-{os.getuid()}.sock")
+    monkeypatch.setattr(link, "SERVICE_RUNTIME_DIR", tmp_path)
+    assert link.socket_path(cfg) == tmp_path / "control.sock"
