@@ -136,6 +136,7 @@ class CompliantModel:
         self.tau_applied[1] = tau2
         z, phi, x_next = self._z, self._phi, self._x_next
         forces = self.generalized_forces
+        corrector = bool(self._cable_fx)
         for _ in range(self.substeps):
             f = forces(z[:N_X].tolist(), tau1, tau2, td_dp, td_ie)
             z[8] = f[0]
@@ -143,6 +144,16 @@ class CompliantModel:
             z[10] = f[2]
             z[11] = f[3]
             np.dot(phi, z, out=x_next)
+            if corrector:
+                # Cable effects (slack, hardening) act on the stiff cable modes: holding their force
+                # over the substep is first order and can go unstable, so hold the mean of the forces
+                # at both ends instead (Heun predictor-corrector; see tests/test_effects.py).
+                g = forces(x_next.tolist(), tau1, tau2, td_dp, td_ie)
+                z[8] = 0.5 * (f[0] + g[0])
+                z[9] = 0.5 * (f[1] + g[1])
+                z[10] = 0.5 * (f[2] + g[2])
+                z[11] = 0.5 * (f[3] + g[3])
+                np.dot(phi, z, out=x_next)
             z[:N_X] = x_next
 
     def derivative(self, x: np.ndarray, tau1: float, tau2: float, td_dp: float, td_ie: float) -> np.ndarray:

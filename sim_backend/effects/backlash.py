@@ -1,0 +1,34 @@
+"""Transmission backlash / cable slack: a dead zone in the cable stretch."""
+
+from __future__ import annotations
+
+from ankle_rt.config import Section, non_negative
+from sim_backend.effects.base import Effect, register_effect
+
+
+@register_effect("backlash")
+class Backlash(Effect):
+    """Slack of ``half_width`` metres of cable each way: the cables carry no stiffness force until the
+    stretch of an ankle axis exceeds half_width / R_axis (rad), i.e. the spring term becomes
+    K dz(phi) with dz the dead-zone function. The correction to the linear joint torque is
+    ``-K clip(phi, -b, b)`` per axis (the damping term beta K phi' is kept)."""
+
+    PARAMS = Section({
+        "half_width": non_negative("m of cable length, dead zone +/- half_width"),
+    })
+    cause = "backlash"
+
+    def __init__(self, params, plant, dt):
+        super().__init__(params, plant, dt)
+        tr = plant.transmission
+        k = tr.cable_stiffness
+        self.k_dp = 2.0 * k * tr.lever_dp ** 2
+        self.k_ie = k * tr.lever_ie ** 2
+        self.b_dp = params["half_width"] / tr.lever_dp
+        self.b_ie = params["half_width"] / tr.lever_ie
+
+    def cable_torque(self, phi_dp, phi_ie, dphi_dp, dphi_ie):
+        b0, b1 = self.b_dp, self.b_ie
+        c0 = b0 if phi_dp > b0 else (-b0 if phi_dp < -b0 else phi_dp)
+        c1 = b1 if phi_ie > b1 else (-b1 if phi_ie < -b1 else phi_ie)
+        return -self.k_dp * c0, -self.k_ie * c1

@@ -1,0 +1,130 @@
+"""The effects of the model-discrepancy vocabulary: registered, validated, physically right, and
+integrated accurately by the compliant model (against a fine-step RK4 reference)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from ankle_rt.config import ConfigError
+from ankle_rt.params import PlantParams
+from sim_backend.effects import EFFECTS, build_effects
+from sim_backend.model import CompliantModel, rk4_step
+from sim_backend.plant import SimulatedPlant
+
+VOCABULARY = {"stribeck", "asymmetric_friction", "load_dependent_friction", "backlash", "cogging",
+              "delay", "stiffness_nonlinear"}
+DT = 1e-3
+
+
+@pytest.fixture
+def params(sim_cfg) -> PlantParams:
+    return PlantParams.from_config(sim_cfg)
+
+
+def test_every_vocabulary_word_has_an_effect_of_that_cause():
+    causes = {cls.cause for cls in EFFECTS.values()}
+    assert VOCABULARY <= causes
+    for word in VOCABULARY:
+        assert EFFECTS[word].cause == word
+
+
+def test_bad_effect_parameter_names_its_key(params):
+    with pytest.raises(ConfigError, match=r"sim\.effects\.0\.stribeck_velocity"):
+        build_effects([{"type": "stribeck", "static_excess": 0.1, "stribeck_velocity": -1.0}], params, DT)
+    with pytest.raises(ConfigError, match=r"sim\.effects\.1\.amplitude"):
+        build_effects([{"type": "delay", "delay": 0.002}, {"type": "cogging", "periods_per_rev": 5}], params, DT)
+
+
+def test_delay_line_shifts_the_command_by_whole_and_fractional_ticks(params):
+    whole, = build_effects([{"type": "delay", "delay": 3 * DT}], params, DT)
+    frac, = build_effects([{"type": "delay", "delay": 2.25 * DT}], params, DT)
+    cmds = [float(k * k) for k in range(12)]
+    out_w = [whole.command(c, -c)[0] for c in cmds]
+    out_f = [frac.command(c, -c)[1] for c in cmds]
+    assert out_w[3:] == cmds[:-3] and out_w[:3] == [0.0, 0.0, 0.0]
+    expected = [-(0.75 * cmds[k - 2] + 0.25 * cmds[k - 3]) for k in range(3, 12)]
+    assert np.allclose(out_f[3:], expected)
+    whole.reset()
+    assert whole.command(1.0, 1.0) == (0.0, 0.0)
+
+
+def _free_motor(params, effects, torque, ticks=1500):
+    """Motor 1 off the cables under a constant torque (N m); returns its final rate (rad/s)."""
+    model = CompliantModel(params, dt=DT, cables=False, effects=build_effects(effects, params, DT))
+    model.reset()
+    for _ in range(ticks):
+        model.step(torque, 0.0)
+    return float(model.x[6])
+
+
+def test_stribeck_raises_the_breakaway_torque(params):
+    torque = params.actuator.coulomb + 0.1
+    moving = _free_motor(params, [], torque)
+    stuck = _free_motor(params, [{"type": "stribeck", "static_excess": 0.2, "stribeck_velocity": 0.05}], torque)
+    assert moving > 0.5            # above kc it slides (towards (tau - kc) / D)
+    assert abs(stuck) < 0.02       # below kc + excess it barely creeps (tanh-smoothed stiction)
+
+
+def test_asymmetric_friction_makes_the_two_directions_differ(params):
+    eff = [{"type": "asymmetric_friction", "coulomb_asymmetry": 0.1, "viscous_asymmetry": 0.02}]
+    fwd = _free_motor(params, eff, 1.0, ticks=3000)
+    back = _free_motor(params, eff, -1.0, ticks=3000)
+    D, kc = params.actuator.damping, params.actuator.coulomb
+    assert fwd == pytest.approx((1.0 - kc - 0.1) / (D + 0.02), rel=0.02)
+    assert back == pytest.approx(-(1.0 - kc + 0.1) / (D - 0.02), rel=0.02)
+
+
+def test_cogging_holds_the_motor_at_a_ripple_minimum(params):
+    eff = [{"type": "cogging", "amplitude": 0.5, "periods_per_rev": 40, "phase": 0.3}]
+    model = CompliantModel(params, dt=DT, cables=False, friction=False, effects=build_effects(eff, params, DT))
+    model.reset(np.array([0, 0, 0.05, 0, 0, 0, 0, 0], dtype=float))
+    for _ in range(4000):
+        model.step(0.0, 0.0)
+    # resisting torque a sin(n th + p) = 0 with positive slope: n th + p = 0 (mod 2 pi)
+    assert math.remainder(40 * model.x[2] + 0.3, 2 * math.pi) == pytest.approx(0.0, abs=0.05)
+
+
+def _compare_with_rk4(params, effects, ticks=1000, load=8.0):
+    """RMS joint-torque error (N m) of the compliant model against RK4 at dt/40, and the RMS torque."""
+    model = CompliantModel(params, dt=DT, effects=build_effects(effects, params, DT))
+    ref = CompliantModel(params, dt=DT, effects=build_effects(effects, params, DT))
+    model.set_rest_at((0.0, 0.0))
+    x = model.x.copy()
+    err, size = [], []
+    for k in range(ticks):
+        t = k * DT
+        tau1 = 3 * math.sin(2 * math.pi * 3 * t) + math.sin(2 * math.pi * 17 * t)
+        tau2 = 2 * math.sin(2 * math.pi * 5 * t + 1)
+        td = load * math.sin(2 * math.pi * 2 * t), 0.5 * load * math.sin(2 * math.pi * 1.3 * t)
+        model.step(tau1, tau2, *td)
+        a1, a2 = ref.command_torque(tau1, tau2)
+        for _ in range(40):
+            x = rk4_step(ref, x, DT / 40, a1, a2, *td)
+        truth = np.array(ref.joint_torque_of(x.tolist()))
+        err.append(truth - np.array(model.joint_torque()))
+        size.append(truth)
+    return np.sqrt(np.mean(np.square(err))), np.sqrt(np.mean(np.square(size)))
+
+
+@pytest.mark.parametrize("effect", [
+    {"type": "backlash", "half_width": 2e-4},
+    {"type": "stiffness_nonlinear", "hardening_stretch": 3e-4},
+    {"type": "load_dependent_friction", "coefficient": 0.3},
+])
+def test_compliant_model_stays_accurate_with_transmission_effects(params, effect):
+    err, size = _compare_with_rk4(params, [effect])
+    assert err < 0.005 * size
+
+
+def test_effects_switch_on_from_the_config(sim_cfg):
+    sim_cfg["sim"]["effects"] = [{"type": "delay", "delay": 0.004}]
+    plant = SimulatedPlant(sim_cfg)
+    assert [type(e).__name__ for e in plant.model.effects] == ["CoulombFriction", "ActuationDelay"]
+    plant.step(1.0, 1.0)
+    assert plant.model.tau_applied == [0.0, 0.0]
+    sim_cfg["sim"]["effects"] = [{"type": "no_such_effect"}]
+    with pytest.raises(ConfigError, match=r"sim\.effects\.0\.type"):
+        SimulatedPlant(sim_cfg)
