@@ -8,6 +8,7 @@ validated by their owners when they are configured.
 from __future__ import annotations
 
 from ankle_rt.config import Field, ListOf, Section, non_negative, positive
+from ankle_rt.references import PROFILE_PARAMS
 
 GAINS = Section({
     "kp": non_negative("N m/rad, motor-side position gain"),
@@ -46,11 +47,86 @@ AMPLIFIER = Section({
     "current_limit_peak": positive("A, ESCON 50/5 peak limit (< 20 s)"),
 })
 
+FRICTION_FF = Section({
+    "enabled": Field(bool, "add Coulomb + viscous friction feed-forward to the motor torques", default=False),
+    "coulomb": Field(float, "N m; default: actuator.coulomb (the identified value)", default=None, low=0.0),
+    "viscous": Field(float, "N m s/rad; default: actuator.damping (the identified value)", default=None, low=0.0),
+    "velocity_band": positive("rad/s; the Coulomb term fades linearly to zero inside +/- this band (no chatter)",
+                              default=0.05),
+}, optional=True)
+
+IMPEDANCE = Section({
+    "stiffness_dp": non_negative("N m/rad at the ankle", default=20.0),
+    "stiffness_ie": non_negative("N m/rad at the ankle", default=10.0),
+    "damping_dp": non_negative("N m s/rad at the ankle", default=0.5),
+    "damping_ie": non_negative("N m s/rad at the ankle", default=0.25),
+}, optional=True)
+
 CONTROLLER = Section({
     "rate_hz": Field(int, "control loop rate", low=250, high=2000),
     "validation_gains": GAINS,
     "step_gains": GAINS,
-}, open=True)
+    "type": Field(str, "pd: motor-side PD (paper eq. 11); impedance: ankle stiffness/damping", default="pd",
+                  choices=("pd", "impedance")),
+    "pd_gains": Field(str, "which gain set the PD uses", default="step", choices=("step", "validation")),
+    "impedance": IMPEDANCE,
+    "friction_ff": FRICTION_FF,
+    "gain_ramp_s": non_negative("s; run-time gain changes ramp linearly over this time (bumpless)", default=0.2),
+    "soft_start_s": non_negative("s; the controller output ramps in over this time after activation", default=0.2),
+})
+
+ESTIMATION = Section({
+    "velocity_cutoff_hz": Field(float, "Hz, first-order low-pass on the backward-difference motor velocity",
+                                default=100.0, low=1.0, high=1000.0),
+    "tare_samples": Field(int, "strain-gauge samples averaged for the tare before activation", default=100,
+                          low=1, high=100_000),
+}, optional=True)
+
+REFERENCE = Section({
+    "profile": Field(str, "the ankle reference run from start-up", default="step",
+                     choices=tuple(PROFILE_PARAMS)),
+    **PROFILE_PARAMS,
+    "ramp_s": non_negative("s; default ramp of a set_reference command", default=1.0),
+}, optional=True)
+
+REALTIME = Section({
+    "priority": Field(int, "SCHED_FIFO priority of the loop thread; 0 = normal scheduling", default=0,
+                      low=0, high=99),
+    "cpus": ListOf(Field(int), "CPU affinity of the daemon (empty: any CPU)", default=[]),
+    "lock_memory": Field(bool, "mlockall(MCL_CURRENT | MCL_FUTURE) so the loop never page-faults", default=False),
+    "timer_slack_ns": Field(int, "prctl(PR_SET_TIMERSLACK) for the loop thread; 0 = leave the default",
+                            default=1, low=0),
+    "spin_us": Field(int, "sleep until this long before a deadline, then spin (real clock)", default=200,
+                     low=0, high=2000),
+}, optional=True)
+
+LOOP = Section({
+    "duration_s": non_negative("s the run lasts; 0 = until stopped (SIGINT/SIGTERM/stop)", default=0.0),
+    "max_consecutive_overruns": Field(int, "fault (MISSED_DEADLINES) after this many overruns in a row",
+                                      default=5, low=1),
+    "realtime": REALTIME,
+}, optional=True)
+
+SAFETY = Section({
+    "auto_activate": Field(bool, "activate by itself once the strain gauges are tared (else wait for a command)",
+                           default=True),
+    "max_motor_speed_rad_s": positive("rad/s at the gearbox output; a larger encoder jump is a fault",
+                                      default=30.0),
+    "max_sg_step_nm": positive("N m; a larger strain-gauge change between two samples is a fault", default=20.0),
+    "sg_rail_nm": positive("N m; a strain-gauge torque this large is a sensor at its rail", default=60.0),
+    "stale_cycles": Field(int, "fault when the sample sequence does not advance for this many cycles",
+                          default=5, low=1),
+    "i2t_peak_duration_s": positive("s the peak current may flow (ESCON 50/5: 20 s); sets the I^2 t budget",
+                                    default=20.0),
+}, optional=True)
+
+LOGGING = Section({
+    "enabled": Field(bool, "write a run log", default=True),
+    "directory": Field(str, "where timestamped logs go (relative: to the working directory)", default="logs"),
+    "ring_records": Field(int, "records the in-memory ring holds (at 1 kHz, 16384 = 16 s of disk stall)",
+                          default=16384, low=256),
+    "flush_interval_s": Field(float, "s between writes of the ring to disk", default=0.05, low=0.005, high=1.0),
+}, optional=True)
 
 LIMITS = Section({
     "ankle_range_deg": Field(float, "+/- software limit in DP and IE", low=0.0, low_open=True, high=90.0),
@@ -116,12 +192,79 @@ SERVICE = Section({
                          default="auto"),
     "socket_mode": Field((str, int), "permissions of the socket file, octal: '0660' lets the service group command",
                          default="0660", check=_octal_mode),
-    "poll_period": Field(float, "s between command-socket polls from the loop", default=0.01, low=0.001, high=0.1),
-    "command_timeout": non_negative("s; while active, fault when no valid request arrives for this long "
+    "poll_period_s": Field(float, "s between command-socket polls from the loop", default=0.01, low=0.001, high=0.1),
+    "command_timeout_s": non_negative("s; while active, fault when no valid request arrives for this long "
                                     "(a lost command channel); 0 = off", default=0.0),
     "watchdog": Field(bool, "feed systemd's watchdog (WATCHDOG=1) from the loop's health when WatchdogSec is set",
                       default=True),
 }, optional=True)
+
+
+# -- hardware backends (serial, canopen): ESCON map, encoders, strain gauges --------------------------
+# Calibration values have no default (None when absent): a simulation config need not state them, and a
+# hardware backend refuses to start without them, naming the key (hardware/config_values.py).
+
+def _number_row(value: list) -> None:
+    if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
+        raise ValueError(f"expected a list of numbers, got {value!r}")
+
+
+ESCON_AMPLIFIER = Section({
+    "mode": Field(str, "set-value input as set in ESCON Studio: analog (+/-10 V) or pwm (10-90 % duty)",
+                  choices=("analog", "pwm")),
+    "current_at_min": Field(float, "A the amplifier drives at -10 V / 10 % duty (ESCON Studio)"),
+    "current_at_max": Field(float, "A the amplifier drives at +10 V / 90 % duty (ESCON Studio)"),
+    "sign": Field(int, "+1/-1: motor turns the model's positive way for positive amplifier current (wiring)",
+                  choices=(-1, 1)),
+    "offset": Field(float, "A driven at the nominal zero set value (measured), compensated"),
+    "enable_active_high": Field(bool, "ESCON Studio digital input: Enable, high active", default=True),
+    "ready_active_high": Field(bool, "ESCON Studio digital output: Ready, high active", default=True),
+})
+
+ESCON = Section({
+    "amplifiers": ListOf(ESCON_AMPLIFIER, "motor 1, motor 2 (required on hardware; docs/escon-setup.md)",
+                         default=None, length=2),
+    "dac_bits": Field(int, "resolution of the bridge's bipolar +/-10 V set-value DAC", default=12, low=8, high=16),
+    "pwm_counts": Field(int, "PWM timer counts per 100 % duty (pwm mode)", default=10000, low=100, high=65535),
+}, optional=True)
+
+ENCODERS = Section({
+    "sign": ListOf(Field(int, "+1/-1", choices=(-1, 1)), "per motor encoder (required on hardware)",
+                   default=None, length=2),
+    "counter_bits": Field(int, "width of the bridge's quadrature counters (required on hardware)",
+                          default=None, choices=(16, 32)),
+    "stuck_torque": positive("N m of unbalanced motor torque (kt i - R^-T tau_sg) that must move the motor",
+                             default=2.0),
+    "stuck_time": positive("s without a count while unbalanced: encoder fault", default=0.01),
+}, optional=True)
+
+JOINT_ENCODERS = Section({
+    "counts_per_rev": Field(int, "absolute joint encoders on a bench; absent: none", default=None, low=1),
+    "sign": ListOf(Field(int, "+1/-1", choices=(-1, 1)), "[DP, IE]", default=[1, 1], length=2),
+}, optional=True)
+
+STRAIN_GAUGES = Section({
+    "matrix": ListOf(Field(list, "N m per count from [channel 1, channel 2]", check=_number_row),
+                     "rows DP, IE (required on hardware)", default=None, length=2),
+    "tare": ListOf(Field(float), "N m [DP, IE] subtracted after the matrix; recorded by ankle-rt calibrate",
+                   default=None, length=2),
+    "rail_low": Field(int, "raw count at or below which a channel is at its rail (broken wire)", default=None),
+    "rail_high": Field(int, "raw count at or above which a channel is at its rail", default=None),
+    "adc_bits": Field(int, "signed ADC resolution (emulator saturation)", default=24, low=8, high=32),
+}, optional=True)
+
+SERIAL = Section({
+    "port": Field(str, "serial device of the bridge (/dev/ttyACM0) or a pyserial URL (socket://host:port)",
+                  default=None),
+    "baudrate": Field(int, "bit/s on a UART link (ignored by USB CDC); the 1 kHz frames must fit in 70 %",
+                      default=2_000_000, low=9600),
+    "watchdog_s": Field(float, "the bridge zeroes set values and drops enables after this long without a "
+                               "valid command (sent in the CONFIG frame)", default=0.005, low=0.001, high=1.0),
+    "sample_wait_s": Field(float, "read() waits at most this long for a new sample (< one period)",
+                           default=0.0008, low=0.0, high=0.01),
+    "link_timeout_s": Field(float, "no new sample for this long: LINK_LOST", default=0.003, low=0.001, high=1.0),
+    "open_timeout_s": positive("wait this long for the bridge to acknowledge its configuration", default=1.0),
+}, optional=True, doc="serial bridge transport (backend: serial)")
 
 
 SCHEMA = Section({
@@ -136,4 +279,9 @@ SCHEMA = Section({
     "sim": SIM,
     "canopen": CANOPEN,
     "service": SERVICE,
+    "escon": ESCON,
+    "encoders": ENCODERS,
+    "joint_encoders": JOINT_ENCODERS,
+    "strain_gauges": STRAIN_GAUGES,
+    "serial": SERIAL,
 }, open=False)

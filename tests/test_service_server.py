@@ -260,7 +260,7 @@ def link_cfg(tmp_path, **service):
 
 def test_link_polls_at_its_period_and_pings_only_while_healthy(tmp_path, notify_socket):
     from ankle_rt.service.link import ServiceLink
-    cfg = link_cfg(tmp_path, poll_period=0.01)
+    cfg = link_cfg(tmp_path, poll_period_s=0.01)
     env = {"NOTIFY_SOCKET": notify_socket.getsockname(), "WATCHDOG_USEC": "1000000"}
     link = ServiceLink(cfg, Recorder(), environ=env)
     assert link.ping_period == 0.5
@@ -294,7 +294,7 @@ def test_link_without_watchdog_or_socket(tmp_path):
 
 def test_link_detects_a_lost_command_channel(tmp_path):
     from ankle_rt.service.link import ServiceLink
-    link = ServiceLink(link_cfg(tmp_path, command_timeout=0.5), Recorder(), environ={})
+    link = ServiceLink(link_cfg(tmp_path, command_timeout_s=0.5), Recorder(), environ={})
     link.mark_command_channel(1.0)
     assert not link.command_channel_lost(1.4)
     sock = connect(link.server)

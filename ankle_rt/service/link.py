@@ -1,7 +1,7 @@
 """The one object the control loop drives to talk to the outside: the command socket and systemd.
 
 The loop calls :meth:`ServiceLink.tick` once per cycle with its clock time and its health. That is
-two float comparisons on most cycles; every ``service.poll_period`` it polls the command server
+two float comparisons on most cycles; every ``service.poll_period_s`` it polls the command server
 (bounded, non-blocking work; the daemon's handler runs inside it, in the loop thread), and while the
 loop is healthy it pings systemd's watchdog at half the ``WatchdogSec`` interval. No thread: a loop
 that stalls or stops being healthy stops the pings, and systemd restarts the service.
@@ -55,8 +55,8 @@ class ServiceLink:
         interval = watchdog_interval(environ) if svc["watchdog"] else None
         self.ping_period = interval / 2.0 if interval else None
         """s between WATCHDOG=1 pings (half of WatchdogSec), or None when no watchdog is armed."""
-        self.poll_period = svc["poll_period"]
-        self.command_timeout = svc["command_timeout"]
+        self.poll_period_s = svc["poll_period_s"]
+        self.command_timeout_s = svc["command_timeout_s"]
         self._next_poll = float("-inf")
         self._next_ping = float("-inf")
         self._seen = 0
@@ -66,7 +66,7 @@ class ServiceLink:
         """Call every cycle with the loop clock ``now`` (s) and whether the loop keeps its deadlines
         and sensors (the watchdog is fed only while ``healthy``). Never blocks, never raises on input."""
         if now >= self._next_poll:
-            self._next_poll = now + self.poll_period
+            self._next_poll = now + self.poll_period_s
             server = self.server
             if server is not None:
                 server.poll()
@@ -78,11 +78,11 @@ class ServiceLink:
             self.notifier.notify("WATCHDOG=1")
 
     def command_channel_lost(self, now: float) -> bool:
-        """True when ``service.command_timeout`` > 0 and no valid request came for longer than it.
+        """True when ``service.command_timeout_s`` > 0 and no valid request came for longer than it.
         Counted from :meth:`mark_command_channel` (call it on activation), or the last request."""
-        if self.command_timeout <= 0.0 or self._last_command_t is None:
+        if self.command_timeout_s <= 0.0 or self._last_command_t is None:
             return False
-        return now - self._last_command_t > self.command_timeout
+        return now - self._last_command_t > self.command_timeout_s
 
     def mark_command_channel(self, now: float) -> None:
         """Restart the lost-channel timer (on activation)."""
