@@ -1,0 +1,311 @@
+"""Ankle reference profiles: hold, step, sine, chirp, a gait-like DP/IE stride, and a CSV file.
+
+A profile maps the time since its start, ``tau`` (s, negative before its ``start_s``), to ankle
+angles (rad, [DP, IE]) written into a preallocated array. Step, sine, chirp and gait move
+*relative to the reference at the moment they start* (so starting one from a live daemon never
+jumps); hold and CSV are absolute. All evaluation is plain-float arithmetic on tables built once.
+
+The time base is the backend's sample time (``Estimate.t``), the same clock the simulator's
+disturbances (``sim.disturbances``) use, so a configured experiment lines up with them exactly.
+"""
+
+from __future__ import annotations
+
+import bisect
+import csv
+import math
+from pathlib import Path
+from typing import Any, Callable, Mapping
+
+import numpy as np
+
+from ankle_rt.config import ConfigError, Field, Section, non_negative, positive, validate
+from ankle_rt.interchange import InterchangeError
+
+DEG = math.pi / 180.0
+
+
+class Profile:
+    """Base: ``value(tau)`` returns (dp, ie) rad. ``relative`` profiles are added to the start point."""
+
+    relative = True
+
+    def begin(self, start: tuple[float, float]) -> None:
+        """Called once when the profile starts, with the reference (rad) it starts from."""
+
+    def value(self, tau: float) -> tuple[float, float]:
+        raise NotImplementedError
+
+
+class Hold(Profile):
+    """Hold the ankle at (dp, ie) rad."""
+
+    relative = False
+
+    def __init__(self, dp: float = 0.0, ie: float = 0.0):
+        self.dp, self.ie = dp, ie
+
+    def value(self, tau: float) -> tuple[float, float]:
+        return self.dp, self.ie
+
+
+class RampTo(Profile):
+    """Move linearly from the current reference to (dp, ie) rad in ``ramp_s`` s, then hold."""
+
+    relative = False
+
+    def __init__(self, dp: float, ie: float, ramp_s: float):
+        self.dp, self.ie, self.ramp = dp, ie, ramp_s
+        self.start = (dp, ie)
+
+    def begin(self, start: tuple[float, float]) -> None:
+        self.start = start
+
+    def value(self, tau: float) -> tuple[float, float]:
+        if tau >= self.ramp:
+            return self.dp, self.ie
+        f = tau / self.ramp if tau > 0.0 else 0.0
+        s0, s1 = self.start
+        return s0 + f * (self.dp - s0), s1 + f * (self.ie - s1)
+
+
+class Step(Profile):
+    """Steps of ``dp`` / ``ie`` rad at ``start_s`` (the paper's section 7: 10 deg DP, 5 deg IE)."""
+
+    def __init__(self, dp: float, ie: float, start_s: float = 0.0):
+        self.dp, self.ie, self.start = dp, ie, start_s
+
+    def value(self, tau: float) -> tuple[float, float]:
+        return (self.dp, self.ie) if tau >= self.start else (0.0, 0.0)
+
+
+class Sine(Profile):
+    """``A sin(2 pi f (tau - start))`` per axis from ``start_s`` on; IE lags DP by ``ie_phase`` rad."""
+
+    def __init__(self, amplitude_dp: float, amplitude_ie: float, frequency_hz: float, start_s: float = 0.0,
+                 ie_phase: float = 0.0):
+        self.a0, self.a1, self.w, self.start = amplitude_dp, amplitude_ie, 2 * math.pi * frequency_hz, start_s
+        self.phase = ie_phase
+
+    def value(self, tau: float) -> tuple[float, float]:
+        x = tau - self.start
+        if x < 0.0:
+            return 0.0, 0.0
+        return self.a0 * math.sin(self.w * x), self.a1 * math.sin(self.w * x - self.phase)
+
+
+class Chirp(Profile):
+    """Linear chirp from ``f0_hz`` to ``f1_hz`` over ``duration_s`` (then zero): an identification sweep."""
+
+    def __init__(self, amplitude_dp: float, amplitude_ie: float, f0_hz: float, f1_hz: float, duration_s: float,
+                 start_s: float = 0.0):
+        self.a0, self.a1, self.f0, self.start, self.duration = amplitude_dp, amplitude_ie, f0_hz, start_s, duration_s
+        self.k = (f1_hz - f0_hz) / duration_s
+
+    def value(self, tau: float) -> tuple[float, float]:
+        x = tau - self.start
+        if x < 0.0 or x > self.duration:
+            return 0.0, 0.0
+        s = math.sin(2.0 * math.pi * (self.f0 * x + 0.5 * self.k * x * x))
+        return self.a0 * s, self.a1 * s
+
+
+# A plausible level-walking ankle cycle (heel strike at phase 0, toe-off near 0.62), after the
+# textbook gait curves: (phase, DP deg, IE deg); DP positive = dorsiflexion, IE positive = inversion.
+GAIT_KEYPOINTS = (
+    (0.00, 0.0, 2.0), (0.07, -5.0, -1.0), (0.30, 5.0, -3.0), (0.45, 10.0, -2.0), (0.55, 2.0, 2.0),
+    (0.62, -15.0, 5.0), (0.72, -8.0, 3.0), (0.85, 2.0, 1.0), (1.00, 0.0, 2.0),
+)
+
+
+def _periodic_table(points: tuple[tuple[float, float, float], ...], n: int) -> tuple[list[float], list[float]]:
+    """Periodic cubic Hermite interpolation (Catmull-Rom tangents) of key points (phase in [0, 1],
+    last point = first) sampled at n+1 phases; returns DP and IE in rad."""
+    pts = list(points[:-1])
+    ext = [(pts[-1][0] - 1.0, *pts[-1][1:])] + pts + [(p[0] + 1.0, *p[1:]) for p in pts[:2]]
+    x = np.array([p[0] for p in ext])
+    out = []
+    for col in (1, 2):
+        y = np.array([p[col] for p in ext])
+        vals = []
+        for g in np.arange(n) / n:
+            i = int(np.searchsorted(x, g, side="right")) - 1      # ext[i] <= g < ext[i+1], 1 <= i
+            h = x[i + 1] - x[i]
+            u = (g - x[i]) / h
+            m0 = (y[i + 1] - y[i - 1]) / (x[i + 1] - x[i - 1]) * h
+            m1 = (y[i + 2] - y[i]) / (x[i + 2] - x[i]) * h
+            vals.append((2 * u**3 - 3 * u**2 + 1) * y[i] + (u**3 - 2 * u**2 + u) * m0
+                        + (-2 * u**3 + 3 * u**2) * y[i + 1] + (u**3 - u**2) * m1)
+        vals.append(vals[0])
+        out.append([float(v) * DEG for v in vals])
+    return out[0], out[1]
+
+
+class Gait(Profile):
+    """A gait-like DP/IE cycle repeated every ``stride_s`` from ``start_s`` on, scaled by ``scale``."""
+
+    TABLE_SIZE = 1000
+
+    def __init__(self, stride_s: float, scale: float = 1.0, start_s: float = 0.0):
+        self.stride, self.start = stride_s, start_s
+        dp, ie = _periodic_table(GAIT_KEYPOINTS, self.TABLE_SIZE)
+        self.dp = [scale * v for v in dp]
+        self.ie = [scale * v for v in ie]
+        self.dp0, self.ie0 = self.dp[0], self.ie[0]
+
+    def value(self, tau: float) -> tuple[float, float]:
+        x = tau - self.start
+        if x < 0.0:
+            return 0.0, 0.0
+        pos = (x / self.stride) % 1.0 * self.TABLE_SIZE
+        i = int(pos)
+        f = pos - i
+        dp, ie = self.dp, self.ie
+        return (dp[i] + f * (dp[i + 1] - dp[i]) - self.dp0, ie[i] + f * (ie[i + 1] - ie[i]) - self.ie0)
+
+
+class CsvProfile(Profile):
+    """Absolute references from a CSV with columns ``t`` (s), ``ref_dp``, ``ref_ie`` (rad), linearly
+    interpolated and held at the last row. Bad files raise InterchangeError naming column and row."""
+
+    relative = False
+
+    def __init__(self, path: str | Path):
+        path = Path(path)
+        try:
+            handle = path.open(newline="")
+        except OSError as exc:
+            raise InterchangeError(f"cannot read reference file: {exc.strerror}", path) from None
+        with handle:
+            reader = csv.reader(handle)
+            header = [h.strip() for h in next(reader, [])]
+            for name in ("t", "ref_dp", "ref_ie"):
+                if name not in header:
+                    raise InterchangeError("required column missing", path, name, 0)
+            cols = {name: header.index(name) for name in ("t", "ref_dp", "ref_ie")}
+            data: dict[str, list[float]] = {name: [] for name in cols}
+            for row_no, row in enumerate(reader, start=1):
+                if not row or all(not c.strip() for c in row):
+                    continue
+                for name, i in cols.items():
+                    cell = row[i].strip() if i < len(row) else ""
+                    try:
+                        v = float(cell)
+                    except ValueError:
+                        raise InterchangeError(f"not a number: {cell!r}", path, name, row_no) from None
+                    if not math.isfinite(v):
+                        raise InterchangeError(f"not a finite number: {cell!r}", path, name, row_no)
+                    if name == "t" and data["t"] and v <= data["t"][-1]:
+                        raise InterchangeError("time does not increase", path, "t", row_no)
+                    data[name].append(v)
+        if not data["t"]:
+            raise InterchangeError("no data rows", path, "t", 1)
+        self.t, self.dp, self.ie = data["t"], data["ref_dp"], data["ref_ie"]
+
+    def value(self, tau: float) -> tuple[float, float]:
+        t = self.t
+        i = bisect.bisect_right(t, tau)
+        if i == 0:
+            return self.dp[0], self.ie[0]
+        if i >= len(t):
+            return self.dp[-1], self.ie[-1]
+        f = (tau - t[i - 1]) / (t[i] - t[i - 1])
+        return (self.dp[i - 1] + f * (self.dp[i] - self.dp[i - 1]),
+                self.ie[i - 1] + f * (self.ie[i] - self.ie[i - 1]))
+
+
+PROFILES: dict[str, Callable[..., Profile]] = {
+    "hold": Hold, "step": Step, "sine": Sine, "chirp": Chirp, "gait": Gait, "csv": CsvProfile,
+}
+
+_ANGLE = 0.7   # rad (40 deg): the largest amplitude a profile accepts; the safety limit still applies
+
+
+def _angle(doc: str, default: float = ...) -> Field:  # type: ignore[assignment]
+    return Field(float, doc, default=default, low=-_ANGLE, high=_ANGLE)
+
+
+# Parameters of each profile (SI: rad, s, Hz), shared by the config's reference section and the
+# start_profile command, so both check the same names and ranges.
+PROFILE_PARAMS: dict[str, Section] = {
+    "hold": Section({"dp": _angle("rad DP", 0.0), "ie": _angle("rad IE", 0.0)}, optional=True),
+    "step": Section({
+        "dp": _angle("rad, DP step size", 10 * DEG), "ie": _angle("rad, IE step size", 5 * DEG),
+        "start_s": non_negative("s after the profile starts", default=0.5),
+    }, optional=True),
+    "sine": Section({
+        "amplitude_dp": _angle("rad", 5 * DEG), "amplitude_ie": _angle("rad", 0.0),
+        "frequency_hz": Field(float, "Hz", default=1.0, low=0.0, low_open=True, high=50.0),
+        "start_s": non_negative("s", default=0.0), "ie_phase": Field(float, "rad, IE lag behind DP", default=0.0),
+    }, optional=True),
+    "chirp": Section({
+        "amplitude_dp": _angle("rad", 2 * DEG), "amplitude_ie": _angle("rad", 0.0),
+        "f0_hz": Field(float, "Hz at the start", default=0.1, low=0.0, high=100.0),
+        "f1_hz": Field(float, "Hz at the end", default=10.0, low=0.0, high=100.0),
+        "duration_s": positive("s", default=10.0), "start_s": non_negative("s", default=0.0),
+    }, optional=True),
+    "gait": Section({
+        "stride_s": Field(float, "s per stride", default=1.1, low=0.3, high=10.0),
+        "scale": Field(float, "scale of the DP/IE angles of the stride", default=1.0, low=0.0, high=2.0),
+        "start_s": non_negative("s", default=0.0),
+    }, optional=True),
+    "csv": Section({"path": Field(str, "CSV with columns t (s), ref_dp, ref_ie (rad)", default="")}, optional=True),
+}
+
+
+def make_profile(name: str, params: Mapping[str, Any], source: str = "command") -> Profile:
+    """Build profile ``name`` from SI parameters (missing ones take their defaults). Bad names or
+    values raise ConfigError naming the key (``params.<key>``)."""
+    if name not in PROFILES:
+        raise ConfigError(f"unknown profile {name!r} (expected one of: {', '.join(PROFILES)})", source, "name")
+    checked = validate(dict(params), PROFILE_PARAMS[name], lambda _p: source, ("params",))
+    if name == "csv" and not checked["path"]:
+        raise ConfigError("a CSV file is needed", source, "params.path")
+    return PROFILES[name](**checked)
+
+
+class ReferenceGenerator:
+    """The loop's ankle reference: the active profile, started at an absolute sample time."""
+
+    def __init__(self, profile: Profile, t0: float = 0.0):
+        self.ref = np.zeros(2)       # rad [DP, IE], refreshed by update(); controllers read it
+        self.base = (0.0, 0.0)
+        self.profile = profile
+        self.t0 = t0
+        self._pending: Profile | None = None
+        profile.begin(self.base)
+
+    def start(self, profile: Profile) -> None:
+        """Switch to ``profile`` at the next update (relative profiles start from the current reference)."""
+        self._pending = profile
+
+    def update(self, t: float) -> None:
+        """Refresh ``ref`` for sample time ``t`` (s)."""
+        if self._pending is not None:
+            self.profile, self._pending = self._pending, None
+            self.t0 = t
+            self.base = (float(self.ref[0]), float(self.ref[1]))
+            self.profile.begin(self.base)
+        p = self.profile
+        dp, ie = p.value(t - self.t0)
+        if p.relative:
+            dp += self.base[0]
+            ie += self.base[1]
+        self.ref[0] = dp
+        self.ref[1] = ie
+
+
+def reference_from_config(cfg: Mapping[str, Any]) -> ReferenceGenerator:
+    """The configured profile (``reference.profile`` and its section), starting at sample time 0.
+    A relative CSV path is taken relative to the config file."""
+    r = cfg["reference"]
+    name = r["profile"]
+    params = dict(r[name])
+    source = getattr(cfg, "source", "config")
+    if name == "csv" and params["path"] and not Path(params["path"]).is_absolute() and Path(source).exists():
+        params["path"] = str(Path(source).resolve().parent / params["path"])
+    try:
+        profile = make_profile(name, params, source)
+    except ConfigError as exc:
+        raise ConfigError(str(exc).split(": ")[-1], source, f"reference.{name}.{exc.key.split('.')[-1]}") from None
+    return ReferenceGenerator(profile)
