@@ -1,0 +1,58 @@
+"""Bumpless gain changes and the soft start.
+
+:class:`GainRamp` holds a controller's gains as plain floats. A new target set is reached by a
+linear ramp over ``ramp_s`` (each gain moves by a fixed step per cycle), so a gain change never
+makes the command jump. The soft start is a separate output scale that rises linearly from 0 to 1
+over ``soft_start_s`` after each activation.
+"""
+
+from __future__ import annotations
+
+from typing import Mapping
+
+
+class GainRamp:
+    """Named non-negative gains with linear ramps to new targets, plus the soft-start scale."""
+
+    def __init__(self, gains: Mapping[str, float], *, dt: float, ramp_s: float, soft_start_s: float):
+        self.names = tuple(gains)
+        self.values = [float(gains[n]) for n in self.names]
+        self.targets = list(self.values)
+        self.steps = [0.0] * len(self.values)
+        self.cycles_per_ramp = max(1, round(ramp_s / dt))
+        self.soft_step = 1.0 if soft_start_s <= 0.0 else min(1.0, dt / soft_start_s)
+        self.scale = 1.0
+
+    def set_targets(self, **gains: float) -> None:
+        """Ramp the named gains to new values. Raises ValueError naming an unknown or bad gain."""
+        for name, value in gains.items():
+            if name not in self.names:
+                raise ValueError(f"unknown gain {name!r} (expected one of: {', '.join(self.names)})")
+            if not (isinstance(value, (int, float)) and value >= 0.0 and value < float("inf")):
+                raise ValueError(f"gain {name!r} must be a finite number >= 0, got {value!r}")
+        for name, value in gains.items():
+            i = self.names.index(name)
+            self.targets[i] = float(value)
+            self.steps[i] = (self.targets[i] - self.values[i]) / self.cycles_per_ramp
+
+    def start(self) -> None:
+        """Begin the soft start: the output scale restarts from zero."""
+        self.scale = 0.0 if self.soft_step < 1.0 else 1.0
+
+    def advance(self) -> None:
+        """One cycle of ramping (call once per update)."""
+        if self.scale < 1.0:
+            self.scale = min(1.0, self.scale + self.soft_step)
+        values, targets, steps = self.values, self.targets, self.steps
+        for i in range(len(values)):
+            s = steps[i]
+            if s != 0.0:
+                v = values[i] + s
+                if (s > 0.0 and v >= targets[i]) or (s < 0.0 and v <= targets[i]):
+                    v = targets[i]
+                    steps[i] = 0.0
+                values[i] = v
+
+    def as_dict(self) -> dict[str, float]:
+        """Current gains (for status replies; allocates, not for the cycle)."""
+        return dict(zip(self.names, self.values))

@@ -1,0 +1,46 @@
+"""Motor-side PD control, the paper's eq. 11: ``u = kp (theta_m_ref - theta_m) - kd dtheta_m``.
+
+The motor reference comes from the ankle reference through the rigid kinematics,
+``theta_m_ref = R theta_ref``; the derivative acts on the filtered motor velocity, not on the error,
+so a reference step does not kick the command. Optional friction feed-forward is added.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ankle_rt.control.friction import FrictionFeedForward
+from ankle_rt.control.gains import GainRamp
+from ankle_rt.estimation import Estimate
+from ankle_rt.kinematics import Kinematics
+
+
+class MotorPD:
+    def __init__(self, kin: Kinematics, ref: np.ndarray, *, kp: float, kd: float, dt: float,
+                 ramp_s: float = 0.0, soft_start_s: float = 0.0, friction: FrictionFeedForward | None = None):
+        """``ref``: rad [DP, IE], read every update. ``kp`` N m/rad, ``kd`` N m s/rad, per motor."""
+        self.R = kin.R.ravel().tolist()
+        self.ref = ref
+        self.gains = GainRamp({"kp": kp, "kd": kd}, dt=dt, ramp_s=ramp_s, soft_start_s=soft_start_s)
+        self.friction = friction or FrictionFeedForward(0.0, 0.0, 1.0, enabled=False)
+
+    def reset(self, est: Estimate) -> None:
+        self.gains.start()
+
+    def set_gains(self, **gains: float) -> None:
+        """Ramp to new gains (``kp``, ``kd``) without a jump in the command."""
+        self.gains.set_targets(**gains)
+
+    def update(self, est: Estimate, out_torque: np.ndarray) -> None:
+        g = self.gains
+        g.advance()
+        kp, kd = g.values
+        s = g.scale
+        R = self.R
+        r0 = float(self.ref[0])
+        r1 = float(self.ref[1])
+        v1 = float(est.motor_vel[0])
+        v2 = float(est.motor_vel[1])
+        ff = self.friction
+        out_torque[0] = s * (kp * (R[0] * r0 + R[1] * r1 - float(est.motor_pos[0])) - kd * v1 + ff.torque(v1))
+        out_torque[1] = s * (kp * (R[2] * r0 + R[3] * r1 - float(est.motor_pos[1])) - kd * v2 + ff.torque(v2))

@@ -1,0 +1,328 @@
+"""The control daemon: one fixed-rate cycle that reads, estimates, controls, checks and logs.
+
+Cycle (DESIGN.md): backend.read -> estimate -> reference -> control -> safety -> backend.write ->
+log record -> service tick. The cycle method works on preallocated objects only (sensor frame,
+estimate, reference and torque arrays, the log ring), in plain floats, and touches no disk.
+
+:class:`Daemon` is driven by :class:`~ankle_rt.loop.FixedRateLoop` on any clock. :func:`run_lockstep`
+runs it on a :class:`~ankle_rt.clock.SimClock` as fast as possible and returns the recorded cycles as
+a :class:`RunResult` (tests, identification experiments, ``ankle-rt run --fast``).
+"""
+
+from __future__ import annotations
+
+import gc
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from ankle_rt.backend import Backend, SensorFrame, open_backend
+from ankle_rt.clock import Clock, SimClock
+from ankle_rt.config import Config, ConfigError
+from ankle_rt.control import CycleController, build_controller
+from ankle_rt.estimation import Estimate, Estimator
+from ankle_rt.kinematics import Kinematics
+from ankle_rt.log.memory import MemoryRecorder
+from ankle_rt.log.reader import interchange_columns
+from ankle_rt.log.writer import log_metadata
+from ankle_rt.loop import FixedRateLoop
+from ankle_rt.params import TransmissionParams
+from ankle_rt.references import Hold, RampTo, ReferenceGenerator, make_profile, reference_from_config
+from ankle_rt.safety import Fault, Safety, State
+from ankle_rt.service import protocol as proto
+
+if TYPE_CHECKING:
+    from ankle_rt.service.link import ServiceLink
+
+ACTIVE = int(State.ACTIVE)
+CONFIGURED = int(State.CONFIGURED)
+SAFE = int(State.SAFE)
+FAULT = int(State.FAULT)
+
+
+class Daemon:
+    """Everything one run needs, built from a validated config.
+
+    ``backend``: an opened backend on the same ``clock`` (default: the config's). ``controller``:
+    any :class:`CycleController` (default: the config's PD or impedance controller tracking the
+    configured reference). ``recorder``: the record sink (a LogWriter or MemoryRecorder) or None.
+    """
+
+    def __init__(self, cfg: Config, clock: Clock, *, backend: Backend | None = None,
+                 controller: CycleController | None = None, recorder: Any = None,
+                 service: "ServiceLink | None" = None):
+        self.cfg = cfg
+        self.clock = clock
+        rate = cfg["controller"]["rate_hz"]
+        self.dt = 1.0 / rate
+        self.period_ns = round(1e9 / rate)
+        self.kin = Kinematics.from_params(TransmissionParams(**cfg["transmission"]))
+        self.kt = cfg["actuator"]["torque_constant"]
+        self.inv_kt = 1.0 / self.kt
+        est_cfg = cfg["estimation"]
+        self.frame = SensorFrame()
+        self.est = Estimate()
+        self.estimator = Estimator(self.kin, self.dt, est_cfg["velocity_cutoff_hz"], est_cfg["tare_samples"])
+        if controller is None:
+            self.reference = reference_from_config(cfg)
+            self.controller = build_controller(cfg, self.kin, self.reference.ref)
+        else:   # an experiment brings its own excitation: no reference (logged as NaN)
+            self.reference = ReferenceGenerator(Hold(math.nan, math.nan))
+            self.controller = controller
+        self.safety = Safety(cfg, self.dt)
+        self.torque = np.zeros(2)
+        self.loop = FixedRateLoop(clock, self.period_ns, cfg["loop"]["max_consecutive_overruns"],
+                                  on_overrun_limit=self._missed_deadlines)
+        self.recorder = recorder
+        self.service = service
+        self.auto_activate = cfg["safety"]["auto_activate"]
+        self.activations = 0
+        self.owns_backend = backend is None
+        self.backend = backend if backend is not None else open_backend(cfg, clock)
+
+    # -- the cycle (hot path: no allocation beyond float temporaries, no I/O) -----------------------
+    def cycle(self, t_start_ns: int) -> None:
+        frame, est, safety, backend = self.frame, self.est, self.safety, self.backend
+        backend.read(frame)
+        self.estimator.update(frame, est)
+        self.reference.update(est.t)
+        torque = self.torque
+        state = safety.state
+        if state == ACTIVE or state == CONFIGURED:
+            code = safety.check_sensors(frame, est)
+            if code == 0 and state == CONFIGURED and self.auto_activate and est.tared and self.activations == 0:
+                self.activate()
+                state = ACTIVE
+            if code == 0 and state == ACTIVE:
+                self.controller.update(est, torque)
+                code = safety.limit_currents(torque[0] * self.inv_kt, torque[1] * self.inv_kt)
+                if code == 0:
+                    backend.write(safety.current[0], safety.current[1])
+            if code != 0:
+                self._fault(code)
+        loop = self.loop
+        latency_ns = self.clock.now_ns() - t_start_ns
+        if self.recorder is not None:
+            ankle, mvel, sg, joint, ref = est.ankle_pos, est.motor_vel, est.sg_torque, est.joint_pos, self.reference.ref
+            active = safety.state == ACTIVE
+            self.recorder.append(
+                est.t, est.motor_pos[0], est.motor_pos[1], mvel[0], mvel[1], sg[0], sg[1], joint[0], joint[1],
+                ankle[0], ankle[1], ref[0], ref[1], torque[0], torque[1],
+                safety.current[0] if active else 0.0, safety.current[1] if active else 0.0,
+                (t_start_ns - loop.start_ns) * 1e-9, frame.seq, loop.last_period_ns * 1e-3, latency_ns * 1e-3,
+                loop.stats.overruns, safety.state, safety.fault, frame.faults)
+        if self.service is not None:
+            self._service_tick(t_start_ns * 1e-9)
+
+    def _service_tick(self, now: float) -> None:
+        service = self.service
+        service.tick(now, self.loop.consecutive_overruns == 0)
+        if self.safety.state == ACTIVE and service.command_channel_lost(now):
+            self._fault(Fault.COMMAND_LOST)
+
+    def _fault(self, code: int) -> None:
+        """Within this cycle: set values to zero, amplifiers off, reason recorded."""
+        backend = self.backend
+        backend.write(0.0, 0.0)
+        backend.deactivate()
+        self.safety.current[0] = self.safety.current[1] = 0.0
+        self.torque[0] = self.torque[1] = 0.0
+        self.safety.trip(code, self.est.t)
+        if self.service is not None:
+            self.service.status(f"FAULT: {Fault(code).description}")
+
+    def _missed_deadlines(self) -> None:
+        self._fault(Fault.MISSED_DEADLINES)
+
+    # -- state changes (commands) ----------------------------------------------------------------
+    def activate(self) -> None:
+        """CONFIGURED/SAFE -> ACTIVE. The first activation runs the configured reference; later ones
+        hold the ankle where it is. Raises RuntimeError when not allowed."""
+        s = self.safety
+        if s.state not in (State.CONFIGURED, State.SAFE):
+            raise RuntimeError(f"cannot activate in state {State(s.state).name}"
+                               + (" (reset the fault first)" if s.state == State.FAULT else ""))
+        if not self.est.tared:
+            raise RuntimeError("strain gauges not tared yet")
+        if self.activations > 0:
+            self.reference.start(Hold(float(self.est.ankle_pos[0]), float(self.est.ankle_pos[1])))
+        self.backend.activate()
+        self.controller.reset(self.est)
+        s.state = State.ACTIVE
+        self.activations += 1
+        if self.service is not None:
+            self.service.mark_command_channel(self.clock.now_ns() * 1e-9)
+            self.service.status("active")
+
+    def deactivate(self) -> None:
+        """ACTIVE -> SAFE: set values zero, amplifiers off."""
+        self.backend.write(0.0, 0.0)
+        self.backend.deactivate()
+        self.torque[0] = self.torque[1] = 0.0
+        if self.safety.state in (State.ACTIVE, State.CONFIGURED):
+            self.safety.state = State.SAFE
+        if self.service is not None:
+            self.service.status("safe")
+
+    def reset_fault(self) -> None:
+        """FAULT -> SAFE (explicit acknowledgement). Raises RuntimeError in any other state."""
+        self.safety.reset()
+        if self.service is not None:
+            self.service.status("safe")
+
+    def request_stop(self) -> None:
+        """Go safe now and end the loop after this cycle (SIGINT/SIGTERM/stop command)."""
+        if self.safety.state == State.ACTIVE:
+            self.deactivate()
+        self.loop.stop()
+
+    def set_gains(self, **gains: float) -> None:
+        setter = getattr(self.controller, "set_gains", None)
+        if setter is None:
+            raise ValueError("this controller has no run-time gains")
+        setter(**gains)
+
+    # -- the command interface ---------------------------------------------------------------------
+    def handle(self, command: proto.Command) -> dict:
+        """Execute one parsed command (from the socket, in the loop thread); reply data or CommandError."""
+        try:
+            if isinstance(command, proto.Status):
+                return self.status()
+            if isinstance(command, proto.Activate):
+                self.activate()
+            elif isinstance(command, proto.Deactivate):
+                self.deactivate()
+            elif isinstance(command, proto.ResetFault):
+                self.reset_fault()
+            elif isinstance(command, proto.Stop):
+                self.request_stop()
+            elif isinstance(command, proto.SetReference):
+                ramp = self.cfg["reference"]["ramp_s"] if command.ramp is None else command.ramp
+                self.reference.start(RampTo(command.dp, command.ie, ramp))
+            elif isinstance(command, proto.SetGains):
+                self.set_gains(**command.given())
+            elif isinstance(command, proto.StartProfile):
+                self.reference.start(make_profile(command.name, command.params))
+            else:
+                raise proto.CommandError("cmd", f"not supported: {type(command).__name__}")
+        except RuntimeError as exc:
+            raise proto.CommandError("cmd", str(exc)) from None
+        except ConfigError as exc:
+            raise proto.CommandError(exc.key or "params", str(exc).rsplit(": ", 1)[-1]) from None
+        except ValueError as exc:
+            raise proto.CommandError(_gain_field(str(exc)), str(exc)) from None
+        return {"state": State(self.safety.state).name.lower()}
+
+    def status(self) -> dict:
+        s, est = self.safety, self.est
+        gains = getattr(self.controller, "gains", None)
+        return {
+            "state": State(s.state).name.lower(),
+            "fault": Fault(s.fault).name.lower(), "fault_description": Fault(s.fault).description,
+            "fault_time_s": s.fault_time,
+            "t": est.t,
+            "ankle_deg": [math.degrees(v) for v in est.ankle_pos],
+            "reference_deg": [math.degrees(v) for v in self.reference.ref],
+            "motor_pos_rad": est.motor_pos.tolist(), "motor_vel_rad_s": est.motor_vel.tolist(),
+            "sg_torque_nm": est.sg_torque.tolist(), "current_a": list(s.current),
+            "gains": gains.as_dict() if hasattr(gains, "as_dict") else None,
+            "loop": self.loop.stats.summary(),
+            "backend": self.backend.counters(),
+        }
+
+    # -- running ---------------------------------------------------------------------------------
+    def run(self, duration_s: float | None) -> None:
+        """Run the loop for ``duration_s`` (None or 0: until stopped) with the GC frozen, then go safe."""
+        duration_ns = round(duration_s * 1e9) if duration_s else None
+        gc.collect()
+        gc.freeze()
+        gc.disable()
+        try:
+            self.loop.run(self.cycle, duration_ns)
+        finally:
+            gc.enable()
+            gc.unfreeze()
+            if self.safety.state == State.ACTIVE:
+                self.deactivate()
+            else:
+                self.backend.deactivate()
+
+    def close(self) -> None:
+        """Safe state, then release what this daemon opened (backend, log)."""
+        self.backend.deactivate()
+        if self.owns_backend:
+            self.backend.close()
+        if self.recorder is not None:
+            self.recorder.close()
+        if self.service is not None:
+            self.service.close()
+
+    def log_metadata(self) -> dict[str, Any]:
+        return log_metadata(config=getattr(self.cfg, "source", "<memory>"), backend=self.cfg["backend"],
+                            rate_hz=self.cfg["controller"]["rate_hz"], torque_constant=self.kt,
+                            controller=type(self.controller).__name__,
+                            states={s.name: int(s) for s in State}, faults={f.name: int(f) for f in Fault})
+
+
+def _gain_field(message: str) -> str:
+    """The gain a ValueError from GainRamp names (``unknown gain 'x'`` / ``gain 'x' must be``)."""
+    start = message.find("'")
+    end = message.find("'", start + 1)
+    return message[start + 1:end] if 0 <= start < end else "cmd"
+
+
+@dataclass
+class RunResult:
+    """The recorded cycles of a run as numpy columns.
+
+    ``columns`` holds every log field (DESIGN.md interchange names: t, motor_pos_1/2, current_cmd_1/2,
+    sg_torque_dp/ie, ankle_dp/ie (joint encoders), ref_dp/ie; plus est_ankle_dp/ie, motor_vel_1/2,
+    torque_cmd_1/2, state, fault, ...). ``summary`` has the loop statistics and counters.
+    """
+
+    records: np.ndarray
+    summary: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def columns(self) -> dict[str, np.ndarray]:
+        return {name: self.records[name] for name in self.records.dtype.names}
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self.records[name]
+
+    def __len__(self) -> int:
+        return len(self.records)
+
+    def interchange(self) -> dict[str, np.ndarray]:
+        """Columns for :func:`ankle_rt.interchange.write_csv` (joint encoders only when present)."""
+        return interchange_columns(self.records)
+
+
+def run_lockstep(cfg: Config, duration_s: float, *, controller: CycleController | None = None,
+                 backend: Backend | None = None, log_path: str | Path | None = None) -> RunResult:
+    """Run the real loop against a SimClock as fast as possible for ``duration_s`` of simulated time.
+
+    ``controller=None``: the config's controller and reference profile. ``backend=None``: the
+    config's backend, opened on a fresh SimClock (closed again at the end); a given backend keeps its
+    own clock (``backend.clock``, which must be a SimClock) and stays open. ``log_path``: also write
+    the records as a run log there.
+    """
+    clock = backend.clock if backend is not None else SimClock()
+    if not getattr(clock, "simulated", False):
+        raise ValueError("run_lockstep needs a backend on a SimClock")
+    period_ns = round(1e9 / cfg["controller"]["rate_hz"])
+    recorder = MemoryRecorder(-(-round(duration_s * 1e9) // period_ns) + 1)
+    daemon = Daemon(cfg, clock, backend=backend, controller=controller, recorder=recorder)
+    try:
+        daemon.run(duration_s)
+    finally:
+        daemon.close()
+    if log_path is not None:
+        recorder.save(log_path, daemon.log_metadata())
+    summary = {"loop": daemon.loop.stats.summary(), "saturated_cycles": daemon.safety.saturated,
+               "fault": Fault(daemon.safety.fault).name, "tare_nm": list(daemon.estimator.offset),
+               "records_dropped": recorder.dropped}
+    return RunResult(records=recorder.records.copy(), summary=summary)

@@ -1,0 +1,66 @@
+"""The fixed-rate loop: absolute deadlines on a :class:`~ankle_rt.clock.Clock`, and the overrun policy.
+
+Deadlines lie on a fixed grid ``start + k * period`` (integer ns); the loop never sleeps for a
+relative period, so timing errors do not accumulate. The same loop runs on the monotonic clock (real
+time) and on a :class:`~ankle_rt.clock.SimClock` (lockstep, as fast as the CPU allows).
+
+Overrun policy. A cycle *overruns* when it ends after the next deadline. Every overrun is counted.
+The missed deadlines are skipped, not caught up: the next cycle starts at the first grid point after
+the overrun ended (a burst of back-to-back cycles would only make the control worse, and the
+backend's sample time tells the estimator how much time passed). After
+``max_consecutive_overruns`` overruns in a row the loop reports it (``on_overrun_limit``; the daemon
+trips the MISSED_DEADLINES fault) and carries on in the safe state, so the log keeps recording.
+A single long stall (a VM hiccup) is one overrun however many deadlines it covers.
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+from ankle_rt.clock import Clock
+from ankle_rt.loop_stats import LoopStats
+
+
+class FixedRateLoop:
+    def __init__(self, clock: Clock, period_ns: int, max_consecutive_overruns: int,
+                 on_overrun_limit: Callable[[], None] | None = None):
+        self.clock = clock
+        self.period_ns = period_ns
+        self.max_consecutive = max_consecutive_overruns
+        self.on_overrun_limit = on_overrun_limit
+        self.stats = LoopStats(period_ns)
+        self.consecutive_overruns = 0
+        self.last_period_ns = 0
+        self.stop_requested = False
+        self.start_ns = 0
+
+    def stop(self) -> None:
+        """Ask the loop to return after the current cycle (signal-handler safe)."""
+        self.stop_requested = True
+
+    def run(self, cycle: Callable[[int], None], duration_ns: int | None = None) -> None:
+        """Call ``cycle(start_ns)`` at every deadline until stopped or ``duration_ns`` has passed
+        (deadlines at start + k * period for k * period < duration)."""
+        clock, period, stats = self.clock, self.period_ns, self.stats
+        deadline = self.start_ns = clock.now_ns()
+        end = deadline + duration_ns if duration_ns is not None else None
+        last_start = 0
+        while not self.stop_requested and (end is None or deadline < end):
+            clock.sleep_until(deadline)
+            t_start = clock.now_ns()
+            self.last_period_ns = t_start - last_start if last_start else 0
+            last_start = t_start
+            cycle(t_start)
+            t_end = clock.now_ns()
+            stats.add(self.last_period_ns, t_end - t_start)
+            steps = -(-(t_end - deadline) // period)    # grid points up to and including t_end
+            if steps > 1:                                # overrun: skip the deadlines already passed
+                stats.overruns += 1
+                stats.skipped += steps - 1
+                deadline += steps * period
+                self.consecutive_overruns += 1
+                if self.consecutive_overruns == self.max_consecutive and self.on_overrun_limit is not None:
+                    self.on_overrun_limit()
+            else:
+                deadline += period
+                self.consecutive_overruns = 0

@@ -1,0 +1,200 @@
+"""The safety layer: the daemon's states, the fault checks of every cycle, current limiting.
+
+States, in the spirit of ros2_control::
+
+    CONFIGURED --activate--> ACTIVE --fault--> FAULT --(next cycle)--> SAFE --reset--> CONFIGURED
+         ^                      |
+         +-----deactivate-------+
+
+Set values reach the amplifiers only in ACTIVE. In the cycle a fault is detected the daemon zeroes
+the set values, calls ``backend.deactivate()`` (enables off) and records the reason; the state is
+FAULT for that one cycle's log record, then SAFE until an explicit reset. Faults are small integer
+codes (:class:`Fault`), so the hot path records a reason without formatting a string.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from typing import Any, Mapping
+
+from ankle_rt.backend import BackendFault, SensorFrame
+from ankle_rt.estimation import Estimate
+
+
+class State(enum.IntEnum):
+    CONFIGURED = 0   # sensors read and logged, amplifiers disabled (strain gauges tared here)
+    ACTIVE = 1       # controller output reaches the amplifiers
+    FAULT = 2        # the cycle in which a fault was detected: outputs zeroed, amplifiers disabled
+    SAFE = 3         # latched after a fault: amplifiers disabled until an explicit reset
+
+
+class Fault(enum.IntEnum):
+    NONE = 0
+    ANKLE_RANGE = 1          # estimated or measured ankle angle beyond +/- limits.ankle_range_deg
+    OVERCURRENT = 2          # I^2 t estimate spent the ESCON's peak-current budget
+    SENSOR_STALE = 3         # the sample sequence did not advance for safety.stale_cycles cycles
+    MOTOR_JUMP = 4           # encoder angle jumped more than safety.max_motor_speed_rad_s allows
+    SG_JUMP = 5              # strain-gauge torque jumped more than safety.max_sg_step_nm in one sample
+    SG_RAIL = 6              # strain-gauge torque at its rail (safety.sg_rail_nm) or reported so
+    SENSOR_INVALID = 7       # a sensor value is NaN/inf
+    AMP_NOT_READY = 8        # an ESCON ready output is low while active
+    MISSED_DEADLINES = 9     # loop.max_consecutive_overruns overruns in a row
+    COMMAND_LOST = 10        # no command on the socket for service.command_timeout_s while active
+    LINK_LOST = 11           # backend: no sample within its detection time
+    BUS_OFF = 12             # backend: CAN bus-off
+    DEVICE_FAULT = 13        # backend: the bridge / I/O module reported a fault
+    ENCODER_FAULT = 14       # backend: encoder stuck or implausible
+    OUTPUT_INVALID = 15      # the controller produced a NaN/inf torque
+
+    @property
+    def description(self) -> str:
+        return _DESCRIPTIONS[self]
+
+
+_DESCRIPTIONS = {
+    Fault.NONE: "no fault",
+    Fault.ANKLE_RANGE: "ankle angle beyond the software limit",
+    Fault.OVERCURRENT: "current above the amplifier limits (I^2 t budget spent)",
+    Fault.SENSOR_STALE: "sensor samples stopped advancing",
+    Fault.MOTOR_JUMP: "motor encoder jumped further than physics allows",
+    Fault.SG_JUMP: "strain-gauge torque jumped further than physics allows",
+    Fault.SG_RAIL: "strain gauge at its rail",
+    Fault.SENSOR_INVALID: "sensor value not finite",
+    Fault.AMP_NOT_READY: "amplifier not ready",
+    Fault.MISSED_DEADLINES: "too many consecutive missed deadlines",
+    Fault.COMMAND_LOST: "command channel lost",
+    Fault.LINK_LOST: "backend link lost",
+    Fault.BUS_OFF: "CAN bus-off",
+    Fault.DEVICE_FAULT: "device reported a fault",
+    Fault.ENCODER_FAULT: "encoder fault reported by the backend",
+    Fault.OUTPUT_INVALID: "controller output not finite",
+}
+
+# BackendFault bits that stop the device, in priority order. CRC errors and sequence gaps are
+# tolerated one by one (they are counted by the backend); if samples stop, SENSOR_STALE trips.
+_BACKEND_FAULTS = (
+    (BackendFault.LINK_LOST, Fault.LINK_LOST),
+    (BackendFault.BUS_OFF, Fault.BUS_OFF),
+    (BackendFault.DEVICE_FAULT, Fault.DEVICE_FAULT),
+    (BackendFault.AMP_NOT_READY, Fault.AMP_NOT_READY),
+    (BackendFault.ENCODER_FAULT, Fault.ENCODER_FAULT),
+    (BackendFault.STRAIN_GAUGE_RAIL, Fault.SG_RAIL),
+    (BackendFault.STALE_SAMPLE, Fault.SENSOR_STALE),
+)
+_FATAL_BACKEND_BITS = 0
+for _bit, _ in _BACKEND_FAULTS:
+    _FATAL_BACKEND_BITS |= int(_bit)
+
+
+class Safety:
+    """Sensor plausibility checks, current limits and the state machine (see the module docstring)."""
+
+    def __init__(self, cfg: Mapping[str, Any], dt: float):
+        s = cfg["safety"]
+        amp = cfg["amplifier"]
+        self.dt = dt
+        self.ankle_limit = math.radians(cfg["limits"]["ankle_range_deg"])
+        # With the motors detached from the cables (sim.cables: false, the actuator experiments) the
+        # ankle angle estimated from the motors means nothing; only joint encoders are checked then.
+        self.check_estimated_ankle = cfg["sim"]["cables"]
+        self.max_motor_speed = s["max_motor_speed_rad_s"]
+        self.max_sg_step = s["max_sg_step_nm"]
+        self.sg_rail = s["sg_rail_nm"]
+        self.stale_cycles = s["stale_cycles"]
+        self.i_peak = amp["current_limit_peak"]
+        self.i_cont2 = amp["current_limit_continuous"] ** 2
+        self.i2t_budget = (self.i_peak ** 2 - self.i_cont2) * s["i2t_peak_duration_s"]  # A^2 s
+        self.state = State.CONFIGURED
+        self.fault = Fault.NONE
+        self.fault_time = math.nan
+        self.i2t = [0.0, 0.0]          # A^2 s spent above the continuous limit, per amplifier
+        self.saturated = 0             # cycles in which a set value was clamped to the peak current
+        self.current = [0.0, 0.0]      # A, the limited set values of this cycle
+        self._seq = -1
+        self._stale = 0
+        self._have_last = False
+        self._p1 = self._p2 = self._s0 = self._s1 = self._t = 0.0
+
+    # -- state machine (commands; not per cycle) ---------------------------------------------------
+    def trip(self, fault: int, t: float) -> None:
+        """Enter FAULT with ``fault`` as the reason (the first reason is kept)."""
+        if self.state in (State.CONFIGURED, State.ACTIVE):
+            self.state = State.FAULT
+            self.fault = fault
+            self.fault_time = t
+
+    def reset(self) -> None:
+        """Leave SAFE for CONFIGURED (explicit operator action). Raises RuntimeError otherwise."""
+        if self.state not in (State.SAFE, State.FAULT):
+            raise RuntimeError(f"reset needs state SAFE, state is {self.state.name}")
+        self.state = State.CONFIGURED
+        self.fault = Fault.NONE
+        self.fault_time = math.nan
+        self._have_last = False
+        self._stale = 0
+
+    # -- per cycle -------------------------------------------------------------------------------
+    def check_sensors(self, frame: SensorFrame, est: Estimate) -> int:
+        """Return the first fault the sample shows (0 if none). Plain-float checks, no allocation."""
+        bits = int(frame.faults)
+        if bits & _FATAL_BACKEND_BITS:
+            for bit, code in _BACKEND_FAULTS:
+                if bits & bit:
+                    return code
+        if self.state == State.ACTIVE and not (frame.amp_ready[0] and frame.amp_ready[1]):
+            return Fault.AMP_NOT_READY
+        p1 = float(frame.motor_pos[0])
+        p2 = float(frame.motor_pos[1])
+        s0 = float(frame.sg_torque[0])
+        s1 = float(frame.sg_torque[1])
+        t = frame.t
+        if not (math.isfinite(p1) and math.isfinite(p2) and math.isfinite(s0) and math.isfinite(s1)
+                and math.isfinite(t)):
+            return Fault.SENSOR_INVALID
+        if abs(s0) >= self.sg_rail or abs(s1) >= self.sg_rail:
+            return Fault.SG_RAIL
+        if frame.seq == self._seq:
+            self._stale += 1
+            if self._stale >= self.stale_cycles:
+                return Fault.SENSOR_STALE
+        else:
+            self._stale = 0
+        self._seq = frame.seq
+        if self._have_last:
+            h = t - self._t
+            allowed = self.max_motor_speed * (h if h > self.dt else self.dt)
+            if abs(p1 - self._p1) > allowed or abs(p2 - self._p2) > allowed:
+                return Fault.MOTOR_JUMP
+            if abs(s0 - self._s0) > self.max_sg_step or abs(s1 - self._s1) > self.max_sg_step:
+                return Fault.SG_JUMP
+        self._have_last = True
+        self._p1, self._p2, self._s0, self._s1, self._t = p1, p2, s0, s1, t
+        lim = self.ankle_limit
+        if self.check_estimated_ankle and (abs(float(est.ankle_pos[0])) > lim or abs(float(est.ankle_pos[1])) > lim):
+            return Fault.ANKLE_RANGE
+        j0 = float(est.joint_pos[0])
+        j1 = float(est.joint_pos[1])
+        if abs(j0) > lim or abs(j1) > lim:   # NaN (no joint encoders) compares False
+            return Fault.ANKLE_RANGE
+        return Fault.NONE
+
+    def limit_currents(self, i1: float, i2: float) -> int:
+        """Clamp set values (A) to the peak current into ``self.current`` and update the I^2 t
+        estimate; return OVERCURRENT once the peak budget is spent, OUTPUT_INVALID for NaN."""
+        if not (math.isfinite(i1) and math.isfinite(i2)):
+            self.current[0] = self.current[1] = 0.0
+            return Fault.OUTPUT_INVALID
+        pk = self.i_peak
+        if i1 > pk or i1 < -pk or i2 > pk or i2 < -pk:
+            self.saturated += 1
+            i1 = pk if i1 > pk else (-pk if i1 < -pk else i1)
+            i2 = pk if i2 > pk else (-pk if i2 < -pk else i2)
+        self.current[0] = i1
+        self.current[1] = i2
+        dt, ic2, q = self.dt, self.i_cont2, self.i2t
+        q[0] = max(0.0, q[0] + (i1 * i1 - ic2) * dt)
+        q[1] = max(0.0, q[1] + (i2 * i2 - ic2) * dt)
+        if q[0] >= self.i2t_budget or q[1] >= self.i2t_budget:
+            return Fault.OVERCURRENT
+        return Fault.NONE
