@@ -1,0 +1,84 @@
+"""``ankle-rt identify``: the paper's actuator identification (section 3), run on the configured
+backend with the motors off the cables, or estimated from recorded interchange CSV files."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from datetime import datetime, timezone
+from pathlib import Path
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser(
+        "identify", help="identify actuator J, D and friction (stiction, viscous, inertia experiments)",
+        description="Run the paper's actuator experiments on the configured backend (motors off the "
+                    "cables: sim.cables false) or estimate from recorded CSV files; write a parameter "
+                    "YAML a config can include, a text report like Table 1 and Figs 2-4, and PNG plots.")
+    p.add_argument("experiment", choices=("stiction", "viscous", "inertia", "all"))
+    p.add_argument("--config", help="config file (backend, torque constant, prior parameters)")
+    p.add_argument("--from", dest="source", metavar="PATH",
+                   help="estimate from data: an interchange CSV for one experiment, or for 'all' a directory "
+                        "holding stiction.csv, viscous.csv and inertia.csv (what a run writes to --out)")
+    p.add_argument("--motor", type=int, choices=(1, 2), default=1, help="which motor (default 1)")
+    p.add_argument("--repeats", type=int, default=3, help="repeats per direction of each experiment (default 3)")
+    p.add_argument("--out", default="identification", help="output directory (default ./identification)")
+    p.set_defaults(handler=run)
+
+
+def _read(args: argparse.Namespace, names: tuple[str, ...]) -> dict:
+    from ankle_rt.identification.actuator import MIN_ROWS
+    from ankle_rt.interchange import read_csv
+
+    src = Path(args.source)
+    if len(names) == 1 and not src.is_dir():
+        return {names[0]: read_csv(src, min_rows=MIN_ROWS[names[0]])}
+    return {name: read_csv(src / f"{name}.csv", min_rows=MIN_ROWS[name]) for name in names}
+
+
+def run(args: argparse.Namespace) -> int:
+    from ankle_rt.config import load_config
+    from ankle_rt.identification.actuator import EXPERIMENTS, identify, run_experiments
+    from ankle_rt.identification.report import parameter_yaml, report_lines, write_plots
+    from ankle_rt.identification.runner import actuator_config
+    from ankle_rt.identification.signals import IdentificationError
+    from ankle_rt.interchange import InterchangeError, write_csv
+
+    names = EXPERIMENTS if args.experiment == "all" else (args.experiment,)
+    cfg = load_config(args.config) if args.config else None
+    out = Path(args.out)
+    stamp = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    try:
+        if args.source:
+            recordings = _read(args, names)
+            header = f"Actuator identification from {args.source}, motor {args.motor} ({stamp})"
+        else:
+            if cfg is None:
+                print("ankle-rt identify: give --config to run the experiments, or --from to use recorded data",
+                      file=sys.stderr)
+                return 2
+            acfg, note = actuator_config(cfg)
+            sim = acfg["sim"]
+            noise = (f"; quantisation {'on' if sim['quantization'] else 'off'}, strain-gauge noise "
+                     f"{'on' if sim['sensor_noise'] else 'off'}") if acfg["backend"] == "sim" else ""
+            print(f"running {', '.join(names)} on backend {acfg['backend']!r}, motor {args.motor}, "
+                  f"{args.repeats} repeats per direction ({note}{noise}) ...", flush=True)
+            recordings = run_experiments(acfg, names, args.motor, args.repeats)
+            header = (f"Actuator identification on backend {acfg['backend']!r}, motor {args.motor}, {note}{noise} "
+                      f"({stamp})")
+        kt = cfg["actuator"]["torque_constant"] if cfg else None
+        result = identify(recordings, args.motor, kt, prior=cfg["actuator"] if cfg else None)
+    except (InterchangeError, IdentificationError) as exc:
+        print(f"ankle-rt identify: {exc}", file=sys.stderr)
+        return 2
+    out.mkdir(parents=True, exist_ok=True)
+    if not args.source:
+        for name, rec in recordings.items():
+            write_csv(out / f"{name}.csv", rec.columns)
+    lines = report_lines(result, header)
+    lines += [""] + write_plots(result, recordings, out, args.motor, kt)
+    (out / "params.yaml").write_text(parameter_yaml(result, header))
+    (out / "report.txt").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+    print(f"\nwrote {out / 'params.yaml'} (include it from a config) and {out / 'report.txt'}")
+    return 0
