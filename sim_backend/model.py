@@ -3,8 +3,11 @@
 The linear part (foot and motor inertias, cable stiffness and damping, viscous friction, linearised
 gravity) is discretised exactly once for the substep h = dt / substeps, so the ~100 Hz cable modes
 cost nothing in accuracy. What is not linear (Coulomb friction, the rest of gravity, effects) enters
-as generalised forces held over each substep. The motor torque command is held over the whole tick.
-A fixed-step RK4 on the same equations serves as the reference solution in the tests.
+as generalised forces f, held over each substep at the mean of their values at its two ends (Heun
+predictor-corrector): second order in h. Holding f at its start value alone is first order; at the
+same cost it is 25x less accurate in position (tests/test_model.py, docs/simulator.md).
+The motor torque command is held over the whole tick. A fixed-step RK4 on the same equations serves
+as the reference solution in the tests.
 """
 
 from __future__ import annotations
@@ -134,27 +137,22 @@ class CompliantModel:
         tau1, tau2 = self.command_torque(tau1, tau2)
         self.tau_applied[0] = tau1
         self.tau_applied[1] = tau2
-        z, phi, x_next = self._z, self._phi, self._x_next
+        z, x, phi, x_next = self._z, self.x, self._phi, self._x_next
         forces = self.generalized_forces
-        corrector = bool(self._cable_fx)
         for _ in range(self.substeps):
-            f = forces(z[:N_X].tolist(), tau1, tau2, td_dp, td_ie)
-            z[8] = f[0]
-            z[9] = f[1]
-            z[10] = f[2]
-            z[11] = f[3]
+            # Heun on the non-linear forces (the linear part is exact): predict the substep holding f
+            # from its start, then redo it holding the mean of f at both ends. Holding f alone is first
+            # order, and for cable effects (slack, hardening) on the stiff modes it can go unstable.
+            f = forces(x.tolist(), tau1, tau2, td_dp, td_ie)
+            z[8], z[9], z[10], z[11] = f
             np.dot(phi, z, out=x_next)
-            if corrector:
-                # Cable effects (slack, hardening) act on the stiff cable modes: holding their force
-                # over the substep is first order and can go unstable, so hold the mean of the forces
-                # at both ends instead (Heun predictor-corrector; see tests/test_effects.py).
-                g = forces(x_next.tolist(), tau1, tau2, td_dp, td_ie)
-                z[8] = 0.5 * (f[0] + g[0])
-                z[9] = 0.5 * (f[1] + g[1])
-                z[10] = 0.5 * (f[2] + g[2])
-                z[11] = 0.5 * (f[3] + g[3])
-                np.dot(phi, z, out=x_next)
-            z[:N_X] = x_next
+            g = forces(x_next.tolist(), tau1, tau2, td_dp, td_ie)
+            z[8] = 0.5 * (f[0] + g[0])
+            z[9] = 0.5 * (f[1] + g[1])
+            z[10] = 0.5 * (f[2] + g[2])
+            z[11] = 0.5 * (f[3] + g[3])
+            np.dot(phi, z, out=x_next)
+            x[:] = x_next
 
     def derivative(self, x: np.ndarray, tau1: float, tau2: float, td_dp: float, td_ie: float) -> np.ndarray:
         """dx/dt of the full model, for the RK4 reference (torques already through command effects)."""
