@@ -175,6 +175,9 @@ CANOPEN = Section({
     "tpdo_wait_us": Field(int, "after the SYNC, poll up to this long for the cycle's TPDOs (real clock only)",
                           default=400, low=0, high=5000),
     "sdo_timeout_s": positive("SDO response timeout during configuration", default=0.5),
+    "emulator": Field(str, "lockstep: run the device emulator in this process on the virtual bus, stepped by "
+                           "the backend's SYNC (bench tests without hardware); none: a real node",
+                      default="none", choices=("none", "lockstep")),
 }, optional=True, doc="CANopen transport (backend: canopen)")
 
 

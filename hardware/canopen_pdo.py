@@ -15,6 +15,8 @@ from pathlib import Path
 import canopen
 from canopen import objectdictionary
 
+from hardware.escon import SetValueCode
+
 DEFAULT_EDS = Path(__file__).with_name("ankle_io.eds")
 
 # The objects the daemon needs, by (index, subindex): what each one carries.
@@ -32,11 +34,22 @@ OUTPUTS = (SET_VALUE_1, SET_VALUE_2, DIGITAL_OUT)                 # must be in t
 
 READY_BITS = (0x01, 0x02)
 ENABLE_BITS = (0x01, 0x02)
-ANALOG_FULL_SCALE = 32767     # INTEGER16 value of +10 V (CiA 401 analog values are left-justified)
-ANALOG_FULL_SCALE_V = 10.0    # V
+DAC_BITS = 12                 # the I/O module's analog outputs: 12-bit DAC over +/-10 V
+ANALOG_CODE_SHIFT = 16 - DAC_BITS  # CiA 401 analog values are left-justified INTEGER16: value = code << 4
 SYNC_COB_ID = 0x80            # default COB-ID SYNC (0x1005)
 HEARTBEAT_BASE = 0x700        # heartbeat / boot-up COB-ID = 0x700 + node id
 SYNCHRONOUS_CYCLIC = 1        # transmission type: on every SYNC
+
+
+def analog_codec() -> SetValueCode:
+    """The set-value quantisation of the I/O module's analog outputs (4.88 mV per code)."""
+    return SetValueCode.analog(DAC_BITS)
+
+
+def counter_bits(layout: "NodeLayout") -> int:
+    """Width of the encoder counters as the EDS maps them (32 for INTEGER32)."""
+    pdo, pos = layout.slot(COUNTER_1)
+    return 8 * struct.calcsize("<" + pdo.codec.format.lstrip("<")[pos])
 
 
 class EdsError(ValueError):
@@ -75,7 +88,8 @@ class NodeLayout:
         raise KeyError(obj)
 
 
-def _compile(pdo_map, eds: str) -> PdoLayout:
+def compile_pdo(pdo_map, eds: str) -> PdoLayout:
+    """One canopen PdoMap as a :class:`PdoLayout` (EdsError for bit-packed or unknown types)."""
     fmt = "<"
     objects = []
     for var in pdo_map.map:
@@ -107,8 +121,8 @@ def load_node(eds: str | Path, node_id: int,
     (network if network is not None else canopen.Network()).add_node(node)
     node.tpdo.read(from_od=True)
     node.rpdo.read(from_od=True)
-    tpdos = tuple(_compile(m, eds) for m in node.tpdo.map.values() if m.enabled and m.map)
-    rpdos = tuple(_compile(m, eds) for m in node.rpdo.map.values() if m.enabled and m.map)
+    tpdos = tuple(compile_pdo(m, eds) for m in node.tpdo.map.values() if m.enabled and m.map)
+    rpdos = tuple(compile_pdo(m, eds) for m in node.rpdo.map.values() if m.enabled and m.map)
     layout = NodeLayout(node_id, tpdos, rpdos)
     for needed, pdos, kind in ((INPUTS, tpdos, "TPDO"), (OUTPUTS, rpdos, "RPDO")):
         mapped = {obj for p in pdos for obj in p.objects}

@@ -1,0 +1,287 @@
+"""The CANopen device emulator: the ankle I/O node as a canopen LocalNode with the simulated plant behind it.
+
+The node answers SDO and NMT like the real I/O module (canopen's SdoServer and NmtSlave on the same
+EDS) and runs the plant in lockstep with the SYNC: on each SYNC in OPERATIONAL it applies the set
+values of the last RPDO (CiA 401 synchronous outputs), steps the plant one control tick (not on the
+first SYNC, which marks t = 0), samples the sensors and sends its TPDOs. Outside OPERATIONAL the
+outputs hold their error values (set values zero, enables off; 0x6443/0x6444, 0x6206/0x6207).
+
+No threads: :meth:`CanopenEmulator.service` handles whatever is waiting on the emulator's bus.
+- In tests, :class:`LockstepBus` gives the backend a bus whose ``send`` lets the emulator handle the
+  frame before returning, so emulator and backend run in one thread, deterministically
+  (python-can's ``virtual`` bus delivers in-process).
+- Standalone (``ankle-rt emulate --transport canopen``, the bench's second computer),
+  :meth:`CanopenEmulator.serve` blocks on the bus and sends heartbeats on the real clock.
+
+Fault injection (:class:`InjectedFaults`): dropped TPDOs, a stuck encoder, a strain gauge at its rail,
+an amplifier dropping ready, a frozen node (no heartbeat, no PDOs, no answers) and a bus-off.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import can
+import canopen
+
+from ankle_rt.config import Config
+from hardware.canopen_pdo import (COUNTER_1, COUNTER_2, DIGITAL_IN, DIGITAL_OUT, ENABLE_BITS, HEARTBEAT_BASE,
+                                  READY_BITS, SET_VALUE_1, SET_VALUE_2, STRAIN_1, STRAIN_2, SYNC_COB_ID,
+                                  ANALOG_CODE_SHIFT, PdoLayout, analog_codec, compile_pdo)
+from hardware.escon import escon_amplifiers
+from hardware.sensors import MotorEncoders, StrainGauges
+from sim_backend.plant import SimulatedPlant
+
+NMT_PRE_OPERATIONAL, NMT_OPERATIONAL = 0x7F, 0x05
+CAN_ERR_BUSOFF = 0x40         # error class bit of a bus-off error frame (linux/can/error.h)
+ADC_MIN, ADC_MAX = -32768, 32767   # INTEGER16 analog inputs (0x6401)
+
+
+@dataclass
+class InjectedFaults:
+    """What the emulated node does wrong. Set fields directly; :meth:`clear` undoes all."""
+
+    drop_tpdos: int = 0           # drop this many of the next TPDO frames
+    stuck_encoder: int = 0        # 1 or 2: that counter stops counting; 0: none
+    strain_gauge_rail: int = 0    # 1 or 2: that analog input sits at its positive rail
+    amp_not_ready: int = 0        # 1 or 2: that ESCON drops ready (and drives no current)
+    frozen: bool = False          # the node stops: no heartbeat, no PDOs, no SDO answers
+    bus_off: bool = False         # the bus went off: an error frame, then silence both ways
+
+    def clear(self) -> None:
+        self.drop_tpdos = self.stuck_encoder = self.strain_gauge_rail = self.amp_not_ready = 0
+        self.frozen = self.bus_off = False
+
+
+class CanopenEmulator:
+    """The ankle I/O node on ``bus`` with a :class:`SimulatedPlant` behind it (see module docstring)."""
+
+    def __init__(self, cfg: Config, bus: can.BusABC, eds: str, *, realtime: bool = False):
+        """``cfg`` gives the plant, the ESCON map and the sensor calibration; ``realtime`` sends
+        heartbeats on the monotonic clock (standalone) instead of on the SYNC count (lockstep)."""
+        self.plant = SimulatedPlant(cfg, getattr(cfg, "source", "config"))
+        self.dt = self.plant.dt
+        self.amps = escon_amplifiers(cfg, analog_codec())
+        self.encoders = MotorEncoders(cfg["actuator"]["encoder_counts_per_rev"], 32, tuple(cfg["encoders"]["sign"]))
+        self._heartbeat_ms = 0
+        self.strain = StrainGauges.from_config(cfg)
+        self.realtime = realtime
+        self.bus = bus
+        self.node_id = cfg["canopen"]["io_node_id"]
+        self.network = canopen.Network(bus)           # no connect(): no Notifier thread
+        self.node = canopen.LocalNode(self.node_id, canopen.import_od(eds, self.node_id))
+        self.network.add_node(self.node)
+        # heartbeats are sent by service() (no timer thread): catch writes of 0x1017 instead
+        self.node._write_callbacks.remove(self.node.nmt.on_write)
+        self.node.add_write_callback(self._on_write)
+        self.network.subscribe(0, self._after_nmt)    # after the NmtSlave's own handler
+        self.network.subscribe(SYNC_COB_ID, self._on_sync)
+        self.faults = InjectedFaults()
+        self.counts = {"sync": 0, "rpdo": 0, "rpdo_bad_length": 0, "tpdo_sent": 0, "tpdo_dropped": 0,
+                       "heartbeats": 0}
+        self.outputs = {SET_VALUE_1: self.amps[0].zero_code << ANALOG_CODE_SHIFT,
+                        SET_VALUE_2: self.amps[1].zero_code << ANALOG_CODE_SHIFT, DIGITAL_OUT: 0}
+        self._pending = dict(self.outputs)
+        self._tpdos: tuple[PdoLayout, ...] = ()
+        self._rpdos: dict[int, PdoLayout] = {}
+        self._synced = False
+        self._stuck_raw = [0, 0]
+        self._next_heartbeat = 0.0
+        self._bus_off_sent = False
+        self.boot()
+
+    def _on_write(self, index: int, subindex: int, od, data: bytes) -> None:
+        if index == 0x1017:
+            self._heartbeat_ms = int.from_bytes(data[:2], "little")
+
+    # -- NMT ---------------------------------------------------------------------------------------
+    @property
+    def state(self) -> str:
+        return self.node.nmt.state
+
+    def boot(self) -> None:
+        """Power-up: boot-up message, PRE-OPERATIONAL, outputs at their error values."""
+        self.node.nmt._state = NMT_PRE_OPERATIONAL
+        self._safe_outputs()
+        self._send(HEARTBEAT_BASE + self.node_id, b"\x00")
+
+    def _after_nmt(self, can_id: int, data: bytearray, timestamp: float) -> None:
+        if self.node.nmt._state == NMT_OPERATIONAL:
+            self._start_pdos()
+        else:
+            self._safe_outputs()
+            if self.node.nmt._state == 0:          # reset node / communication: boot again
+                self.boot()
+
+    def _start_pdos(self) -> None:
+        """Compile the PDO mapping as the master configured it (SDO writes into this node's OD)."""
+        node = self.node
+        node.tpdo.read()
+        node.rpdo.read()
+        self._tpdos = tuple(compile_pdo(m, "emulated node") for m in node.tpdo.map.values() if m.enabled and m.map)
+        self._rpdos = {}
+        for m in node.rpdo.map.values():
+            if m.enabled and m.map:
+                layout = compile_pdo(m, "emulated node")
+                self._rpdos[layout.cob_id] = layout
+                self.network.subscribe(layout.cob_id, self._on_rpdo)
+
+    def _safe_outputs(self) -> None:
+        """CiA 401 error behaviour: outputs in error mode take their error values."""
+        get = self.node.sdo
+        for obj, mode, value in ((SET_VALUE_1, get[0x6443][1].raw, get[0x6444][1].raw),
+                                 (SET_VALUE_2, get[0x6443][2].raw, get[0x6444][2].raw)):
+            if mode:
+                self.outputs[obj] = self._pending[obj] = value
+        mode = get[0x6206][1].raw
+        value = get[0x6207][1].raw
+        out = self.outputs[DIGITAL_OUT]
+        self.outputs[DIGITAL_OUT] = self._pending[DIGITAL_OUT] = (out & ~mode) | (value & mode)
+
+    # -- PDOs --------------------------------------------------------------------------------------
+    def _on_rpdo(self, can_id: int, data: bytearray, timestamp: float) -> None:
+        if self.node.nmt._state != NMT_OPERATIONAL:
+            return
+        layout = self._rpdos[can_id]
+        if len(data) != layout.size:
+            self.counts["rpdo_bad_length"] += 1
+            return
+        self.counts["rpdo"] += 1
+        for obj, value in zip(layout.objects, layout.codec.unpack(bytes(data))):
+            self._pending[obj] = value
+
+    def _currents(self) -> tuple[float, float]:
+        """A driven by each ESCON for the applied outputs: zero unless enabled and ready."""
+        out = self.outputs[DIGITAL_OUT]
+        currents = [0.0, 0.0]
+        for k, obj in enumerate((SET_VALUE_1, SET_VALUE_2)):
+            amp = self.amps[k]
+            enabled = amp.enable_level(True) == bool(out & ENABLE_BITS[k])
+            if enabled and self.faults.amp_not_ready != k + 1:
+                currents[k] = amp.current(self.outputs[obj] >> ANALOG_CODE_SHIFT)
+        return currents[0], currents[1]
+
+    def _inputs(self) -> dict[tuple[int, int], int]:
+        """Sample the plant's sensors as the I/O module's input objects."""
+        plant = self.plant
+        c1, c2 = self.encoders.raw_from_counts(*plant.encoder_counts())
+        for i, c in ((0, c1), (1, c2)):
+            if self.faults.stuck_encoder != i + 1:
+                self._stuck_raw[i] = c
+        c1, c2 = self._stuck_raw
+        c1 = c1 - (1 << 32) if c1 >= 1 << 31 else c1          # INTEGER32 object
+        c2 = c2 - (1 << 32) if c2 >= 1 << 31 else c2
+        s1, s2 = self.strain.raw(*plant.strain_gauge_torques(), ADC_MIN, ADC_MAX)
+        if self.faults.strain_gauge_rail == 1:
+            s1 = ADC_MAX
+        elif self.faults.strain_gauge_rail == 2:
+            s2 = ADC_MAX
+        ready = 0
+        for i in (0, 1):
+            if self.amps[i].ready_active_high == (self.faults.amp_not_ready != i + 1):
+                ready |= READY_BITS[i]
+        return {COUNTER_1: c1, COUNTER_2: c2, STRAIN_1: s1, STRAIN_2: s2, DIGITAL_IN: ready}
+
+    def _on_sync(self, can_id: int, data: bytearray, timestamp: float) -> None:
+        if self.node.nmt._state != NMT_OPERATIONAL:
+            return
+        self.counts["sync"] += 1
+        self.outputs.update(self._pending)
+        if self._synced:
+            self.plant.step(*self._currents())
+        self._synced = True
+        inputs = self._inputs()
+        for layout in self._tpdos:
+            if self.faults.drop_tpdos > 0:
+                self.faults.drop_tpdos -= 1
+                self.counts["tpdo_dropped"] += 1
+                continue
+            self._send(layout.cob_id, layout.codec.pack(*(inputs[o] for o in layout.objects)))
+            self.counts["tpdo_sent"] += 1
+
+    # -- bus ---------------------------------------------------------------------------------------
+    def _send(self, cob_id: int, data: bytes) -> None:
+        self.bus.send(can.Message(arbitration_id=cob_id, is_extended_id=False, data=data))
+
+    def _heartbeat(self) -> None:
+        """Send the heartbeat when it is due (0x1017; on the SYNC clock in lockstep)."""
+        period_ms = self._heartbeat_ms
+        if not period_ms:
+            return
+        now = time.monotonic() if self.realtime else self.plant.t
+        if now >= self._next_heartbeat:
+            self._send(HEARTBEAT_BASE + self.node_id, bytes((self.node.nmt._state,)))
+            self.counts["heartbeats"] += 1
+            self._next_heartbeat = now + period_ms * 1e-3 - (0.5 * self.dt if not self.realtime else 0.0)
+
+    def service(self) -> None:
+        """Handle every frame waiting on the bus, then send a due heartbeat. Never blocks."""
+        while True:
+            msg = self.bus.recv(0.0)
+            if msg is None:
+                break
+            self._handle(msg)
+        self._idle()
+
+    def _handle(self, msg: can.Message) -> None:
+        if self.faults.frozen or self.faults.bus_off or msg.is_error_frame or msg.is_remote_frame:
+            return
+        self.network.notify(msg.arbitration_id, msg.data, msg.timestamp)
+
+    def _idle(self) -> None:
+        f = self.faults
+        if f.bus_off:
+            if not self._bus_off_sent:   # what the master's controller reports, then silence
+                self.bus.send(can.Message(arbitration_id=CAN_ERR_BUSOFF, is_error_frame=True, dlc=8))
+                self._bus_off_sent = True
+                self.node.nmt._state = NMT_PRE_OPERATIONAL      # 0x1029: communication error -> pre-op
+                self._safe_outputs()
+            return
+        self._bus_off_sent = False
+        if not f.frozen:
+            self._heartbeat()
+
+    def close(self) -> None:
+        """Release the emulator's bus."""
+        self.bus.shutdown()
+
+    def serve(self, duration_s: float | None = None, poll_s: float = 0.001) -> None:
+        """Standalone: block on the bus and serve until ``duration_s`` has passed (forever if None)."""
+        end = None if duration_s is None else time.monotonic() + duration_s
+        while end is None or time.monotonic() < end:
+            msg = self.bus.recv(poll_s)
+            if msg is not None:
+                self._handle(msg)
+            self._idle()
+
+
+class LockstepBus(can.BusABC):
+    """The backend's side of an in-process virtual bus: every ``send`` lets the emulator handle the
+    frame (and answer) before it returns, so backend and emulator share one thread in lockstep."""
+
+    def __init__(self, channel: str, emulator: "CanopenEmulator | None" = None, **kwargs):
+        self._inner = can.Bus(interface="virtual", channel=channel)
+        self.emulator = emulator
+        super().__init__(channel=channel, **kwargs)
+        self.channel_info = f"lockstep {self._inner.channel_info}"
+
+    def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        self._inner.send(msg, timeout)
+        if self.emulator is not None:
+            self.emulator.service()
+
+    def _recv_internal(self, timeout: float | None):
+        return self._inner._recv_internal(timeout)
+
+    def shutdown(self) -> None:
+        self._inner.shutdown()
+        super().shutdown()
+
+
+def lockstep_pair(cfg: Config, eds: str, channel: str) -> tuple[LockstepBus, CanopenEmulator]:
+    """An emulator on virtual ``channel`` and the lockstep bus a backend uses to reach it."""
+    link = LockstepBus(channel)
+    emulator = CanopenEmulator(cfg, can.Bus(interface="virtual", channel=channel), eds)
+    link.emulator = emulator
+    return link, emulator
