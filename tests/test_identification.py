@@ -22,7 +22,7 @@ from ankle_rt.identification.runner import actuator_config
 from ankle_rt.identification.signals import IdentificationError
 from ankle_rt.identification.stiction import estimate_stiction
 from ankle_rt.interchange import InterchangeError, Recording, read_csv, write_csv
-from tests.identification_helpers import actuator_cfg, drive
+from tests.identification_helpers import actuator_cfg
 
 ROOT = Path(__file__).resolve().parent.parent
 REPEATS = 2
@@ -31,7 +31,7 @@ REPEATS = 2
 @pytest.fixture(scope="module")
 def nominal(_sim_cfg):
     cfg = actuator_cfg(_sim_cfg)
-    recordings = run_experiments(cfg, EXPERIMENTS, motor=1, repeats=REPEATS, run=drive)
+    recordings = run_experiments(cfg, EXPERIMENTS, motor=1, repeats=REPEATS)
     kt = cfg["actuator"]["torque_constant"]
     return cfg, recordings, identify(recordings, 1, kt, prior=cfg["actuator"])
 
@@ -40,7 +40,7 @@ def nominal(_sim_cfg):
 def asymmetric(_sim_cfg):
     cfg = actuator_cfg(_sim_cfg, effects=[{"type": "asymmetric_friction", "coulomb_asymmetry": 0.04,
                                            "viscous_asymmetry": 0.0}])
-    recordings = run_experiments(cfg, ("stiction", "viscous"), motor=2, repeats=REPEATS, run=drive)
+    recordings = run_experiments(cfg, ("stiction", "viscous"), motor=2, repeats=REPEATS)
     return cfg, identify(recordings, 2, cfg["actuator"]["torque_constant"], prior=cfg["actuator"])
 
 
@@ -101,6 +101,19 @@ def test_offline_estimates_from_csv_match_and_cli_writes_outputs(nominal, tmp_pa
     assert (out / "report.txt").exists() and (out / "fig4_inertia.png").exists()
 
 
+def test_identify_runs_the_experiment_through_the_daemon_loop(tmp_path, capsys):
+    out = tmp_path / "run"
+    code = main(["identify", "inertia", "--config", str(ROOT / "config" / "sim.yaml"), "--repeats", "1",
+                 "--out", str(out)])
+    text = capsys.readouterr().out
+    assert code == 0
+    assert "motors off the cables" in text and "quantisation on, strain-gauge noise on" in text
+    params = yaml.safe_load((out / "params.yaml").read_text())
+    assert params["actuator"]["inertia"] == pytest.approx(0.048, rel=0.05)
+    rec = read_csv(out / "inertia.csv", min_rows=MIN_ROWS["inertia"])
+    assert np.ptp(rec["current_cmd_1"]) > 1.0 and np.all(rec["current_cmd_2"] == 0.0)
+
+
 def _bad_copy(src: Recording, path: Path, mutate) -> Path:
     cols = {k: v.copy() for k, v in src.columns.items()}
     mutate(cols)
@@ -153,6 +166,11 @@ def test_hardware_needs_the_cables_flag(sim_cfg):
         actuator_config(sim_cfg)
     sim_cfg["sim"]["cables"] = False
     assert actuator_config(sim_cfg)[0] is sim_cfg
+    sim_cfg["backend"] = "sim"
+    sim_cfg["sim"].update(cables=True, disturbances=[{"start": 2.0, "stop": 3.0, "torque_dp": 0.5, "torque_ie": 0.5}])
+    cfg, note = actuator_config(sim_cfg)
+    assert not cfg["sim"]["cables"] and cfg["sim"]["disturbances"] == [] and "set for this run" in note
+    assert sim_cfg["sim"]["cables"]   # the caller's config is untouched
 
 
 def test_paper_friction_record_shows_the_double_counted_coulomb_term():

@@ -48,14 +48,18 @@ def actuator_config(cfg: Config) -> tuple[Config, str]:
     """The config for the actuator experiments (the paper's section 3: motors off the cables).
 
     ``sim.cables: false`` states that the motors are detached from the Bowden cables. The simulator
-    then drops the cables itself, so for ``backend: sim`` the flag is set here. On hardware it is a
-    declaration by the operator that the cables are physically off (the experiments spin the motors
-    for many turns, which would drive the attached ankle far past its limits); the experiments refuse
-    to run on hardware without it. Returns the config and a note for the report.
+    then drops the cables itself, so for ``backend: sim`` the flag is set here, and the configured
+    ankle disturbances are dropped too (they would swing the detached foot, whose joint encoders the
+    safety layer still checks). On hardware the flag is a declaration by the operator that the cables
+    are physically off (the experiments spin the motors for many turns, which would drive an attached
+    ankle far past its limits; with the flag the daemon checks only the joint encoders, not the ankle
+    angle estimated from the motors); the experiments refuse to run on hardware without it.
+    Returns the config and a note for the report.
     """
+    if cfg["backend"] == "sim":
+        note = "motors off the cables (sim.cables: false" + (")" if not cfg["sim"]["cables"] else ", set for this run)")
+        return with_overrides(cfg, sim={"cables": False, "disturbances": []}), note
     if not cfg["sim"]["cables"]:
         return cfg, "motors off the cables (sim.cables: false)"
-    if cfg["backend"] == "sim":
-        return with_overrides(cfg, sim={"cables": False}), "motors off the cables (sim.cables set to false for this run)"
     raise ConfigError("the actuator experiments need the motors detached from the Bowden cables: detach them "
                       "and set sim.cables: false to say so", getattr(cfg, "source", None), "sim.cables")
