@@ -44,11 +44,11 @@ class FixedRateLoop:
         clock, period, stats = self.clock, self.period_ns, self.stats
         deadline = self.start_ns = clock.now_ns()
         end = deadline + duration_ns if duration_ns is not None else None
-        last_start = 0
+        last_start = -1   # no previous cycle yet
         while not self.stop_requested and (end is None or deadline < end):
             clock.sleep_until(deadline)
             t_start = clock.now_ns()
-            self.last_period_ns = t_start - last_start if last_start else 0
+            self.last_period_ns = t_start - last_start if last_start >= 0 else 0
             last_start = t_start
             cycle(t_start)
             t_end = clock.now_ns()

@@ -1,0 +1,120 @@
+"""``ankle-rt run``: the control daemon in the foreground.
+
+Real time by default (the monotonic clock, real-time settings from ``loop.realtime``, the command
+socket and systemd notification); ``--fast`` runs the same loop in lockstep on a simulated clock.
+SIGINT/SIGTERM (or the ``stop`` command) put the device in the safe state first, then the log is
+flushed and a summary printed. With the default config/sim.yaml it reproduces the paper's section 7.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser("run", help="run the control daemon (default: the paper's section 7 on the simulator)",
+                              description="Run the control daemon in the foreground until loop.duration_s has "
+                                          "passed or SIGINT/SIGTERM/stop arrives; then print a summary.")
+    p.add_argument("--config", metavar="FILE", help="configuration (default: the shipped config/sim.yaml)")
+    p.add_argument("--duration", type=float, metavar="S", help="s to run (default: loop.duration_s; 0 = until stopped)")
+    p.add_argument("--fast", action="store_true", help="lockstep on a simulated clock, as fast as possible")
+    p.add_argument("--log", metavar="PATH", help="run log file (default: a timestamped name in logging.directory)")
+    p.add_argument("--no-log", action="store_true", help="do not write a run log")
+    p.add_argument("--socket", metavar="PATH", help="command socket (default: service.socket_path)")
+    p.add_argument("--no-plot", action="store_true", help="skip the Figs 13-15 style plot next to the log")
+    p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    p.set_defaults(handler=run)
+
+
+def default_log_path(directory: str) -> Path:
+    return Path(directory) / time.strftime("run-%Y%m%d-%H%M%S.arlog")
+
+
+def run(args: argparse.Namespace) -> int:
+    import json
+    import signal
+
+    from ankle_rt.clock import MonotonicClock, SimClock
+    from ankle_rt.config import load_config
+    from ankle_rt.daemon import Daemon
+    from ankle_rt.log.reader import read_log
+    from ankle_rt.log.summary import format_summary, plot_run, summarize
+    from ankle_rt.log.writer import LogWriter
+    from ankle_rt.paths import default_config_path
+    from ankle_rt.realtime import apply_realtime
+
+    config_path = Path(args.config) if args.config else default_config_path()
+    cfg = load_config(config_path)
+    duration = cfg["loop"]["duration_s"] if args.duration is None else args.duration
+    if duration < 0:
+        print("ankle-rt run: --duration must be >= 0", file=sys.stderr)
+        return 2
+    rt = cfg["loop"]["realtime"]
+    clock = SimClock() if args.fast else MonotonicClock(spin_ns=rt["spin_us"] * 1000)
+    if args.fast and duration == 0:
+        print("ankle-rt run: --fast needs a duration (lockstep would never end)", file=sys.stderr)
+        return 2
+    notes = [] if args.fast else apply_realtime(rt)
+    daemon = Daemon(cfg, clock)
+    log_path = None
+    if cfg["logging"]["enabled"] and not args.no_log:
+        log_path = Path(args.log) if args.log else default_log_path(cfg["logging"]["directory"])
+        daemon.recorder = LogWriter(log_path, daemon.log_metadata(), cfg["logging"]["ring_records"],
+                                    cfg["logging"]["flush_interval_s"])
+    if not args.fast and cfg["service"]["enabled"]:
+        from ankle_rt.service.link import ServiceLink
+        from ankle_rt.service.server import ServiceError
+        try:
+            daemon.service = ServiceLink(cfg, daemon.handle, path=args.socket)
+        except ServiceError as exc:
+            daemon.close()
+            print(f"ankle-rt run: {exc}", file=sys.stderr)
+            return 1
+        notes.append(f"command socket: {daemon.service.path}")
+
+    def stop(signum, _frame):
+        daemon.request_stop()
+
+    old = {s: signal.signal(s, stop) for s in (signal.SIGINT, signal.SIGTERM)}
+    mode = "lockstep (--fast)" if args.fast else "real time"
+    print(f"ankle-rt run: {config_path}, backend {cfg['backend']}, {cfg['controller']['rate_hz']} Hz, {mode}, "
+          f"{'until stopped' if not duration else f'{duration:g} s'}; log: {log_path or 'off'}", flush=True)
+    for note in notes:
+        print(f"  {note}", flush=True)
+    try:
+        if daemon.service is not None:
+            daemon.service.ready(f"running {cfg['backend']} at {cfg['controller']['rate_hz']} Hz")
+        daemon.run(duration or None)
+    finally:
+        if daemon.service is not None:
+            daemon.service.stopping()
+        daemon.close()
+        for s, h in old.items():
+            signal.signal(s, h)
+    if log_path is None:
+        print(f"stopped after {daemon.loop.stats.cycles} cycles (no log written)")
+        return 0
+    records = read_log(log_path).records
+    summary = summarize(records)
+    summary["log"] = str(log_path)
+    summary["loop_stats"] = daemon.loop.stats.summary()
+    if getattr(daemon.recorder, "dropped", 0):
+        summary["log_records_dropped"] = daemon.recorder.dropped
+    plot_note = None
+    if not args.no_plot and len(records):
+        plot_note = plot_run(records, daemon.kt, str(log_path.with_suffix(".png")))
+    if args.json:
+        print(json.dumps(summary, indent=2, default=float))
+    else:
+        print(format_summary(summary))
+        if not args.fast:
+            st = summary["loop_stats"]
+            print(f"loop (live histograms): period error p99 {st['period_error']['p99_us']:.0f} us, "
+                  f"compute p99 {st['compute']['p99_us']:.0f} us, max {st['compute']['max_us']:.0f} us")
+        print(f"log: {log_path}  (ankle-rt log info / ankle-rt log export {log_path} --csv OUT.csv)")
+        if plot_note:
+            print(plot_note)
+    return 0

@@ -1,0 +1,123 @@
+"""What a run did, from its records: tracking errors per axis, peak currents, loop timing, faults.
+Shared by ``ankle-rt run`` (printed at the end) and ``ankle-rt log info``."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from ankle_rt.safety import Fault, State
+
+STEADY_WINDOW_S = 0.5   # the "final error" is the mean |error| over the run's last 0.5 s of activity
+
+
+def _pct(values: np.ndarray, q: float) -> float:
+    return float(np.percentile(values, q)) if len(values) else math.nan
+
+
+def summarize(records: np.ndarray) -> dict[str, Any]:
+    """Summary of a run's records (RECORD_DTYPE). Angles in degrees, currents in A, times in µs."""
+    n = len(records)
+    out: dict[str, Any] = {"cycles": n}
+    if n == 0:
+        return out
+    t = records["t"]
+    state = records["state"]
+    active = state == State.ACTIVE
+    out["duration_s"] = float(t[-1] - t[0])
+    out["active_s"] = float(active.sum() * np.median(np.diff(t))) if n > 1 else 0.0
+    out["final_state"] = State(int(state[-1])).name
+    faults = np.flatnonzero(records["fault"] != Fault.NONE)
+    if faults.size:
+        i = int(faults[0])
+        code = Fault(int(records["fault"][i]))
+        out["fault"] = {"name": code.name, "description": code.description, "t": float(t[i])}
+    has_joint = not np.isnan(records["ankle_dp"]).all()
+    has_ref = not np.isnan(records["ref_dp"]).all()
+    out["ankle_source"] = "joint encoders" if has_joint else "estimate (R^-1 theta_m - K^-1 tau_j)"
+    if has_ref and active.any():
+        t_act = t[active]
+        steady = active & (t >= t_act[-1] - STEADY_WINDOW_S)
+        errors = {}
+        for axis in ("dp", "ie"):
+            ankle = records[f"ankle_{axis}"] if has_joint else records[f"est_ankle_{axis}"]
+            err = np.degrees(ankle - records[f"ref_{axis}"])
+            errors[axis.upper()] = {"rms_deg": float(np.sqrt(np.mean(err[active] ** 2))),
+                                    "max_abs_deg": float(np.max(np.abs(err[active]))),
+                                    "final_abs_deg": float(np.mean(np.abs(err[steady])))}
+        out["tracking_error"] = errors
+    out["peak_current_a"] = [float(np.max(np.abs(records[f"current_cmd_{i}"]))) for i in (1, 2)]
+    out["rms_current_a"] = [float(np.sqrt(np.mean(records[f"current_cmd_{i}"][active] ** 2))) if active.any()
+                            else 0.0 for i in (1, 2)]
+    period = records["period_us"][1:].astype(float)
+    nominal = float(np.median(period)) if len(period) else math.nan
+    err = np.abs(period - nominal)
+    lat = records["latency_us"].astype(float)
+    out["loop"] = {
+        "period_nominal_us": nominal,
+        "period_error_us": {"p50": _pct(err, 50), "p99": _pct(err, 99), "p99.9": _pct(err, 99.9),
+                            "max": float(err.max()) if len(err) else math.nan},
+        "latency_us": {"p50": _pct(lat, 50), "p99": _pct(lat, 99), "p99.9": _pct(lat, 99.9), "max": float(lat.max())},
+        "overruns": int(records["overruns"][-1]),
+        "late_cycles": int(np.sum(period > 2 * nominal)) if len(period) else 0,
+    }
+    return out
+
+
+def format_summary(s: dict[str, Any]) -> str:
+    """A few readable lines."""
+    if s.get("cycles", 0) == 0:
+        return "empty run (no records)"
+    lines = [f"{s['cycles']} cycles, {s['duration_s']:.3f} s ({s['active_s']:.3f} s active), "
+             f"final state {s['final_state']}"]
+    if "fault" in s:
+        f = s["fault"]
+        lines.append(f"FAULT {f['name']} at t = {f['t']:.3f} s: {f['description']}")
+    if "tracking_error" in s:
+        lines.append(f"tracking error (ankle from {s['ankle_source']}, deg):")
+        for axis, e in s["tracking_error"].items():
+            lines.append(f"  {axis}: rms {e['rms_deg']:.3f}  max {e['max_abs_deg']:.3f}  "
+                         f"final {e['final_abs_deg']:.4f} (mean |e| over the last {STEADY_WINDOW_S} s)")
+    pk, rms = s["peak_current_a"], s["rms_current_a"]
+    lines.append(f"current: peak {pk[0]:.2f} / {pk[1]:.2f} A, rms while active {rms[0]:.2f} / {rms[1]:.2f} A")
+    lp = s["loop"]
+    pe, la = lp["period_error_us"], lp["latency_us"]
+    lines.append(f"loop: period {lp['period_nominal_us']:.0f} us, period error p50/p99/p99.9/max "
+                 f"{pe['p50']:.1f}/{pe['p99']:.1f}/{pe['p99.9']:.1f}/{pe['max']:.1f} us, read-to-write latency "
+                 f"p50/p99/max {la['p50']:.1f}/{la['p99']:.1f}/{la['max']:.1f} us, overruns {lp['overruns']}, "
+                 f"late cycles (> 2 periods) {lp['late_cycles']}")
+    return "\n".join(lines)
+
+
+def plot_run(records: np.ndarray, torque_constant: float, out_png: str) -> str:
+    """A figure like the paper's Figs 13-15: (a) ankle and motor angles with the references,
+    (b) motor torques. Returns a note; matplotlib is optional (the analysis extra)."""
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return "plot skipped: matplotlib is not installed (pip install 'ankle-rt[analysis]')"
+    t = records["t"]
+    has_joint = not np.isnan(records["ankle_dp"]).all()
+    src = "ankle" if has_joint else "est_ankle"
+    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(8, 7), sharex=True)
+    for axis, colour in (("dp", "C0"), ("ie", "C1")):
+        ax1.plot(t, np.degrees(records[f"{src}_{axis}"]), colour, label=f"theta_{axis.upper()}")
+        ax1.plot(t, np.degrees(records[f"ref_{axis}"]), colour, ls="--", lw=0.8, label=f"r_{axis.upper()}")
+    for i, colour in ((1, "C2"), (2, "C3")):
+        ax1.plot(t, np.degrees(records[f"motor_pos_{i}"]), colour, lw=0.8, label=f"theta_{i} (motor)")
+        ax2.plot(t, torque_constant * records[f"current_cmd_{i}"], colour, lw=0.8, label=f"tau_{i}")
+    ax1.set_ylabel("angle (deg)")
+    ax1.legend(ncol=3, fontsize=8)
+    ax1.set_title("(a) ankle and motor positions")
+    ax2.set_ylabel("motor torque (N m)")
+    ax2.set_xlabel("t (s)")
+    ax2.legend(fontsize=8)
+    ax2.set_title("(b) motor torques (kt x set value)")
+    fig.tight_layout()
+    fig.savefig(out_png, dpi=110)
+    plt.close(fig)
+    return f"plot: {out_png}"
