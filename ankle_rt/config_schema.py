@@ -267,6 +267,9 @@ SERIAL = Section({
                            default=0.0008, low=0.0, high=0.01),
     "link_timeout_s": Field(float, "no new sample for this long: LINK_LOST", default=0.003, low=0.001, high=1.0),
     "open_timeout_s": positive("wait this long for the bridge to acknowledge its configuration", default=1.0),
+    "emulator": Field(str, "lockstep: run the bridge emulator in this process on a pty pair, stepped by each "
+                           "command (bench tests; serial.port is then ignored); none: a bridge on serial.port",
+                      default="none", choices=("none", "lockstep")),
 }, optional=True, doc="serial bridge transport (backend: serial)")
 
 

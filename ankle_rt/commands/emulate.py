@@ -1,0 +1,53 @@
+"""``ankle-rt emulate``: run a device emulator standalone, the simulated plant behind the real protocol.
+
+This is the bench set-up without the prosthesis: the emulator runs on a second computer (or in a
+second terminal) on a real serial or CAN link, and the daemon on the prosthesis computer runs its
+hardware config against it without knowing the difference.
+
+    ankle-rt emulate --transport serial --config config/bench-serial.yaml --port pty
+    ankle-rt emulate --transport serial --config config/bench-serial.yaml --port /dev/ttyUSB0
+    ankle-rt emulate --transport canopen --config config/bench-canopen.yaml --interface socketcan --channel can0
+
+The plant steps once per command frame (serial) or SYNC (CANopen): the daemon's clock paces it.
+Faults are injected with ``--inject NAME@START[:STOP]`` (seconds of plant time; see the transport's
+documentation for the names). Each transport registers ``run_standalone(cfg, args) -> int`` in
+:data:`EMULATORS`; the core loads it by name and never imports ``hardware`` itself.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+
+# transport -> "module:function" taking (validated config, parsed arguments) and returning an exit code
+EMULATORS: dict[str, str] = {
+    "serial": "hardware.serial_emulator:run_standalone",
+    "canopen": "hardware.canopen_emulator:run_standalone",
+}
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        "emulate", help="run a device emulator (simulated plant behind the serial or CANopen protocol)",
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--transport", required=True, choices=sorted(EMULATORS), help="protocol to speak")
+    parser.add_argument("--config", metavar="FILE", required=True,
+                        help="plant parameters and the device's calibration (e.g. config/bench-serial.yaml)")
+    parser.add_argument("--port", help="serial: device path (/dev/ttyUSB0) or 'pty' for a new pseudo-terminal "
+                        "whose path is printed (default: serial.port of the config)")
+    parser.add_argument("--baudrate", type=int, help="serial: bit/s (default: serial.baudrate of the config)")
+    parser.add_argument("--interface", help="canopen: python-can interface (default: canopen.interface)")
+    parser.add_argument("--channel", help="canopen: python-can channel (default: canopen.channel)")
+    parser.add_argument("--duration", type=float, default=0.0, metavar="S",
+                        help="stop after this many seconds of wall time (0: until Ctrl-C)")
+    parser.add_argument("--inject", action="append", default=[], metavar="NAME@START[:STOP]",
+                        help="inject a fault from START to STOP s of plant time (repeatable)")
+    parser.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from ankle_rt.config import load_config
+
+    cfg = load_config(args.config)
+    module_name, _, func = EMULATORS[args.transport].partition(":")
+    return int(getattr(importlib.import_module(module_name), func)(cfg, args) or 0)
