@@ -4,11 +4,16 @@ One I/O node (``hardware/ankle_io.eds``) carries everything: the two analog set 
 enables (0x6200), the ESCON ready lines (0x6000), the strain-gauge bridges (0x6401) and the encoder
 counters (0x2100). Per cycle (docs/canopen.md):
 
-    read():  send SYNC -> poll the bus without blocking (bounded frame count; on a real clock spin at
-             most ``canopen.tpdo_wait_us`` for this cycle's TPDOs) -> decode with preallocated structs
-             -> heartbeat consumer, bus-off, EMCY, ready and sensor checks -> SensorFrame
+    read():  send SYNC (and, while inactive, the safe RPDO) -> poll the bus without blocking (bounded
+             frame count; on a real clock spin at most ``canopen.tpdo_wait_us`` for this cycle's
+             TPDOs) -> decode with preallocated structs -> heartbeat consumer, bus-off, EMCY, ready
+             and sensor checks -> SensorFrame
     write(): pack the set values and enables into the preallocated RPDO and send it; the node applies
              it at the next SYNC
+
+A lost TPDO keeps the previous sample and its ``seq`` (counted; the daemon's stale-sample rule
+decides); the heartbeat consumer reports LINK_LOST, a node outside OPERATIONAL or an EMCY
+DEVICE_FAULT, a bus-off error frame or a refused send BUS_OFF until frames flow again.
 
 There is no python-can Notifier thread while the loop runs: canopen's ``Network.connect()`` would
 start one that runs Python callbacks for every frame and competes with the loop for the GIL. A
@@ -44,7 +49,7 @@ from hardware.sensors import MotorEncoders, StrainGauges, StuckEncoderDetector
 logger = logging.getLogger(__name__)
 
 MAX_FRAMES_PER_READ = 64         # frames handled per read(); the rest wait for the next cycle
-NMT_OPERATIONAL = 0x05
+NMT_BOOT_UP, NMT_OPERATIONAL, NMT_PRE_OPERATIONAL_STATE = 0x00, 0x05, 0x7F
 NMT_START, NMT_PRE_OPERATIONAL = 0x01, 0x80
 CAN_ERR_BUSOFF = 0x40            # error-frame class bit (linux/can/error.h), as python-can reports it
 EMCY_BASE = 0x80
@@ -184,7 +189,8 @@ class CanopenBackend(Backend):
             notifier.stop(timeout=1.0)
         self._node_state = NMT_OPERATIONAL
         self._last_heartbeat_ns = self.clock.now_ns()
-        self._bus_off = False
+        self._bus_off = self._bus_off_now = False
+        self._link_lost = False
         self._emcy_pending = False
         self._fresh = 0
         self._seq = 0
@@ -219,7 +225,7 @@ class CanopenBackend(Backend):
                 counts["error_frames"] += 1
                 if cob & CAN_ERR_BUSOFF:
                     counts["bus_off"] += 1
-                    self._bus_off = True
+                    self._bus_off = self._bus_off_now = True
                 continue
             entry = by_cob.get(cob)
             if entry is not None:
@@ -235,11 +241,13 @@ class CanopenBackend(Backend):
             elif cob == self._hb_cob:
                 counts["heartbeats"] += 1
                 self._last_heartbeat_ns = self.clock.now_ns()
-                self._node_state = msg.data[0] & 0x7F if msg.dlc else 0
+                self._link_lost = False
+                self._node_state = state = msg.data[0] & 0x7F if msg.dlc else NMT_BOOT_UP
+                if state == NMT_PRE_OPERATIONAL_STATE and not self.active:
+                    self._restart_node()        # e.g. after a bus-off: its configuration is intact
             elif cob == self._emcy_cob:
                 counts["emcy"] += 1
-                if msg.dlc >= 2 and (msg.data[0] or msg.data[1]):   # error code 0000: error reset
-                    self._emcy_pending = True
+                self._emcy_pending = msg.dlc >= 2 and bool(msg.data[0] or msg.data[1])  # 0000: error reset
             else:
                 counts["unknown_frames"] += 1
         counts["frames_deferred"] += 1
@@ -247,13 +255,18 @@ class CanopenBackend(Backend):
     def read(self, frame: SensorFrame) -> None:
         now = self.clock.now_ns()
         self._fresh = 0
+        self._bus_off_now = False
         self._send(self._sync)
         self.counts["sync_sent"] += 1
+        if not self.active:        # keep a node that was away (hung, bus-off) on safe outputs
+            self.write(0.0, 0.0)
         self._receive(time.monotonic_ns() + self.tpdo_wait_ns)
         faults = BackendFault.NONE
         raw = self._raw
         if self._fresh == self._all_tpdos:      # a complete new sample: convert it, advance seq
             self._seq += 1
+            if not self._bus_off_now:           # frames flow again: the controller recovered
+                self._bus_off = False
             if self._counting:
                 self.encoders.update(raw[0], raw[1], frame.motor_pos)
             else:
@@ -267,7 +280,9 @@ class CanopenBackend(Backend):
         else:                                   # a lost TPDO: the frame keeps the last sample and seq;
             self.counts["tpdo_missed"] += 1     # the daemon's stale-sample rule decides
         if now - self._last_heartbeat_ns > self.consumer_ns:
-            self.counts["heartbeat_timeouts"] += 1
+            if not self._link_lost:
+                self.counts["heartbeat_timeouts"] += 1
+            self._link_lost = True
             faults |= BackendFault.LINK_LOST
         elif self._node_state != NMT_OPERATIONAL:
             faults |= BackendFault.DEVICE_FAULT
@@ -312,11 +327,18 @@ class CanopenBackend(Backend):
 
     def activate(self) -> None:
         """Enable the amplifiers with zero set values (sent with the next write)."""
-        if self._node_state != NMT_OPERATIONAL and not self._bus_off:
-            self.node.nmt.send_command(NMT_START)      # one unconfirmed frame, e.g. after a bus-off recovery
-        self._emcy_pending = False
-        self._bus_off = False
+        self._restart_node()
         self.active = True
+
+    def _restart_node(self) -> None:
+        """NMT start (one unconfirmed frame; a no-op for an operational node). Outputs stay as the
+        last RPDO set them, so with the amplifiers inactive they stay zero and disabled."""
+        try:
+            self.node.nmt.send_command(NMT_START)
+        except can.CanError:
+            self.counts["send_errors"] += 1
+            return
+        self._node_state = NMT_OPERATIONAL      # the next heartbeat confirms it
 
     def deactivate(self) -> None:
         """Set values zero, enables off, sent at once (the node applies them at the next SYNC)."""

@@ -6,6 +6,9 @@ values of the last RPDO (CiA 401 synchronous outputs), steps the plant one contr
 first SYNC, which marks t = 0), samples the sensors and sends its TPDOs. Outside OPERATIONAL the
 outputs hold their error values (set values zero, enables off; 0x6443/0x6444, 0x6206/0x6207).
 
+Physical time is the SYNC count: the plant steps on every SYNC, also while the node is stopped, hung
+or bus-off (then with the outputs it holds), and the heartbeat runs on the same clock in lockstep.
+
 No threads: :meth:`CanopenEmulator.service` handles whatever is waiting on the emulator's bus.
 - In tests, :class:`LockstepBus` gives the backend a bus whose ``send`` lets the emulator handle the
   frame before returning, so emulator and backend run in one thread, deterministically
@@ -76,7 +79,6 @@ class CanopenEmulator:
         self.node._write_callbacks.remove(self.node.nmt.on_write)
         self.node.add_write_callback(self._on_write)
         self.network.subscribe(0, self._after_nmt)    # after the NmtSlave's own handler
-        self.network.subscribe(SYNC_COB_ID, self._on_sync)
         self.faults = InjectedFaults()
         self.counts = {"sync": 0, "rpdo": 0, "rpdo_bad_length": 0, "tpdo_sent": 0, "tpdo_dropped": 0,
                        "heartbeats": 0}
@@ -151,7 +153,7 @@ class CanopenEmulator:
         for obj, value in zip(layout.objects, layout.codec.unpack(bytes(data))):
             self._pending[obj] = value
 
-    def _currents(self) -> tuple[float, float]:
+    def amplifier_currents(self) -> tuple[float, float]:
         """A driven by each ESCON for the applied outputs: zero unless enabled and ready."""
         out = self.outputs[DIGITAL_OUT]
         currents = [0.0, 0.0]
@@ -183,14 +185,19 @@ class CanopenEmulator:
                 ready |= READY_BITS[i]
         return {COUNTER_1: c1, COUNTER_2: c2, STRAIN_1: s1, STRAIN_2: s2, DIGITAL_IN: ready}
 
-    def _on_sync(self, can_id: int, data: bytearray, timestamp: float) -> None:
-        if self.node.nmt._state != NMT_OPERATIONAL:
-            return
+    def _on_sync(self) -> None:
+        """A SYNC is one control tick of physical time: the plant steps whatever the node's state
+        (a hung node holds its outputs, a stopped one has its error values); only an operational,
+        communicating node applies its RPDOs and answers with TPDOs."""
         self.counts["sync"] += 1
-        self.outputs.update(self._pending)
+        talking = self.node.nmt._state == NMT_OPERATIONAL and not (self.faults.frozen or self.faults.bus_off)
+        if talking:
+            self.outputs.update(self._pending)
         if self._synced:
-            self.plant.step(*self._currents())
+            self.plant.step(*self.amplifier_currents())
         self._synced = True
+        if not talking:
+            return
         inputs = self._inputs()
         for layout in self._tpdos:
             if self.faults.drop_tpdos > 0:
@@ -225,9 +232,12 @@ class CanopenEmulator:
         self._idle()
 
     def _handle(self, msg: can.Message) -> None:
-        if self.faults.frozen or self.faults.bus_off or msg.is_error_frame or msg.is_remote_frame:
+        if msg.is_error_frame or msg.is_remote_frame:
             return
-        self.network.notify(msg.arbitration_id, msg.data, msg.timestamp)
+        if msg.arbitration_id == SYNC_COB_ID:
+            self._on_sync()
+        elif not (self.faults.frozen or self.faults.bus_off):
+            self.network.notify(msg.arbitration_id, msg.data, msg.timestamp)
 
     def _idle(self) -> None:
         f = self.faults

@@ -186,3 +186,139 @@ def test_section7_through_canopen_matches_the_direct_simulation(bench_cfg):
                              backend=QuantisedSimBackend(sim_copy(bench_cfg), SimClock(), amps))
     for k in ("motor_pos_1", "motor_pos_2", "current_cmd_1", "current_cmd_2"):   # equal up to float rounding
         assert np.max(np.abs(quantised[k] - via_can[k])) < 1e-9, k
+
+
+# -- fault injection through the daemon's safety ---------------------------------------------------
+
+class Bench:
+    """The daemon, the CANopen backend and the emulator in lockstep, stepped cycle by cycle."""
+
+    def __init__(self, cfg: Config):
+        self.clock = SimClock()
+        self.backend = CanopenBackend(cfg, self.clock)
+        self.emu = self.backend.emulator
+        self.daemon = Daemon(cfg, self.clock, backend=self.backend)
+        self.period = self.backend.period_ns
+
+    def cycles(self, n: int, until=None) -> int:
+        """Run up to ``n`` cycles (stop early once ``until()`` is true); return how many ran."""
+        for k in range(1, n + 1):
+            t = self.clock.now_ns()
+            self.daemon.cycle(t)
+            self.clock.sleep_until(t + self.period)
+            if until is not None and until():
+                return k
+        return n
+
+    @property
+    def state(self) -> State:
+        return State(self.daemon.safety.state)
+
+    def close(self) -> None:
+        self.daemon.close()
+        self.backend.close()
+
+
+def _stuck(emu):
+    emu.faults.stuck_encoder = 1
+
+
+def _rail(emu):
+    emu.faults.strain_gauge_rail = 2
+
+
+def _not_ready(emu):
+    emu.faults.amp_not_ready = 1
+
+
+def _frozen(emu):
+    emu.faults.frozen = True
+
+
+def _bus_off(emu):
+    emu.faults.bus_off = True
+
+
+def _dropped(emu):
+    emu.faults.drop_tpdos = 1000
+
+
+# (injection, expected fault, cycles until the daemon is safe: 1 = in the cycle whose SYNC saw it)
+FAULTS = [
+    (_stuck, Fault.ENCODER_FAULT, 11),     # encoders.stuck_time 10 ms of unbalanced torque, + 1
+    (_rail, Fault.SG_RAIL, 1),
+    (_not_ready, Fault.AMP_NOT_READY, 1),
+    (_bus_off, Fault.BUS_OFF, 1),
+    (_frozen, Fault.SENSOR_STALE, 5),      # no TPDOs: the sample stops advancing (safety.stale_cycles)
+    (_dropped, Fault.SENSOR_STALE, 5),
+]
+
+
+@pytest.mark.parametrize("inject, expected, within", FAULTS, ids=[f[0].__name__[1:] for f in FAULTS])
+def test_injected_fault_goes_safe_in_time_and_resumes_after_reset(bench_cfg, inject, expected, within):
+    bench = Bench(bench_cfg)
+    emu = bench.emu
+    try:
+        bench.cycles(505)                                    # tare, activate, the step starts at 0.5 s
+        assert bench.state == State.ACTIVE
+        assert max(abs(c) for c in emu.plant.current) > 1.0  # the motors work when the fault comes
+        inject(emu)
+        took = bench.cycles(within + 10, until=lambda: bench.state != State.ACTIVE)
+        assert bench.state in (State.FAULT, State.SAFE)
+        assert took <= within
+        assert bench.daemon.safety.fault == expected
+        bench.cycles(1)
+        rpdo = bench.backend._rpdos[0].data                  # what the backend last sent: safe values
+        assert rpdo[4] == 0 and int.from_bytes(rpdo[0:2], "little", signed=True) == 0
+        if not emu.faults.frozen:                            # a hung node cannot apply anything
+            assert emu.outputs[DIGITAL_OUT] == 0 and emu.amplifier_currents() == (0.0, 0.0)
+        bench.cycles(20)
+        assert bench.state in (State.FAULT, State.SAFE) and bench.daemon.safety.fault == expected  # latched
+        emu.faults.clear()
+        bench.cycles(30)                                     # heartbeats and PDOs come back
+        bench.daemon.reset_fault()
+        bench.daemon.activate()
+        bench.cycles(200)
+        assert bench.state == State.ACTIVE and bench.daemon.safety.fault == Fault.NONE
+        assert emu.outputs[DIGITAL_OUT] == 0b11 and emu.state == "OPERATIONAL"
+    finally:
+        bench.close()
+
+
+def test_heartbeat_consumer_reports_a_frozen_node_within_its_timeout(bench_cfg):
+    clock = SimClock()
+    backend = open_backend(bench_cfg, clock)
+    frame = SensorFrame()
+    for _ in range(50):
+        backend.read(frame)
+        clock.advance(backend.period_ns)
+    assert frame.faults == BackendFault.NONE
+    backend.emulator.faults.frozen = True
+    cycles = 0
+    while not frame.faults & BackendFault.LINK_LOST:
+        backend.read(frame)
+        clock.advance(backend.period_ns)
+        cycles += 1
+        assert cycles <= 40
+    consumer = bench_cfg["canopen"]["heartbeat_consumer_ms"]
+    producer = bench_cfg["canopen"]["heartbeat_producer_ms"]
+    assert consumer - producer <= cycles <= consumer + 1     # timed from the last heartbeat seen
+    assert backend.counters()["heartbeat_timeouts"] == 1
+    backend.close()
+
+
+def test_a_single_lost_tpdo_holds_the_sample_and_is_counted(bench_cfg):
+    clock = SimClock()
+    backend = open_backend(bench_cfg, clock)
+    frame = SensorFrame()
+    for _ in range(5):
+        backend.read(frame)
+        clock.advance(backend.period_ns)
+    seq = frame.seq
+    backend.emulator.faults.drop_tpdos = 1
+    backend.read(frame)
+    assert frame.seq == seq and frame.faults == BackendFault.NONE
+    backend.read(frame)
+    assert frame.seq == seq + 1
+    assert backend.counters()["tpdo_missed"] == 1 and backend.emulator.counts["tpdo_dropped"] == 1
+    backend.close()
