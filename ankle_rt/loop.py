@@ -33,6 +33,8 @@ class FixedRateLoop:
         self.last_period_ns = 0
         self.stop_requested = False
         self.start_ns = 0
+        self._next_deadline: int | None = None
+        self._last_start = -1             # start of the previous cycle (ns), -1 before the first
 
     def stop(self) -> None:
         """Ask the loop to return after the current cycle (signal-handler safe)."""
@@ -40,11 +42,15 @@ class FixedRateLoop:
 
     def run(self, cycle: Callable[[int], None], duration_ns: int | None = None) -> None:
         """Call ``cycle(start_ns)`` at every deadline until stopped or ``duration_ns`` has passed
-        (deadlines at start + k * period for k * period < duration)."""
+        (deadlines at start + k * period for k * period < duration). Calling run again continues
+        on the same deadline grid (tests drive a daemon in slices this way)."""
         clock, period, stats = self.clock, self.period_ns, self.stats
-        deadline = self.start_ns = clock.now_ns()
+        if self._next_deadline is None:        # first run: the grid starts now
+            deadline = self.start_ns = clock.now_ns()
+        else:                                  # a later run continues the same grid
+            deadline = self._next_deadline
         end = deadline + duration_ns if duration_ns is not None else None
-        last_start = -1   # no previous cycle yet
+        last_start = self._last_start
         while not self.stop_requested and (end is None or deadline < end):
             clock.sleep_until(deadline)
             t_start = clock.now_ns()
@@ -64,3 +70,5 @@ class FixedRateLoop:
             else:
                 deadline += period
                 self.consecutive_overruns = 0
+            self._next_deadline = deadline
+            self._last_start = last_start

@@ -1,0 +1,69 @@
+"""Helpers for the daemon tests: config variants, a fault-injecting backend around the simulator,
+and running a Daemon cycle by cycle on a SimClock."""
+
+from __future__ import annotations
+
+import copy
+from typing import Callable
+
+from ankle_rt.backend import Backend, SensorFrame
+from ankle_rt.clock import SimClock
+from ankle_rt.config import Config
+from ankle_rt.daemon import Daemon
+from ankle_rt.log.memory import MemoryRecorder
+from sim_backend.backend import SimBackend
+
+
+def variant(cfg: Config, **sections: dict) -> Config:
+    """A deep copy of ``cfg`` with the given sections updated key by key."""
+    out = Config(copy.deepcopy(dict(cfg)))
+    out.source = cfg.source
+    for name, values in sections.items():
+        out[name].update(values)
+    return out
+
+
+class InjectingBackend(Backend):
+    """The simulator, with ``mutate(frame, cycle)`` applied to every sample from cycle ``at`` on.
+    Records the cycles in which deactivate() was called."""
+
+    name = "inject"
+
+    def __init__(self, cfg: Config, clock: SimClock, at: int = 10**9,
+                 mutate: Callable[[SensorFrame, int], None] | None = None):
+        super().__init__(cfg, clock)
+        self.sim = SimBackend(cfg, clock)
+        self.at, self.mutate = at, mutate
+        self.cycle = -1
+        self.deactivated_at: list[int] = []
+
+    @property
+    def active(self) -> bool:
+        return self.sim.active
+
+    def activate(self) -> None:
+        self.sim.activate()
+
+    def deactivate(self) -> None:
+        self.deactivated_at.append(self.cycle)
+        self.sim.deactivate()
+
+    def write(self, current_1: float, current_2: float) -> None:
+        self.sim.write(current_1, current_2)
+
+    def read(self, frame: SensorFrame) -> None:
+        self.cycle += 1
+        self.sim.read(frame)
+        if self.mutate is not None and self.cycle >= self.at:
+            self.mutate(frame, self.cycle)
+
+
+def lockstep_daemon(cfg: Config, *, backend: Backend | None = None, capacity: int = 20000, **kw) -> Daemon:
+    """A Daemon on a SimClock with an in-memory recorder (run it with run_cycles)."""
+    clock = backend.clock if backend is not None else SimClock()
+    return Daemon(cfg, clock, backend=backend, recorder=MemoryRecorder(capacity), **kw)
+
+
+def run_cycles(daemon: Daemon, n: int) -> None:
+    """Run ``n`` more cycles of the daemon's loop on its SimClock."""
+    daemon.loop.run(daemon.cycle, n * daemon.period_ns)
