@@ -9,6 +9,7 @@ from typing import Callable, Protocol
 import numpy as np
 
 from ankle_rt.config import Config, ConfigError
+from ankle_rt.identification.signals import IdentificationError
 from ankle_rt.interchange import Recording
 
 
@@ -26,21 +27,39 @@ class Experiment(Protocol):
 Runner = Callable[[Config, Experiment, float], Recording]
 
 
-def run_lockstep_recording(cfg: Config, controller: Experiment, duration_s: float) -> Recording:
-    """The daemon's loop in lockstep (``ankle_rt.daemon.run_lockstep``), as an interchange Recording."""
+def run_lockstep_recording(cfg: Config, controller: Experiment | None, duration_s: float) -> Recording:
+    """The daemon's loop in lockstep (``ankle_rt.daemon.run_lockstep``), as an interchange Recording.
+    ``controller=None`` runs the config's controller and reference. ``duration_s`` counts from
+    activation, which follows the strain-gauge tare."""
     from ankle_rt.daemon import run_lockstep
 
-    result = run_lockstep(cfg, duration_s, controller=controller)
-    columns = {k: np.asarray(v, dtype=float) for k, v in result.interchange().items()}
-    return Recording(columns, f"{type(controller).__name__} on backend {cfg['backend']!r}")
+    tare_s = cfg["estimation"]["tare_samples"] / cfg["controller"]["rate_hz"]  # the loop activates after the tare
+    result = run_lockstep(cfg, duration_s + tare_s, controller=controller)
+    name = type(controller).__name__ if controller is not None else "configured controller"
+    return recording_of(result, f"{name} on backend {cfg['backend']!r}")
 
 
-def with_overrides(cfg: Config, **sections: dict) -> Config:
-    """A deep copy of ``cfg`` with ``sections`` merged key by key (e.g. ``sim={"cables": False}``)."""
+def recording_of(result, source: str) -> Recording:
+    """The interchange columns of a daemon RunResult; a run that faulted is an error (its data stops)."""
+    fault = result.summary.get("fault", "NONE")
+    if fault != "NONE":
+        raise IdentificationError(f"{source}: the daemon stopped the run with fault {fault}")
+    return Recording({k: np.asarray(v, dtype=float) for k, v in result.interchange().items()}, source)
+
+
+def with_overrides(cfg: Config, **sections: object) -> Config:
+    """A deep copy of ``cfg`` with ``sections`` merged key by key, recursively (e.g.
+    ``sim={"cables": False}``). The values must already be valid (they are not re-checked)."""
+    def merge(into: dict, new: dict) -> None:
+        for key, value in new.items():
+            if isinstance(value, dict) and isinstance(into.get(key), dict):
+                merge(into[key], value)
+            else:
+                into[key] = copy.deepcopy(value)
+
     out = Config(copy.deepcopy(dict(cfg)))
     out.source = getattr(cfg, "source", "<memory>")
-    for name, values in sections.items():
-        out[name].update(values)
+    merge(out, sections)
     return out
 
 
