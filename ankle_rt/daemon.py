@@ -24,6 +24,7 @@ from ankle_rt.clock import Clock, SimClock
 from ankle_rt.config import Config, ConfigError
 from ankle_rt.control import CycleController, build_controller
 from ankle_rt.estimation import Estimate, Estimator
+from ankle_rt.interchange import InterchangeError
 from ankle_rt.kinematics import Kinematics
 from ankle_rt.log.memory import MemoryRecorder
 from ankle_rt.log.reader import interchange_columns
@@ -91,7 +92,10 @@ class Daemon:
         self.reference.update(est.t)
         torque = self.torque
         state = safety.state
-        if state == ACTIVE or state == CONFIGURED:
+        if state != ACTIVE:
+            torque[0] = torque[1] = 0.0
+            safety.current[0] = safety.current[1] = 0.0
+        if state != FAULT:
             code = safety.check_sensors(frame, est)
             if code == 0 and state == CONFIGURED and self.auto_activate and est.tared and self.activations == 0:
                 self.activate()
@@ -105,17 +109,16 @@ class Daemon:
                 self._fault(code)
         loop = self.loop
         latency_ns = self.clock.now_ns() - t_start_ns
+        if self.service is not None:
+            self._service_tick(t_start_ns * 1e-9)
         if self.recorder is not None:
             ankle, mvel, sg, joint, ref = est.ankle_pos, est.motor_vel, est.sg_torque, est.joint_pos, self.reference.ref
-            active = safety.state == ACTIVE
             self.recorder.append(
                 est.t, est.motor_pos[0], est.motor_pos[1], mvel[0], mvel[1], sg[0], sg[1], joint[0], joint[1],
                 ankle[0], ankle[1], ref[0], ref[1], torque[0], torque[1],
-                safety.current[0] if active else 0.0, safety.current[1] if active else 0.0,
+                safety.current[0], safety.current[1],
                 (t_start_ns - loop.start_ns) * 1e-9, frame.seq, loop.last_period_ns * 1e-3, latency_ns * 1e-3,
                 loop.stats.overruns, safety.state, safety.fault, frame.faults)
-        if self.service is not None:
-            self._service_tick(t_start_ns * 1e-9)
 
     def _service_tick(self, now: float) -> None:
         service = self.service
@@ -129,7 +132,6 @@ class Daemon:
         backend.write(0.0, 0.0)
         backend.deactivate()
         self.safety.current[0] = self.safety.current[1] = 0.0
-        self.torque[0] = self.torque[1] = 0.0
         self.safety.trip(code, self.est.t)
         if self.service is not None:
             self.service.status(f"FAULT: {Fault(code).description}")
@@ -150,6 +152,7 @@ class Daemon:
         if self.activations > 0:
             self.reference.start(Hold(float(self.est.ankle_pos[0]), float(self.est.ankle_pos[1])))
         self.backend.activate()
+        s.current[0] = s.current[1] = 0.0
         self.controller.reset(self.est)
         s.state = State.ACTIVE
         self.activations += 1
@@ -210,8 +213,11 @@ class Daemon:
                 raise proto.CommandError("cmd", f"not supported: {type(command).__name__}")
         except RuntimeError as exc:
             raise proto.CommandError("cmd", str(exc)) from None
-        except ConfigError as exc:
-            raise proto.CommandError(exc.key or "params", str(exc).rsplit(": ", 1)[-1]) from None
+        except ConfigError as exc:  # a profile parameter: "<source>: params.<key>: <message>"
+            where = ": ".join(part for part in (exc.source, exc.key) if part)
+            raise proto.CommandError(exc.key or "params", str(exc)[len(where) + 2:] if where else str(exc)) from None
+        except InterchangeError as exc:  # the csv profile's file
+            raise proto.CommandError("params.path", str(exc)) from None
         except ValueError as exc:
             raise proto.CommandError(_gain_field(str(exc)), str(exc)) from None
         return {"state": State(self.safety.state).name.lower()}

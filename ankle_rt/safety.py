@@ -2,14 +2,17 @@
 
 States, in the spirit of ros2_control::
 
-    CONFIGURED --activate--> ACTIVE --fault--> FAULT --(next cycle)--> SAFE --reset--> CONFIGURED
-         ^                      |
-         +-----deactivate-------+
+    CONFIGURED --activate--> ACTIVE --fault--> FAULT --reset--> SAFE --activate--> ACTIVE
+                               |                                  ^
+                               +------------deactivate------------+
 
+CONFIGURED is the start-up state (sensors read and logged, strain gauges tared, amplifiers off).
 Set values reach the amplifiers only in ACTIVE. In the cycle a fault is detected the daemon zeroes
-the set values, calls ``backend.deactivate()`` (enables off) and records the reason; the state is
-FAULT for that one cycle's log record, then SAFE until an explicit reset. Faults are small integer
-codes (:class:`Fault`), so the hot path records a reason without formatting a string.
+the set values, calls ``backend.deactivate()`` (enables off) and records the reason; FAULT then
+latches (amplifiers off) until an explicit reset, which leads to SAFE: amplifiers off, no fault
+pending, ready to be activated again. Sensors are checked in every state but FAULT, so a broken
+sensor also blocks a later activation. Faults are small integer codes (:class:`Fault`), so the hot
+path records a reason without formatting a string.
 """
 
 from __future__ import annotations
@@ -23,10 +26,10 @@ from ankle_rt.estimation import Estimate
 
 
 class State(enum.IntEnum):
-    CONFIGURED = 0   # sensors read and logged, amplifiers disabled (strain gauges tared here)
+    CONFIGURED = 0   # start-up: sensors read and logged, amplifiers disabled (strain gauges tared here)
     ACTIVE = 1       # controller output reaches the amplifiers
-    FAULT = 2        # the cycle in which a fault was detected: outputs zeroed, amplifiers disabled
-    SAFE = 3         # latched after a fault: amplifiers disabled until an explicit reset
+    FAULT = 2        # latched from the cycle a fault was detected: amplifiers disabled until a reset
+    SAFE = 3         # after a reset or deactivation: amplifiers disabled, may be activated again
 
 
 class Fault(enum.IntEnum):
@@ -119,16 +122,16 @@ class Safety:
     # -- state machine (commands; not per cycle) ---------------------------------------------------
     def trip(self, fault: int, t: float) -> None:
         """Enter FAULT with ``fault`` as the reason (the first reason is kept)."""
-        if self.state in (State.CONFIGURED, State.ACTIVE):
+        if self.state != State.FAULT:
             self.state = State.FAULT
             self.fault = fault
             self.fault_time = t
 
     def reset(self) -> None:
-        """Leave SAFE for CONFIGURED (explicit operator action). Raises RuntimeError otherwise."""
-        if self.state not in (State.SAFE, State.FAULT):
-            raise RuntimeError(f"reset needs state SAFE, state is {self.state.name}")
-        self.state = State.CONFIGURED
+        """FAULT -> SAFE (the explicit operator action). Raises RuntimeError in any other state."""
+        if self.state != State.FAULT:
+            raise RuntimeError(f"nothing to reset: state is {State(self.state).name}, not FAULT")
+        self.state = State.SAFE
         self.fault = Fault.NONE
         self.fault_time = math.nan
         self._have_last = False
