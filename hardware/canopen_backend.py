@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import logging
 import time
-from pathlib import Path
 
 import can
 import canopen
@@ -38,10 +37,10 @@ from ankle_rt.backend import Backend, BackendError, BackendFault, SensorFrame
 from ankle_rt.clock import Clock
 from ankle_rt.config import Config, ConfigError
 from hardware.canbus_load import check_bus_load, loop_bus_load
-from hardware.canopen_pdo import (COUNTER_1, COUNTER_2, DEFAULT_EDS, DIGITAL_IN, DIGITAL_OUT, ENABLE_BITS,
+from hardware.canopen_pdo import (COUNTER_1, COUNTER_2, DIGITAL_IN, DIGITAL_OUT, ENABLE_BITS,
                                   HEARTBEAT_BASE, READY_BITS, SET_VALUE_1, SET_VALUE_2, STRAIN_1, STRAIN_2,
                                   SYNC_COB_ID, ANALOG_CODE_SHIFT, EdsError, NodeLayout, analog_codec,
-                                  counter_bits, load_node)
+                                  counter_bits, eds_path, load_node)
 from hardware.config_values import required
 from hardware.escon import escon_amplifiers
 from hardware.sensors import MotorEncoders, StrainGauges, StuckEncoderDetector
@@ -55,17 +54,6 @@ CAN_ERR_BUSOFF = 0x40            # error-frame class bit (linux/can/error.h), as
 EMCY_BASE = 0x80
 NOTIFIER_POLL_S = 0.01           # configuration-time Notifier: how quickly it can be stopped
 INPUT_SLOTS = (COUNTER_1, COUNTER_2, STRAIN_1, STRAIN_2, DIGITAL_IN)  # order of self._raw
-
-
-def eds_path(cfg: Config) -> Path:
-    """The EDS the config names (relative to the config file), or the shipped one."""
-    name = cfg["canopen"]["eds"]
-    if not name:
-        return DEFAULT_EDS
-    path = Path(name)
-    if not path.is_absolute():
-        path = Path(getattr(cfg, "source", ".")).resolve().parent / path
-    return path
 
 
 def node_layout(cfg: Config, network: canopen.Network | None = None) -> tuple[canopen.RemoteNode, NodeLayout]:

@@ -22,6 +22,9 @@ an amplifier dropping ready, a frozen node (no heartbeat, no PDOs, no answers) a
 
 from __future__ import annotations
 
+import argparse
+import math
+import sys
 import time
 from dataclasses import dataclass
 
@@ -43,18 +46,55 @@ ADC_MIN, ADC_MAX = -32768, 32767   # INTEGER16 analog inputs (0x6401)
 
 @dataclass
 class InjectedFaults:
-    """What the emulated node does wrong. Set fields directly; :meth:`clear` undoes all."""
+    """What the emulated node does wrong. Set fields directly, or by name with :meth:`set` (the
+    names ``--inject`` takes: :data:`FAULTS`); :meth:`clear` undoes all."""
 
     drop_tpdos: int = 0           # drop this many of the next TPDO frames
     stuck_encoder: int = 0        # 1 or 2: that counter stops counting; 0: none
     strain_gauge_rail: int = 0    # 1 or 2: that analog input sits at its positive rail
     amp_not_ready: int = 0        # 1 or 2: that ESCON drops ready (and drives no current)
-    frozen: bool = False          # the node stops: no heartbeat, no PDOs, no SDO answers
+    frozen: bool = False          # the node hangs: no heartbeat, no PDOs, no SDO answers, outputs held
     bus_off: bool = False         # the bus went off: an error frame, then silence both ways
 
     def clear(self) -> None:
         self.drop_tpdos = self.stuck_encoder = self.strain_gauge_rail = self.amp_not_ready = 0
         self.frozen = self.bus_off = False
+
+    def set(self, name: str, on: bool) -> None:
+        """Switch the fault ``name`` (one of :data:`FAULTS`) on or off."""
+        if name not in FAULTS:
+            raise ValueError(f"unknown fault {name!r} (expected one of: {', '.join(FAULTS)})")
+        base, _, channel = name.rpartition("_")
+        if name == "drop":
+            self.drop_tpdos = DROP_ALL if on else 0
+        elif name in ("frozen", "bus_off"):
+            setattr(self, name, on)
+        else:
+            field = {"stuck_encoder": "stuck_encoder", "sg_rail": "strain_gauge_rail", "not_ready": "amp_not_ready"}[base]
+            if on:
+                setattr(self, field, int(channel))
+            elif getattr(self, field) == int(channel):
+                setattr(self, field, 0)
+
+
+FAULTS = ("drop", "stuck_encoder_1", "stuck_encoder_2", "sg_rail_1", "sg_rail_2", "not_ready_1", "not_ready_2",
+          "frozen", "bus_off")
+DROP_ALL = 1 << 62            # "drop" switched on: every TPDO until switched off
+
+
+def parse_schedule(spec: str) -> tuple[str, float, float]:
+    """``NAME@START[:STOP]`` (s of plant time; no STOP: until the end) -> (name, start, stop)."""
+    name, _, times = spec.partition("@")
+    try:
+        start_s, _, stop_s = times.partition(":")
+        start, stop = float(start_s), float(stop_s) if stop_s else math.inf
+    except ValueError:
+        raise ValueError(f"--inject {spec!r}: expected NAME@START[:STOP] in seconds") from None
+    if name not in FAULTS:
+        raise ValueError(f"--inject {spec!r}: unknown fault {name!r} (expected one of: {', '.join(FAULTS)})")
+    if stop <= start:
+        raise ValueError(f"--inject {spec!r}: STOP must be after START")
+    return name, start, stop
 
 
 class CanopenEmulator:
@@ -80,6 +120,7 @@ class CanopenEmulator:
         self.node.add_write_callback(self._on_write)
         self.network.subscribe(0, self._after_nmt)    # after the NmtSlave's own handler
         self.faults = InjectedFaults()
+        self.schedule: list[tuple[str, float, float]] = []   # (fault, start, stop) in s of plant time
         self.counts = {"sync": 0, "rpdo": 0, "rpdo_bad_length": 0, "tpdo_sent": 0, "tpdo_dropped": 0,
                        "heartbeats": 0}
         self.outputs = {SET_VALUE_1: self.amps[0].zero_code << ANALOG_CODE_SHIFT,
@@ -196,6 +237,10 @@ class CanopenEmulator:
         if self._synced:
             self.plant.step(*self.amplifier_currents())
         self._synced = True
+        t = self.plant.t                       # the time of this SYNC's sample
+        for name, start, stop in self.schedule:
+            self.faults.set(name, start <= t < stop)
+        talking = self.node.nmt._state == NMT_OPERATIONAL and not (self.faults.frozen or self.faults.bus_off)
         if not talking:
             return
         inputs = self._inputs()
@@ -295,3 +340,45 @@ def lockstep_pair(cfg: Config, eds: str, channel: str) -> tuple[LockstepBus, Can
     emulator = CanopenEmulator(cfg, can.Bus(interface="virtual", channel=channel), eds)
     link.emulator = emulator
     return link, emulator
+
+
+# -- ankle-rt emulate --transport canopen ---------------------------------------------------------
+
+def run_standalone(cfg: Config, args: argparse.Namespace) -> int:
+    """Serve the I/O node on a real CAN interface until Ctrl-C or ``--duration`` (the bench's second
+    computer). The plant steps on each SYNC of the master; heartbeats run on the monotonic clock."""
+    from hardware.canopen_backend import configured_bus_load
+    from hardware.canopen_pdo import eds_path
+
+    co = cfg["canopen"]
+    interface = args.interface or co["interface"]
+    channel = args.channel or co["channel"]
+    if interface == "virtual":
+        print("ankle-rt emulate: python-can's virtual bus exists only inside one process; for a one-process "
+              "bench run the daemon with config/bench-canopen.yaml (canopen.emulator: lockstep), or give "
+              "--interface socketcan --channel can0|vcan0", file=sys.stderr)
+        return 2
+    try:
+        schedule = [parse_schedule(spec) for spec in args.inject]
+    except ValueError as exc:
+        print(f"ankle-rt emulate: {exc}", file=sys.stderr)
+        return 2
+    print(configured_bus_load(cfg).table(), flush=True)
+    try:
+        bus = can.Bus(interface=interface, channel=channel, bitrate=co["bitrate"])
+    except (can.CanError, OSError, ValueError, ImportError) as exc:
+        print(f"ankle-rt emulate: cannot open {interface}:{channel}: {exc}", file=sys.stderr)
+        return 1
+    emulator = CanopenEmulator(cfg, bus, str(eds_path(cfg)), realtime=True)
+    emulator.schedule = schedule
+    print(f"emulator: CANopen I/O node {emulator.node_id} on {interface}:{channel} (Ctrl-C stops)", flush=True)
+    try:
+        emulator.serve(args.duration or None)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        emulator.close()
+    c = emulator.counts
+    print(f"emulator: {emulator.plant.ticks} ticks, {c['sync']} SYNC, {c['rpdo']} RPDO, {c['tpdo_sent']} TPDO sent, "
+          f"{c['tpdo_dropped']} dropped, {c['heartbeats']} heartbeats", flush=True)
+    return 0

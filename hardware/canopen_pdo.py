@@ -41,6 +41,17 @@ HEARTBEAT_BASE = 0x700        # heartbeat / boot-up COB-ID = 0x700 + node id
 SYNCHRONOUS_CYCLIC = 1        # transmission type: on every SYNC
 
 
+def eds_path(cfg: dict) -> Path:
+    """The EDS ``canopen.eds`` names (relative to the config file), or the shipped one if empty."""
+    name = cfg["canopen"]["eds"]
+    if not name:
+        return DEFAULT_EDS
+    path = Path(name)
+    if not path.is_absolute():
+        path = Path(getattr(cfg, "source", ".")).resolve().parent / path
+    return path
+
+
 def analog_codec() -> SetValueCode:
     """The set-value quantisation of the I/O module's analog outputs (4.88 mV per code)."""
     return SetValueCode.analog(DAC_BITS)

@@ -18,7 +18,7 @@ from ankle_rt.daemon import Daemon, run_lockstep
 from ankle_rt.safety import Fault, State
 from hardware.canbus_load import MAX_BUS_LOAD, frame_bits, loop_bus_load
 from hardware.canopen_backend import CanopenBackend, configured_bus_load
-from hardware.canopen_emulator import CanopenEmulator, lockstep_pair
+from hardware.canopen_emulator import parse_schedule
 from hardware.canopen_pdo import (COUNTER_1, COUNTER_2, DEFAULT_EDS, DIGITAL_IN, DIGITAL_OUT, SET_VALUE_1,
                                   SET_VALUE_2, STRAIN_1, STRAIN_2, EdsError, load_node)
 from sim_backend.backend import SimBackend
@@ -321,4 +321,40 @@ def test_a_single_lost_tpdo_holds_the_sample_and_is_counted(bench_cfg):
     backend.read(frame)
     assert frame.seq == seq + 1
     assert backend.counters()["tpdo_missed"] == 1 and backend.emulator.counts["tpdo_dropped"] == 1
+    backend.close()
+
+
+# -- commands and scheduled injection --------------------------------------------------------------
+
+def test_canbus_load_command_prints_the_table_and_refuses_too_fast_a_rate(capsys):
+    from ankle_rt.cli import main
+
+    assert main(["canbus-load", "--config", str(ROOT / "config" / "hw-canopen.yaml")]) == 0
+    out = capsys.readouterr().out
+    assert "TxPDO1_node1" in out and "bus load 40.6 %" in out
+    assert main(["canbus-load", "--config", str(ROOT / "config" / "hw-canopen.yaml"), "--rate", "2000"]) == 2
+    assert "controller.rate_hz" in capsys.readouterr().err
+
+
+def test_emulate_refuses_the_in_process_virtual_bus_and_bad_schedules(capsys):
+    from ankle_rt.cli import main
+
+    assert main(["emulate", "--transport", "canopen", "--config", str(BENCH)]) == 2
+    assert "virtual bus exists only inside one process" in capsys.readouterr().err
+    assert main(["emulate", "--transport", "canopen", "--config", str(BENCH), "--interface", "socketcan",
+                 "--inject", "melt@1"]) == 2
+    assert "unknown fault 'melt'" in capsys.readouterr().err
+
+
+def test_scheduled_injection_follows_plant_time(bench_cfg):
+    clock = SimClock()
+    backend = open_backend(bench_cfg, clock)
+    backend.emulator.schedule = [parse_schedule("sg_rail_1@0.010:0.020")]
+    frame = SensorFrame()
+    rail = []
+    for _ in range(30):
+        backend.read(frame)
+        rail.append(bool(frame.faults & BackendFault.STRAIN_GAUGE_RAIL))
+        clock.advance(backend.period_ns)
+    assert rail == [False] * 10 + [True] * 10 + [False] * 10
     backend.close()
