@@ -11,12 +11,17 @@ import json
 import os
 import random
 import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
 
 import pytest
 
 from ankle_rt.service.protocol import MAX_LINE_BYTES, Command, CommandLimits, SetGains, SetReference
 from ankle_rt.service.server import CommandServer
 
+SIM_CONFIG = Path(__file__).resolve().parent.parent / "config" / "sim.yaml"
 GUARD_POLLS = 5000  # generous bound on polls while waiting; no wall-clock timing
 
 
@@ -131,3 +136,145 @@ def test_server_survives_fuzz_and_only_valid_commands_reach_the_handler(tmp_path
             break
     assert json.loads(reply) == {"ok": True, "state": "configured"}
     server.close()
+
+
+# -- a real daemon (`ankle-rt run`, real time, in a subprocess) ---------------------------------------
+
+DAEMON_CONFIG = """\
+include: [{sim}]
+controller: {{rate_hz: 250}}
+safety: {{auto_activate: false}}        # stays configured (amplifiers off) until told
+reference: {{profile: hold}}            # activation holds the ankle at 0
+sim: {{disturbances: []}}               # nothing else may move the ankle
+loop: {{max_consecutive_overruns: 1000000, realtime: {{spin_us: 0}}}}   # a busy CI machine must not fault it
+logging: {{enabled: false}}
+"""
+
+
+class LineClient:
+    """A blocking client; the timeout is only a guard against a hung daemon."""
+
+    def __init__(self, path: Path):
+        self.sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        self.sock.settimeout(60.0)
+        self.sock.connect(str(path))
+        self.buf = b""
+
+    def request(self, line: bytes) -> dict:
+        self.sock.sendall(line + b"\n")
+        while b"\n" not in self.buf:
+            chunk = self.sock.recv(65536)
+            assert chunk, "the daemon closed the connection"
+            self.buf += chunk
+        reply, self.buf = self.buf.split(b"\n", 1)
+        return json.loads(reply)
+
+    def close(self) -> None:
+        self.sock.close()
+
+
+@pytest.fixture
+def daemon(tmp_path):
+    cfg = tmp_path / "daemon.yaml"
+    cfg.write_text(DAEMON_CONFIG.format(sim=SIM_CONFIG))
+    path = tmp_path / "ctl.sock"
+    proc = subprocess.Popen([sys.executable, "-m", "ankle_rt.cli", "run", "--config", str(cfg), "--socket", str(path),
+                             "--duration", "600", "--no-plot"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        for _ in range(600):  # guard: up to a minute for start-up on a busy machine
+            if proc.poll() is not None:
+                pytest.fail(f"the daemon exited at start-up: {proc.communicate()}")
+            try:
+                client = LineClient(path)
+                break
+            except (FileNotFoundError, ConnectionRefusedError):
+                time.sleep(0.1)
+        else:
+            pytest.fail("the daemon's socket never appeared")
+        client.close()
+        yield proc, path
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+
+
+def status(path: Path) -> dict:
+    client = LineClient(path)
+    try:
+        reply = client.request(b'{"cmd":"status"}')
+    finally:
+        client.close()
+    assert reply["ok"] is True
+    return reply
+
+
+def test_daemon_survives_fuzz_and_rejects_bad_commands_without_moving(daemon):
+    proc, path = daemon
+    rng = random.Random(fuzz_seed())
+    for _ in range(200):  # guard: wait for the strain-gauge tare (a few hundred cycles)
+        before = status(path)
+        if before["t"] > 1.0:
+            break
+        time.sleep(0.05)
+    assert before["state"] == "configured" and before["motor_pos_rad"] == [0.0, 0.0]
+
+    # 1. garbage from clients that come and go, some never reading their replies
+    for _ in range(8):
+        sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        sock.settimeout(60.0)
+        sock.connect(str(path))
+        send_in_random_chunks(sock, fuzz_stream(rng, 60), rng)
+        if rng.random() < 0.5:
+            sock.shutdown(socket.SHUT_WR)
+            while sock.recv(65536):  # read the error replies to the end
+                pass
+        sock.close()
+
+    # 2. line by line: every malformed line gets an error reply naming a field
+    client = LineClient(path)
+    for _ in range(150):
+        line = malformed_line(rng).replace(b"\n", b" ")
+        if not line.strip():
+            continue
+        reply = client.request(line)
+        if reply["ok"]:  # a corrupted byte can still leave a valid command (e.g. 0.1 -> 0.3 rad)
+            continue
+        assert reply["field"] and reply["error"], reply
+
+    after = status(path)
+    assert proc.poll() is None, "the daemon died"
+    assert after["state"] in ("configured", "safe") and after["current_a"] == [0.0, 0.0]
+    assert after["motor_pos_rad"] == [0.0, 0.0], "the ankle moved"
+
+    # 3. active and holding: out-of-range and malformed commands are refused and change nothing
+    assert client.request(b'{"cmd":"start_profile","name":"hold"}')["ok"]
+    assert client.request(b'{"cmd":"activate"}') == {"ok": True, "state": "active"}
+    refused = [  # (request, the field the error names, words in the message)
+        (b'{"cmd":"set_reference","dp":0.9,"ie":0}', "dp", "outside the ankle range"),
+        (b'{"cmd":"set_reference","dp":0,"ie":-2}', "ie", "outside the ankle range"),
+        (b'{"cmd":"set_reference","dp":NaN,"ie":0}', "dp", "finite"),
+        (b'{"cmd":"set_reference","dp":0.1,"ie":0,"ramp":-1}', "ramp", "between 0 and"),
+        (b'{"cmd":"set_gains","kp":-5}', "kp", ">= 0"),
+        (b'{"cmd":"set_gains","kp":1,"stiffness_dp":1}', "stiffness_dp", "unknown gain"),  # PD: nothing applied
+        (b'{"cmd":"start_profile","name":"sine","params":{"frequency_hz":500}}', "params.frequency_hz", "must be <= 50"),
+        (b'{"cmd":"start_profile","name":"sine","params":{"bogus":1}}', "params.bogus", "unknown key (expected one of"),
+        (b'{"cmd":"start_profile","name":"csv","params":{"path":"/nonexistent/refs.csv"}}', "params.path", "cannot read"),
+        (b'{"cmd":"start_profile","name":"fly"}', "name", "unknown profile"),
+        (b'{"cmd":"activate"}', "cmd", "cannot activate"),  # already active
+        (b'{"cmd":"set_reference","dp":0.1,"ie":0', "line", "not valid JSON"),
+    ]
+    for line, field, words in refused:
+        reply = client.request(line)
+        assert reply["ok"] is False and reply["field"] == field and words in reply["error"], (line, reply)
+    held = status(path)
+    assert held["state"] == "active"
+    assert held["reference_deg"] == [0.0, 0.0] and held["gains"] == before["gains"]
+    assert max(abs(a) for a in held["ankle_deg"]) < 0.5
+
+    assert client.request(b'{"cmd":"stop"}')["ok"]
+    client.close()
+    out, err = proc.communicate(timeout=120)
+    assert proc.returncode == 0, err
+    assert "Traceback" not in err
