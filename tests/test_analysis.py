@@ -164,3 +164,11 @@ def test_analyze_exits_1_when_a_figure_is_out_of_tolerance(tmp_path, capsys):
 def test_analyze_names_a_missing_config_file(tmp_path, capsys):
     assert main(["analyze", "--config", str(tmp_path / "nope.yaml")]) == 2
     assert "nope.yaml" in capsys.readouterr().err
+
+
+def test_analyze_says_when_the_plot_directory_cannot_be_made(tmp_path, capsys):
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    assert main(["analyze", "--plots", str(blocker / "plots")]) == 0
+    text = capsys.readouterr().out
+    assert "cannot create the plot directory" in text and "98.33 Hz" in text

@@ -112,7 +112,10 @@ def write_plots(bodes: dict, values: dict, out_dir: Path) -> tuple[list[Path], s
 
     marked = {"fig8_unit_ratio": "resonance_unit_ratio_hz", "fig10_soft_cables": "fig10_resonance_hz",
               "fig11_joint_torque": "torque_resonance_hz"}
-    out_dir.mkdir(parents=True, exist_ok=True)
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        return [], f"cannot create the plot directory {out_dir}: {exc.strerror}; no Bode plots written"
     written = []
     for name, bode in bodes.items():
         fig = Figure(figsize=(11, 7), layout="constrained")
