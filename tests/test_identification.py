@@ -114,6 +114,22 @@ def test_identify_runs_the_experiment_through_the_daemon_loop(tmp_path, capsys):
     assert np.ptp(rec["current_cmd_1"]) > 1.0 and np.all(rec["current_cmd_2"] == 0.0)
 
 
+def test_identify_reads_a_daemon_run_log_directly(sim_cfg, tmp_path, capsys):
+    from ankle_rt.daemon import run_lockstep
+    from ankle_rt.identification import TorqueStepExperiment
+
+    experiment = TorqueStepExperiment(repeats=1)
+    log = tmp_path / "steps.log"
+    run_lockstep(actuator_cfg(sim_cfg), experiment.duration_s + 0.1, controller=experiment, log_path=log)
+    out = tmp_path / "out"
+    assert main(["identify", "inertia", "--from", str(log), "--config", str(ROOT / "config" / "sim.yaml"),
+                 "--out", str(out)]) == 0
+    params = yaml.safe_load((out / "params.yaml").read_text())
+    assert params["actuator"]["inertia"] == pytest.approx(sim_cfg["actuator"]["inertia"], rel=0.05)
+    assert main(["identify", "all", "--from", str(log), "--out", str(out)]) == 2
+    assert "takes a directory" in capsys.readouterr().err
+
+
 def _bad_copy(src: Recording, path: Path, mutate) -> Path:
     cols = {k: v.copy() for k, v in src.columns.items()}
     mutate(cols)

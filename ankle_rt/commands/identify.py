@@ -18,8 +18,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("experiment", choices=("stiction", "viscous", "inertia", "all"))
     p.add_argument("--config", help="config file (backend, torque constant, prior parameters)")
     p.add_argument("--from", dest="source", metavar="PATH",
-                   help="estimate from data: an interchange CSV for one experiment, or for 'all' a directory "
-                        "holding stiction.csv, viscous.csv and inertia.csv (what a run writes to --out)")
+                   help="estimate from data: an interchange CSV (or a daemon run log) for one experiment, or "
+                        "for 'all' a directory holding stiction.csv, viscous.csv and inertia.csv (what a "
+                        "run writes to --out)")
     p.add_argument("--motor", type=int, choices=(1, 2), default=1, help="which motor (default 1)")
     p.add_argument("--repeats", type=int, default=3, help="repeats per direction of each experiment (default 3)")
     p.add_argument("--out", default="identification", help="output directory (default ./identification)")
@@ -28,12 +29,16 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def _read(args: argparse.Namespace, names: tuple[str, ...]) -> dict:
     from ankle_rt.identification.actuator import MIN_ROWS
-    from ankle_rt.interchange import read_csv
+    from ankle_rt.identification.data import load_recording
+    from ankle_rt.identification.signals import IdentificationError
 
     src = Path(args.source)
     if len(names) == 1 and not src.is_dir():
-        return {names[0]: read_csv(src, min_rows=MIN_ROWS[names[0]])}
-    return {name: read_csv(src / f"{name}.csv", min_rows=MIN_ROWS[name]) for name in names}
+        return {names[0]: load_recording(src, MIN_ROWS[names[0]])}
+    if not src.is_dir():
+        raise IdentificationError(f"{src}: for 'all', --from takes a directory holding "
+                                  f"{', '.join(n + '.csv' for n in names)}")
+    return {name: load_recording(src / f"{name}.csv", MIN_ROWS[name]) for name in names}
 
 
 def run(args: argparse.Namespace) -> int:

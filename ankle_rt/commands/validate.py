@@ -17,7 +17,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "channel. Exit 0: agrees; 1: discrepancy; 2: error.")
     p.add_argument("--config", required=True, help="config file: the backend to run on, and the model")
     p.add_argument("--model", help="model config for the simulation side (default: --config)")
-    p.add_argument("--from", dest="source", metavar="FILE.csv", help="validate recorded data instead of running checks")
+    p.add_argument("--from", dest="source", metavar="FILE",
+                   help="validate recorded data (interchange CSV or daemon run log) instead of running checks")
     p.add_argument("--check", choices=("sine", "step", "all"), default="all", help="which checks to run (default all)")
     p.add_argument("--frequencies", type=float, nargs="+", metavar="HZ", help="sine frequencies (default 0.5 1 2)")
     p.add_argument("--drive", choices=("reference", "input"),
@@ -34,7 +35,8 @@ def run(args: argparse.Namespace) -> int:
     from ankle_rt.identification.signals import IdentificationError
     from ankle_rt.identification.validation import (DEFAULT_TOLERANCE, SINE_FREQUENCIES_HZ, model_config,
                                                     run_checks, validate_recording, write_overlays)
-    from ankle_rt.interchange import InterchangeError, read_csv, write_csv
+    from ankle_rt.identification.data import load_recording
+    from ankle_rt.interchange import InterchangeError, write_csv
 
     cfg = load_config(args.config)
     model = load_config(args.model) if args.model else cfg
@@ -42,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     try:
         if args.source:
-            rec = read_csv(args.source)
+            rec = load_recording(args.source)
             if not rec.two_motors:   # single-actuator data: the motors were off the cables
                 model = actuator_config(model_config(model))[0]
             comparisons = [validate_recording(rec, model, args.drive, f"{args.source}")]

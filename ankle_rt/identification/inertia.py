@@ -16,11 +16,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ankle_rt.identification.runner import LEAD_S
 from ankle_rt.identification.signals import IdentificationError, motor_channel
 from ankle_rt.identification.stats import Measured, measured
 from ankle_rt.interchange import Recording
 
-LEAD_S = 0.3  # s of zero torque before the first step
 
 
 class TorqueStepExperiment:

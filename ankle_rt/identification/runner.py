@@ -13,6 +13,11 @@ from ankle_rt.identification.signals import IdentificationError
 from ankle_rt.interchange import Recording
 
 
+#: s of zero torque at the start of every experiment, counted from activation: the daemon's soft start
+#: (controller.soft_start_s, 0.2 s by default) is over before any excitation begins
+LEAD_S = 0.3
+
+
 class Experiment(Protocol):
     """A CycleController that knows how long it runs."""
 
