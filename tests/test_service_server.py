@@ -320,3 +320,23 @@ def test_socket_path_and_mode_from_config(tmp_path, monkeypatch):
     assert link.socket_path(cfg) == Path(f"/tmp/ankle-rt-{os.getuid()}.sock")
     monkeypatch.setattr(link, "SERVICE_RUNTIME_DIR", tmp_path)
     assert link.socket_path(cfg) == tmp_path / "control.sock"
+
+
+def test_loop_statistics_for_status_replies_match_the_full_histogram():
+    """Status replies (answered inside the loop) summarise the timing histograms from the bins up to
+    the maximum only; the percentiles must equal those of the whole histogram, overflow included."""
+    import numpy as np
+    from ankle_rt.loop_stats import MAX_US, Histogram
+
+    rng = np.random.default_rng(7)
+    for spread_ns, overflow in ((300_000, False), (3_000_000, True)):
+        h = Histogram()
+        for v in rng.integers(0, spread_ns, 3000):
+            h.add_ns(int(v))
+        if overflow:
+            h.add_ns((MAX_US + 50_000) * 1000)
+        full = np.cumsum(h.counts)
+        for q, key in ((50, "p50_us"), (99, "p99_us"), (99.9, "p99.9_us")):
+            idx = int(np.searchsorted(full, max(q / 100 * h.n, 1), side="left"))
+            expected = h.max_ns / 1000 if idx >= h.top else min(idx + 1.0, h.max_ns / 1000)
+            assert h.summary()[key] == expected
