@@ -241,7 +241,8 @@ class Daemon:
 
     # -- running ---------------------------------------------------------------------------------
     def run(self, duration_s: float | None) -> None:
-        """Run the loop for ``duration_s`` (None or 0: until stopped) with the GC frozen, then go safe."""
+        """Run the loop for ``duration_s`` (None or 0: until stopped) with the GC frozen, then go safe.
+        A run ended by request_stop (signal, stop command) logs one last cycle showing the safe state."""
         duration_ns = round(duration_s * 1e9) if duration_s else None
         gc.collect()
         gc.freeze()
@@ -255,6 +256,8 @@ class Daemon:
                 self.deactivate()
             else:
                 self.backend.deactivate()
+        if self.loop.stop_requested:
+            self.cycle(self.clock.now_ns())
 
     def close(self) -> None:
         """Safe state, then release what this daemon opened (backend, log)."""

@@ -3,6 +3,8 @@
 ``read`` first advances the plant to the clock's time in whole control ticks, with the last set
 values held, then samples its sensors. Under a :class:`~ankle_rt.clock.SimClock` that is exactly one
 tick per cycle (lockstep); under the real clock, cycles the loop skipped still pass for the plant.
+The tick grid is anchored half a period before the first read, so a loop on the same period never
+sees its wake-up jitter as a repeated or skipped sample.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ class SimBackend(Backend):
         self.plant = SimulatedPlant(cfg, getattr(cfg, "source", "config"))
         self.period_ns = round(1e9 / cfg["controller"]["rate_hz"])
         self.start_ns = clock.now_ns()
+        self._anchored = False
         self.active = False
         self.set_values = [0.0, 0.0]
         self.injected = BackendFault.NONE  # faults a test or tool injects into the samples
@@ -42,7 +45,14 @@ class SimBackend(Backend):
 
     def read(self, frame: SensorFrame) -> None:
         plant = self.plant
-        due = (self.clock.now_ns() - self.start_ns) // self.period_ns
+        now = self.clock.now_ns()
+        if not self._anchored:
+            # Put the tick grid half a period before the first read: a loop reading on its own
+            # period then always lands mid-tick, so wake-up jitter (< period / 2) never repeats or
+            # skips a sample. The plant's time starts at this first read.
+            self.start_ns = now - self.period_ns // 2
+            self._anchored = True
+        due = (now - self.start_ns) // self.period_ns
         todo = min(due - plant.ticks, MAX_CATCH_UP_TICKS)
         for _ in range(todo):
             plant.step(self.set_values[0], self.set_values[1])

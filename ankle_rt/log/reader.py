@@ -63,10 +63,17 @@ OPTIONAL_FIELDS = ("ankle_dp", "ankle_ie", "ref_dp", "ref_ie")
 
 
 def interchange_columns(records: np.ndarray) -> dict[str, np.ndarray]:
-    """Columns for :func:`ankle_rt.interchange.write_csv`; optional columns only when they hold data."""
+    """Columns for :func:`ankle_rt.interchange.write_csv`; optional columns only when they hold data.
+
+    A cycle that woke so late that the next one read the same sample again leaves two records with
+    the same sample time; the interchange format needs increasing time, so only the later of them
+    (whose set value is the one that acted from that time on) is kept."""
+    t = np.asarray(records["t"], dtype=float)
+    keep = np.ones(len(t), dtype=bool)
+    keep[:-1] = np.diff(t) > 0
     cols = {}
     for name in INTERCHANGE_FIELDS:
-        col = np.asarray(records[name], dtype=float)
+        col = np.asarray(records[name], dtype=float)[keep]
         if name in OPTIONAL_FIELDS and np.isnan(col).all():
             continue
         cols[name] = col
