@@ -128,9 +128,17 @@ class EsconAmplifier:
         """The electrical level of the enable line for ``enabled``."""
         return enabled == self.enable_active_high
 
+    def is_enabled(self, level: bool) -> bool:
+        """Whether the enable line's electrical ``level`` enables the amplifier (emulators)."""
+        return level == self.enable_active_high
+
     def is_ready(self, level: bool) -> bool:
         """Whether the ready line's electrical ``level`` means ready (no fault)."""
         return level == self.ready_active_high
+
+    def ready_level(self, ready: bool) -> bool:
+        """The electrical level of the ready line for ``ready`` (emulators)."""
+        return ready == self.ready_active_high
 
 
 def escon_amplifiers(cfg: dict, codec: SetValueCode | None = None) -> tuple[EsconAmplifier, EsconAmplifier]:

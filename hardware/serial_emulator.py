@@ -1,0 +1,396 @@
+"""The microcontroller bridge, emulated: the simulated plant behind the serial protocol.
+
+:class:`BridgeEmulator` is the bridge's firmware in Python. It takes received bytes
+(:meth:`~BridgeEmulator.receive`) and queues the bytes it answers with (:meth:`~BridgeEmulator.take_output`).
+Lockstep: a COMMAND frame that answers the newest sample steps the plant one tick (with the amplifier
+currents of the commanded set values, as the ESCONs configured in ``escon:`` drive them) and queues
+the next SAMPLE, so the host's commands pace the plant and results do not depend on machine load.
+A real bridge (and ``--free-run``) ticks on its own 1 kHz clock instead; :meth:`~BridgeEmulator.tick`
+is that tick.
+
+:class:`LockstepLink` puts an emulator on the master side of a pty pair (raw mode) and hands the
+host a pyserial port on the slave side, wrapped so that every ``write`` services the emulator at
+once and every read first waits until the emulator's answer has crossed the pty. The backend's own
+``write``/``read`` therefore drive the emulator synchronously in one thread: no second thread
+competes for the GIL and nothing depends on scheduling (docs/serial-protocol.md, "Emulator").
+
+Fault injection (:data:`FAULTS`, by name, on/off or scheduled in plant time): dropped samples, a
+corrupted CRC, a stuck encoder, a strain gauge at its rail, an ESCON dropping ready, a frozen bridge
+(silent) and a stale bridge (repeats its last sample).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import select
+import sys
+import time
+import tty
+
+from ankle_rt.config import Config, ConfigError
+from hardware.escon import escon_amplifiers
+from hardware.sensors import JointEncoders, MotorEncoders, StrainGauges
+from hardware.serial_protocol import (FAULT_BAD_CONFIG, IN_JOINT_VALID, IN_READY_1, IN_READY_2, MODE_PWM_1,
+                                      MODE_PWM_2, OUT_ENABLE_1, OUT_ENABLE_2, PAYLOADS, ST_CONFIGURED,
+                                      ST_WATCHDOG, FrameWriter, MsgType, StreamParser)
+from sim_backend.plant import SimulatedPlant
+
+FAULTS = ("drop", "corrupt", "stuck_encoder_1", "stuck_encoder_2", "sg_rail_1", "sg_rail_2",
+          "not_ready_1", "not_ready_2", "frozen", "stale")
+BRIDGE_STATE_RUNNING = 2
+SETTLE_TIMEOUT_S = 5.0   # LockstepLink: longest wait for bytes to cross the pty (a safety net only)
+
+
+class BridgeEmulator:
+    """The bridge firmware with :class:`SimulatedPlant` behind it. ``cfg`` is the device's truth:
+    plant parameters and the ESCON Studio settings, encoder and strain-gauge wiring it emulates."""
+
+    def __init__(self, cfg: Config, *, lockstep: bool = True):
+        self.plant = SimulatedPlant(cfg, getattr(cfg, "source", "config"))
+        self.amps = escon_amplifiers(cfg)
+        self.encoders = MotorEncoders.from_config(cfg)
+        self.gauges = StrainGauges.from_config(cfg)
+        self.joints = JointEncoders.from_config(cfg)
+        bits = cfg["strain_gauges"]["adc_bits"]
+        self.adc_min, self.adc_max = -(1 << (bits - 1)), (1 << (bits - 1)) - 1
+        self.rate_hz = cfg["controller"]["rate_hz"]
+        self.period_us = round(1e6 / self.rate_hz)
+        self.modes = (MODE_PWM_1 if self.amps[0].mode == "pwm" else 0) | (MODE_PWM_2 if self.amps[1].mode == "pwm" else 0)
+        self.lockstep = lockstep
+        self.parser = StreamParser()
+        self.writer = FrameWriter()
+        self.output = bytearray()
+        self.configured = False
+        self.codes = [self.amps[0].zero_code, self.amps[1].zero_code]
+        self.safe_codes = list(self.codes)
+        self.enable_levels = [self.amps[0].enable_level(False), self.amps[1].enable_level(False)]
+        self.watchdog_ticks = 1
+        self.since_command = 0
+        self.watchdog_tripped = False
+        self.last_command_seq = 0
+        self.awaiting_command = False
+        self.active: set[str] = set()
+        self.schedule: list[tuple[str, float, float]] = []
+        self._stuck_counts: list[int | None] = [None, None]
+        self._last_sample: tuple | None = None
+        self.commands = 0
+        self.samples_dropped = 0
+        self.samples_corrupted = 0
+
+    # -- fault injection -------------------------------------------------------------------------
+    def inject(self, name: str, on: bool = True) -> None:
+        """Switch an injected fault (one of :data:`FAULTS`) on or off now."""
+        if name not in FAULTS:
+            raise ValueError(f"unknown fault {name!r} (expected one of: {', '.join(FAULTS)})")
+        if on:
+            self.active.add(name)
+        else:
+            self.active.discard(name)
+        for k in (0, 1):
+            stuck = f"stuck_encoder_{k + 1}" in self.active
+            if stuck and self._stuck_counts[k] is None:
+                self._stuck_counts[k] = self.plant.encoder_counts()[k]
+            elif not stuck:
+                self._stuck_counts[k] = None
+
+    def add_schedule(self, spec: str) -> None:
+        """``NAME@START[:STOP]`` with times in s of plant time (no STOP: until the end)."""
+        name, _, times = spec.partition("@")
+        try:
+            start_s, _, stop_s = times.partition(":")
+            start, stop = float(start_s), float(stop_s) if stop_s else math.inf
+        except ValueError:
+            raise ValueError(f"--inject {spec!r}: expected NAME@START[:STOP] in seconds") from None
+        if name not in FAULTS:
+            raise ValueError(f"--inject {spec!r}: unknown fault {name!r} (expected one of: {', '.join(FAULTS)})")
+        if stop <= start:
+            raise ValueError(f"--inject {spec!r}: STOP must be after START")
+        self.schedule.append((name, start, stop))
+
+    def _apply_schedule(self) -> None:
+        t = self.plant.t
+        for name, start, stop in self.schedule:
+            on = start <= t < stop
+            if on != (name in self.active):
+                self.inject(name, on)
+
+    # -- bytes in, bytes out ---------------------------------------------------------------------
+    def receive(self, data: bytes) -> None:
+        """Handle received bytes: frames are acted on as they complete (a frozen bridge ignores them)."""
+        if "frozen" in self.active:
+            return
+        view = memoryview(data)
+        parser = self.parser
+        while len(view):
+            n = min(len(view), parser.space())
+            parser.feed(view[:n])
+            view = view[n:]
+            while parser.next_frame():
+                self._handle(parser.mtype, parser.seq, PAYLOADS[parser.mtype].unpack_from(parser.buf, parser.offset))
+
+    def take_output(self) -> bytes:
+        out = bytes(self.output)
+        self.output.clear()
+        return out
+
+    def _send(self, mtype: MsgType, *fields: int) -> None:
+        self.output += self.writer.frame(mtype, *fields)
+
+    def _handle(self, mtype: int, seq: int, fields: tuple) -> None:
+        if mtype == MsgType.CONFIG:
+            self._configure(fields)
+        elif mtype == MsgType.COMMAND and self.configured:
+            self.commands += 1
+            self.codes[0], self.codes[1] = fields[0], fields[1]
+            outputs = fields[2]
+            self.enable_levels[0] = bool(outputs & OUT_ENABLE_1)
+            self.enable_levels[1] = bool(outputs & OUT_ENABLE_2)
+            self.last_command_seq = seq
+            self.since_command = 0
+            self.watchdog_tripped = False
+            if self.lockstep and self.awaiting_command:
+                self.tick()
+        elif mtype == MsgType.HEARTBEAT:
+            self._send(MsgType.HEARTBEAT, BRIDGE_STATE_RUNNING if self.configured else 0,
+                       (self.plant.ticks * self.period_us // 1000) & 0xFFFFFFFF)
+
+    def _configure(self, fields: tuple) -> None:
+        rate_hz, watchdog_us, counter_bits, modes, safe_1, safe_2 = fields
+        for index, ok in enumerate((rate_hz == self.rate_hz, watchdog_us > 0,
+                                    counter_bits == self.encoders.counter_bits, modes == self.modes)):
+            if not ok:   # the bridge's hardware cannot do what the host asks (field index in detail)
+                self._send(MsgType.FAULT, FAULT_BAD_CONFIG, index)
+                return
+        self.watchdog_ticks = max(1, math.ceil(watchdog_us / self.period_us))
+        self.safe_codes[0], self.safe_codes[1] = safe_1, safe_2
+        self._go_safe()
+        self.watchdog_tripped = False
+        self.configured = True
+        self._send(MsgType.CONFIG, *fields)          # the acknowledgement echoes the configuration
+        self._sample()                               # sample of the current tick, without stepping
+
+    def _go_safe(self) -> None:
+        self.codes[0], self.codes[1] = self.safe_codes
+        self.enable_levels[0] = self.amps[0].enable_level(False)
+        self.enable_levels[1] = self.amps[1].enable_level(False)
+
+    def trip_watchdog(self) -> None:
+        """No valid command within the watchdog time: zero set values, enables off, status bit set."""
+        self._go_safe()
+        self.watchdog_tripped = True
+
+    # -- one bridge tick -------------------------------------------------------------------------
+    def amplifier_currents(self) -> tuple[float, float]:
+        """A: what the two ESCONs drive now (zero when disabled or in fault)."""
+        out = []
+        for k, amp in enumerate(self.amps):
+            on = amp.is_enabled(self.enable_levels[k]) and f"not_ready_{k + 1}" not in self.active
+            out.append(amp.current(self.codes[k]) if on else 0.0)
+        return out[0], out[1]
+
+    def tick(self) -> None:
+        """One period of the bridge's clock: watchdog, plant step, sample."""
+        self._apply_schedule()
+        if "frozen" in self.active or not self.configured:
+            return
+        self.since_command += 1
+        if self.since_command > self.watchdog_ticks:
+            self.trip_watchdog()
+        self.plant.step(*self.amplifier_currents())
+        self._sample()
+
+    def _sample(self) -> None:
+        active = self.active
+        if "stale" in active and self._last_sample is not None:
+            fields = self._last_sample                  # the acquisition hangs: old data, old time
+        else:
+            plant = self.plant
+            c1, c2 = plant.encoder_counts()
+            if self._stuck_counts[0] is not None:
+                c1 = self._stuck_counts[0]
+            if self._stuck_counts[1] is not None:
+                c2 = self._stuck_counts[1]
+            e1, e2 = self.encoders.raw_from_counts(c1, c2)
+            s1, s2 = self.gauges.raw(*plant.strain_gauge_torques(), self.adc_min, self.adc_max)
+            if "sg_rail_1" in active:
+                s1 = self.adc_max
+            if "sg_rail_2" in active:
+                s2 = self.adc_max
+            inputs = 0
+            if self.amps[0].ready_level("not_ready_1" not in active):
+                inputs |= IN_READY_1
+            if self.amps[1].ready_level("not_ready_2" not in active):
+                inputs |= IN_READY_2
+            j1 = j2 = 0
+            if self.joints is not None:
+                j1, j2 = self.joints.raw(*plant.ankle_positions())
+                inputs |= IN_JOINT_VALID
+            status = ST_CONFIGURED | (ST_WATCHDOG if self.watchdog_tripped else 0)
+            fields = (plant.ticks * self.period_us, e1, e2, s1, s2, j1, j2, inputs, status, self.last_command_seq)
+            self._last_sample = fields
+        frame = self.writer.frame(MsgType.SAMPLE, *fields)   # numbered even when lost: the host sees a gap
+        self.awaiting_command = True
+        if "drop" in active:
+            self.samples_dropped += 1
+        elif "corrupt" in active:
+            self.samples_corrupted += 1
+            self.output += frame
+            self.output[-1] ^= 0xFF
+        else:
+            self.output += frame
+
+
+class LockstepLink:
+    """A pyserial-like port whose far end is a :class:`BridgeEmulator` on a pty pair (raw mode).
+
+    ``write`` passes the bytes through the pty to the emulator and lets it answer at once;
+    ``in_waiting`` and ``read`` first wait until the answer has crossed the pty. The emulator is
+    thus serviced from the backend's own calls, deterministically, in the caller's thread.
+    """
+
+    def __init__(self, emulator: BridgeEmulator, baudrate: int = 2_000_000):
+        import serial
+
+        self.emulator = emulator
+        master, slave = os.openpty()
+        tty.setraw(master)
+        tty.setraw(slave)
+        self.path = os.ttyname(slave)
+        self.port = serial.Serial(self.path, baudrate=baudrate, timeout=0)
+        os.close(slave)                      # pyserial holds its own descriptor of the slave
+        os.set_blocking(master, False)
+        self.master = master
+        self.pending = 0                     # bytes the emulator sent that the host has not read
+        self._backlog = bytearray()          # bytes the pty could not take yet
+
+    # pyserial's interface, as far as the backend uses it
+    @property
+    def in_waiting(self) -> int:
+        self._settle()
+        return self.port.in_waiting
+
+    def read(self, size: int = 1) -> bytes:
+        self._settle()
+        data = self.port.read(size)
+        self.pending -= len(data)
+        return data
+
+    def write(self, data: bytes | bytearray) -> int:
+        n = self.port.write(data)
+        self._service(n)
+        return n
+
+    def reset_input_buffer(self) -> None:
+        self._settle()
+        self.port.reset_input_buffer()
+        self.pending = 0
+
+    def close(self) -> None:
+        self.port.close()
+        os.close(self.master)
+
+    @property
+    def is_open(self) -> bool:
+        return self.port.is_open
+
+    # the emulator's side
+    def _service(self, expected: int) -> None:
+        received = bytearray()
+        deadline = time.monotonic() + SETTLE_TIMEOUT_S
+        while len(received) < expected and time.monotonic() < deadline:
+            if select.select([self.master], [], [], SETTLE_TIMEOUT_S)[0]:
+                received += os.read(self.master, 65536)
+        self.emulator.receive(bytes(received))
+        self._backlog += self.emulator.take_output()
+        self._flush()
+
+    def _flush(self) -> None:
+        while self._backlog:
+            try:
+                n = os.write(self.master, self._backlog)
+            except BlockingIOError:
+                return
+            del self._backlog[:n]
+            self.pending += n
+
+    def _settle(self) -> None:
+        self._backlog += self.emulator.take_output()     # e.g. samples of free-running ticks
+        self._flush()
+        deadline = time.monotonic() + SETTLE_TIMEOUT_S
+        while self.port.in_waiting < self.pending and time.monotonic() < deadline:
+            select.select([self.port.fileno()], [], [], 0.01)
+
+
+def open_lockstep(cfg: Config) -> LockstepLink:
+    """The bench in one process: an emulator configured like ``cfg`` behind a pty pair."""
+    return LockstepLink(BridgeEmulator(cfg), cfg["serial"]["baudrate"])
+
+
+# -- ankle-rt emulate --transport serial ----------------------------------------------------------
+
+def run_standalone(cfg: Config, args: argparse.Namespace) -> int:
+    """Serve the bridge protocol on a serial device or a new pty until Ctrl-C or ``--duration``.
+
+    Lockstep: the plant steps on each command. The bridge's watchdog runs on wall time: no valid
+    command for ``serial.watchdog_s`` zeroes the set values and drops the enables.
+    """
+    emulator = BridgeEmulator(cfg)
+    try:
+        for spec in args.inject:
+            emulator.add_schedule(spec)
+    except ValueError as exc:
+        print(f"ankle-rt emulate: {exc}", file=sys.stderr)
+        return 2
+    port_name = args.port or cfg["serial"]["port"]
+    if not port_name:
+        raise ConfigError("no port: give --port PATH or --port pty", getattr(cfg, "source", None), "serial.port")
+    keep_open = None
+    if port_name == "pty":
+        fd, slave = os.openpty()
+        tty.setraw(fd)
+        tty.setraw(slave)
+        keep_open = slave        # keeps the pty alive between daemon runs
+        print(f"emulator: serial bridge on {os.ttyname(slave)} (set serial.port to it)", flush=True)
+    else:
+        import serial
+
+        try:
+            port = serial.Serial(port_name, baudrate=args.baudrate or cfg["serial"]["baudrate"], timeout=0)
+        except serial.SerialException as exc:
+            print(f"ankle-rt emulate: cannot open {port_name}: {exc}", file=sys.stderr)
+            return 1
+        keep_open = port
+        fd = port.fileno()
+        print(f"emulator: serial bridge on {port_name}", flush=True)
+    watchdog_s = cfg["serial"]["watchdog_s"]
+    last_command = time.monotonic()
+    seen = 0
+    end = time.monotonic() + args.duration if args.duration else math.inf
+    try:
+        while time.monotonic() < end:
+            if select.select([fd], [], [], 0.001)[0]:
+                try:
+                    data = os.read(fd, 4096)
+                except OSError:          # pty: no process has the slave open right now
+                    data = b""
+                    time.sleep(0.01)
+                emulator.receive(data)
+                out = emulator.take_output()
+                if out:
+                    os.write(fd, out)
+            now = time.monotonic()
+            if emulator.commands != seen:
+                seen, last_command = emulator.commands, now
+            elif emulator.configured and not emulator.watchdog_tripped and now - last_command > watchdog_s:
+                emulator.trip_watchdog()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        if keep_open is not None and hasattr(keep_open, "close"):
+            keep_open.close()
+    print(f"emulator: {emulator.plant.ticks} ticks, {emulator.commands} commands, "
+          f"{emulator.parser.crc_errors} CRC errors received, {emulator.samples_dropped} samples dropped, "
+          f"{emulator.samples_corrupted} corrupted", flush=True)
+    return 0

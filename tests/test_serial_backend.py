@@ -1,0 +1,245 @@
+"""Serial transport end to end: the daemon's serial backend against the bridge emulator on a pty pair,
+in lockstep. The section 7 experiment against the direct simulated backend, fault injection through
+the daemon's safety (detection time, reason, safe outputs, resume after reset), the bridge watchdog,
+link budget and configuration errors."""
+
+from __future__ import annotations
+
+import copy
+import math
+import os
+
+import numpy as np
+import pytest
+
+from ankle_rt.backend import BackendError, BackendFault, SensorFrame, open_backend
+from ankle_rt.clock import SimClock
+from ankle_rt.config import Config, ConfigError, load_config
+from ankle_rt.daemon import Daemon, run_lockstep
+from ankle_rt.safety import Fault, State
+from hardware.serial_backend import SerialBackend
+from hardware.serial_emulator import BridgeEmulator, LockstepLink
+from tests.conftest import ROOT
+from tests.test_canopen import QuantisedSimBackend, sim_copy
+
+BENCH = ROOT / "config" / "bench-serial.yaml"
+
+
+@pytest.fixture(scope="module")
+def _bench_cfg() -> Config:
+    return load_config(BENCH)
+
+
+@pytest.fixture
+def bench_cfg(_bench_cfg: Config) -> Config:
+    cfg = Config(copy.deepcopy(dict(_bench_cfg)))
+    cfg.source = _bench_cfg.source
+    return cfg
+
+
+def test_section7_through_the_serial_bridge_matches_the_direct_simulation(bench_cfg):
+    """Tolerance. The only difference the transport may add is the 12-bit set value: +/-15 A over
+    4096 codes is 7.32 mA (12 mN m of motor torque) per code, so a set value is off by at most
+    3.7 mA. Under kp = 90 N m/rad that is a static motor offset of 6e-3 / 90 = 7e-5 rad, 1.3 encoder
+    counts (5.4e-5 rad each); encoder quantisation and stick-slip in the friction band turn it into
+    a few counts, so motors within 5 counts (2.7e-4 rad) and ankles (R^-1: x0.11 DP, x0.2 IE, plus
+    the bench's 12 µrad joint-encoder count) within 1e-4 rad = 0.006 deg on the 10 deg / 5 deg step.
+    With the same quantisation applied to the direct backend, motors and set values agree to
+    floating-point rounding: nothing else differs."""
+    duration = 3.5
+    direct = run_lockstep(sim_copy(bench_cfg), duration)
+    backend = SerialBackend(bench_cfg, SimClock())
+    via = run_lockstep(bench_cfg, duration, backend=backend)
+    counters = backend.counters()
+    backend.close()
+    assert direct.summary["fault"] == via.summary["fault"] == "NONE"
+    assert len(via) == len(direct) and np.allclose(direct["t"], via["t"], rtol=0, atol=1e-12)
+    count = 2 * math.pi / bench_cfg["actuator"]["encoder_counts_per_rev"]
+    for k in ("motor_pos_1", "motor_pos_2"):
+        assert np.max(np.abs(direct[k] - via[k])) <= 5 * count, k
+    for k in ("ankle_dp", "ankle_ie", "est_ankle_dp", "est_ankle_ie"):   # joint encoders / estimate
+        assert np.max(np.abs(direct[k] - via[k])) < 1e-4, k
+    assert abs(via["ankle_dp"][-1] - math.radians(10)) < math.radians(0.5)    # the step was tracked
+    assert abs(via["ankle_ie"][-1] - math.radians(5)) < math.radians(0.5)
+    assert counters["samples"] == len(via) and counters["crc_errors"] == counters["frames_lost"] == 0
+
+    quantised = run_lockstep(sim_copy(bench_cfg), duration,
+                             backend=QuantisedSimBackend(sim_copy(bench_cfg), SimClock(), backend.amps))
+    for k in ("motor_pos_1", "motor_pos_2", "current_cmd_1", "current_cmd_2"):
+        assert np.max(np.abs(quantised[k] - via[k])) < 1e-9, k
+
+
+# -- fault injection through the daemon's safety ---------------------------------------------------
+
+class Bench:
+    """The daemon and a hardware backend with its in-process emulator, stepped cycle by cycle."""
+
+    def __init__(self, cfg: Config):
+        self.clock = SimClock()
+        self.backend = open_backend(cfg, self.clock)
+        self.emu = self.backend.emulator
+        self.daemon = Daemon(cfg, self.clock, backend=self.backend)
+        self.period = self.backend.period_ns
+
+    def cycles(self, n: int, until=None) -> int:
+        """Run up to ``n`` cycles (stop early once ``until()`` is true); return how many ran."""
+        for k in range(1, n + 1):
+            t = self.clock.now_ns()
+            self.daemon.cycle(t)
+            self.clock.sleep_until(t + self.period)
+            if until is not None and until():
+                return k
+        return n
+
+    @property
+    def state(self) -> State:
+        return State(self.daemon.safety.state)
+
+    def close(self) -> None:
+        self.daemon.close()
+        self.backend.close()
+
+
+# (fault, expected reason, stated detection time in cycles: 1 = safe in the cycle whose sample shows
+# the fault). Lockstep: the bridge takes the sample a cycle reads when it gets the previous cycle's
+# command, so the sample in flight when a fault is injected predates it: the test allows that cycle.
+FAULTS = [
+    ("stuck_encoder_1", Fault.ENCODER_FAULT, 11),   # encoders.stuck_time = 10 ms unbalanced, + 1
+    ("sg_rail_2", Fault.SG_RAIL, 1),
+    ("not_ready_1", Fault.AMP_NOT_READY, 1),
+    ("stale", Fault.SENSOR_STALE, 1),                # the bridge's time stopped: STALE_SAMPLE
+    ("frozen", Fault.LINK_LOST, 3),                  # serial.link_timeout_s = 3 ms
+    ("drop", Fault.LINK_LOST, 3),
+    ("corrupt", Fault.LINK_LOST, 3),
+]
+
+
+@pytest.mark.parametrize("name, expected, within", FAULTS, ids=[f[0] for f in FAULTS])
+def test_injected_fault_goes_safe_in_time_and_resumes_after_reset(bench_cfg, name, expected, within):
+    bench = Bench(bench_cfg)
+    emu = bench.emu
+    try:
+        bench.cycles(505)                                    # tare, activate, the step starts at 0.5 s
+        assert bench.state == State.ACTIVE
+        assert max(abs(c) for c in emu.plant.current) > 1.0  # the motors work when the fault comes
+        emu.inject(name)
+        took = bench.cycles(within + 10, until=lambda: bench.state != State.ACTIVE)
+        assert bench.state in (State.FAULT, State.SAFE) and took <= 1 + within
+        assert bench.daemon.safety.fault == expected
+        bench.cycles(1)
+        if name != "frozen":                                 # a hung bridge applies nothing
+            assert emu.codes == [a.zero_code for a in emu.amps] and emu.amplifier_currents() == (0.0, 0.0)
+        bench.cycles(20)
+        assert bench.state in (State.FAULT, State.SAFE) and bench.daemon.safety.fault == expected  # latched
+        emu.inject(name, on=False)
+        bench.cycles(10)
+        bench.daemon.reset_fault()
+        bench.daemon.activate()
+        bench.cycles(200)
+        assert bench.state == State.ACTIVE and bench.daemon.safety.fault == Fault.NONE
+        assert max(abs(c) for c in emu.amplifier_currents()) > 0.0
+    finally:
+        bench.close()
+
+
+def run_frames(backend, n, frame=None):
+    """``n`` cycles of read + zero write on the backend's SimClock: [(seq, faults)]."""
+    frame = frame or SensorFrame()
+    out = []
+    for _ in range(n):
+        backend.read(frame)
+        out.append((frame.seq, frame.faults))
+        backend.write(0.0, 0.0)
+        backend.clock.advance(backend.period_ns)
+    return out
+
+
+def test_single_lost_or_corrupted_samples_are_counted_and_tolerated(bench_cfg):
+    """One sample dropped, the next one corrupted: the frame holds the last sample (the daemon's
+    safety.stale_cycles bounds how long), the CRC error and the gap are reported once and counted."""
+    backend = open_backend(bench_cfg, SimClock())
+    emu = backend.emulator
+    frame = SensorFrame()
+    seq = run_frames(backend, 5, frame)[-1][0]
+    emu.inject("drop")
+    seen = run_frames(backend, 1, frame)          # this cycle's command makes the bridge drop a sample
+    emu.inject("drop", on=False)
+    emu.inject("corrupt")
+    seen += run_frames(backend, 1, frame)         # ... and this one's a corrupted sample
+    emu.inject("corrupt", on=False)
+    seen += run_frames(backend, 3, frame)
+    assert seen == [(seq + 1, BackendFault.NONE),          # a normal sample
+                    (seq + 1, BackendFault.NONE),          # nothing arrived: the sample is held
+                    (seq + 1, BackendFault.CRC_ERROR),     # the corrupted one was dropped
+                    (seq + 4, BackendFault.SEQUENCE_GAP),  # the next good one shows the two lost
+                    (seq + 5, BackendFault.NONE)]
+    c = backend.counters()
+    assert c["crc_errors"] == 1 and c["frames_lost"] == 2 and c["cycles_without_sample"] == 2
+    assert c["link_lost"] == 0
+    backend.close()
+
+
+def test_bridge_watchdog_zeroes_outputs_when_commands_stop(bench_cfg):
+    """Free-running bridge ticks without commands: after serial.watchdog_s the set values are zero,
+    the enables off, and the host sees the bridge's watchdog status as a device fault."""
+    backend = open_backend(bench_cfg, SimClock())
+    emu = backend.emulator
+    backend.activate()
+    frame = SensorFrame()
+    backend.read(frame)
+    backend.write(3.0, -3.0)
+    assert emu.amplifier_currents()[0] == pytest.approx(3.0, abs=emu.amps[0].current_lsb)
+    watchdog_ticks = round(bench_cfg["serial"]["watchdog_s"] * bench_cfg["controller"]["rate_hz"])
+    currents = []
+    for _ in range(watchdog_ticks + 2):          # the bridge's own clock; the host stays silent
+        emu.tick()
+        currents.append(emu.amplifier_currents()[0])
+    assert currents[watchdog_ticks - 2] > 2.9 and currents[watchdog_ticks] == 0.0
+    backend.read(frame)
+    assert frame.faults & BackendFault.DEVICE_FAULT and backend.counters()["watchdog_trips"] == 1
+    backend.close()
+
+
+def test_link_lost_when_the_port_fails(bench_cfg):
+    backend = open_backend(bench_cfg, SimClock())
+    run_frames(backend, 3)
+    backend.port.port.close()                    # the device vanished
+    frame = SensorFrame()
+    backend.read(frame)
+    assert frame.faults & BackendFault.LINK_LOST and backend.counters()["port_errors"] >= 1
+    backend.port.close()
+
+
+def test_configuration_errors_name_the_key(bench_cfg, tmp_path):
+    cfg = Config(copy.deepcopy(dict(bench_cfg)))
+    cfg.source = "bench.yaml"
+    cfg["serial"]["baudrate"] = 460800
+    with pytest.raises(ConfigError, match=r"bench.yaml: serial.baudrate: 460800 bit/s is too slow.*102%"):
+        open_backend(cfg, SimClock())
+    cfg["serial"]["baudrate"] = 2_000_000
+    cfg["escon"]["amplifiers"] = None
+    with pytest.raises(ConfigError, match=r"escon.amplifiers: missing"):
+        open_backend(cfg, SimClock())
+
+
+def test_a_bridge_that_cannot_do_the_configuration_is_refused(bench_cfg):
+    device = Config(copy.deepcopy(dict(bench_cfg)))
+    device["encoders"]["counter_bits"] = 32            # the bridge has 32-bit counters, the host says 16
+    link = LockstepLink(BridgeEmulator(device))
+    with pytest.raises(BackendError, match=r"refused its configuration.*encoders.counter_bits"):
+        SerialBackend(bench_cfg, SimClock(), port=link)
+    link.close()
+
+
+def test_no_bridge_on_the_port(bench_cfg):
+    master, slave = os.openpty()                 # a serial line with nobody at the other end
+    try:
+        bench_cfg["serial"].update(emulator="none", port=os.ttyname(slave), open_timeout_s=0.05)
+        with pytest.raises(BackendError, match=r"did not acknowledge its configuration within 0.05 s"):
+            open_backend(bench_cfg, SimClock())
+        bench_cfg["serial"]["port"] = "/nonexistent/tty"
+        with pytest.raises(BackendError, match=r"cannot open /nonexistent/tty"):
+            open_backend(bench_cfg, SimClock())
+    finally:
+        os.close(master)
+        os.close(slave)
