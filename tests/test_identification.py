@@ -5,6 +5,7 @@ CLI, bad input files, and the paper's friction record."""
 from __future__ import annotations
 
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -204,6 +205,20 @@ def test_paper_friction_record_shows_the_double_counted_coulomb_term():
     assert np.max(np.abs(a.affine.predict(speeds) / a.measured - 1.0)) < 0.05
     assert a.affine.kc < PAPER_KC - 0.03 and a.affine.kv < a.kv_origin - 0.03
     assert any("+40 %" in line for line in a.lines())
+
+
+def test_missing_analysis_extra_is_said_plainly(nominal, tmp_path, monkeypatch):
+    from ankle_rt.identification.report import write_plots
+    from ankle_rt.identification import estimate_inertia
+
+    _, recordings, res = nominal
+    monkeypatch.setitem(sys.modules, "matplotlib", None)
+    lines = write_plots(res, recordings, tmp_path, 1, 1.66)
+    assert lines == ["plots: matplotlib is not installed (pip install 'ankle-rt[analysis]'); text report only"]
+    assert not list(tmp_path.glob("*.png"))
+    monkeypatch.setitem(sys.modules, "scipy.optimize", None)
+    with pytest.raises(IdentificationError, match="needs scipy"):
+        estimate_inertia(recordings["inertia"], 1, 1.66)
 
 
 def test_affine_fit_needs_two_speeds():

@@ -94,16 +94,15 @@ class ActuatorIdentification:
 def identify(recordings: dict[str, Recording], motor: int = 1, kt: float | None = None,
              prior: dict | None = None) -> ActuatorIdentification:
     """Estimate from one recording per experiment (keys from EXPERIMENTS). ``prior`` is the config's
-    actuator section (J and D for the stiction correction when the inertia experiment is absent,
-    and the starting point of the step fit)."""
+    actuator section: shown beside the results, and J and D for the stiction correction when the
+    inertia experiment is absent. The estimates themselves never start from it."""
     prior = dict(prior or {})
     result = ActuatorIdentification(prior=prior)
     if "viscous" in recordings:
         result.viscous = estimate_viscous(recordings["viscous"], motor, kt)
     if "inertia" in recordings:
         coulomb = (result.viscous.kc_pos.mean, result.viscous.kc_neg.mean) if result.viscous else None
-        guess = (prior.get("inertia", 0.03), result.viscous.kv if result.viscous else prior.get("damping", 0.1))
-        result.inertia = estimate_inertia(recordings["inertia"], motor, kt, coulomb=coulomb, guess=guess)
+        result.inertia = estimate_inertia(recordings["inertia"], motor, kt, coulomb=coulomb)
         if coulomb is None:
             result.notes.append("inertia: kc fitted per step (no viscous experiment to fix it)")
     if "stiction" in recordings:

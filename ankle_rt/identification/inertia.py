@@ -114,11 +114,24 @@ def _steps(tau: np.ndarray, threshold: float) -> list[tuple[int, int]]:
     return [(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:])]
 
 
+def _initial_guess(u: np.ndarray, meas: np.ndarray, dt: float, direction: int,
+                   coulomb: tuple[float, float] | None) -> list[float]:
+    """[J, D] (and kc when it is fitted) from the start and the peak of the step response."""
+    amplitude = abs(float(np.mean(u[: max(1, len(u) // 4)])))
+    kc = (coulomb[0] if direction > 0 else coulomb[1]) if coulomb is not None else 0.25 * amplitude
+    drive = max(amplitude - kc, 0.1 * amplitude)
+    n = min(len(meas) - 1, max(1, int(round(0.05 / dt))))
+    accel = abs(float(meas[n])) / (n * dt)
+    J = drive / accel if accel > 0 else 0.03
+    D = drive / max(float(np.max(np.abs(meas))), 1e-6)
+    return [J, D] + ([] if coulomb is not None else [kc])
+
+
 def estimate_inertia(rec: Recording, motor: int = 1, kt: float | None = None, *,
-                     coulomb: tuple[float, float] | None = None, guess: tuple[float, float] = (0.03, 0.1),
-                     min_step_s: float = 0.3) -> InertiaResult:
+                     coulomb: tuple[float, float] | None = None, min_step_s: float = 0.3) -> InertiaResult:
     """J and D (mean +- SD over steps) from every torque step of ``rec``. ``coulomb`` = (kc+, kc-) N m
-    fixes the friction; None fits one kc per step. ``guess`` = (J kg m^2, D N m s/rad) starts the fit."""
+    fixes the friction; None fits one kc per step. The fit starts from the data alone (no prior):
+    J from the mean acceleration over the first 50 ms, D from the largest speed."""
     try:
         from scipy.optimize import least_squares
     except ImportError:
@@ -143,7 +156,7 @@ def estimate_inertia(rec: Recording, motor: int = 1, kt: float | None = None, *,
             history.append((float(J), float(D)))
             return motor_response(u, dt, J, D, kc[0], kc[1], 0.0) - meas
 
-        x0 = [guess[0], guess[1]] + ([] if coulomb is not None else [0.5 * np.max(np.abs(u))])
+        x0 = _initial_guess(u, meas, dt, direction, coulomb)
         lower = [1e-6, 1e-6] + ([] if coulomb is not None else [0.0])
         sol = least_squares(residual, x0, bounds=(lower, np.inf), x_scale=np.abs(x0) + 1e-3)
         kc = (coulomb[0] if direction > 0 else coulomb[1]) if coulomb is not None else float(sol.x[2])
