@@ -245,7 +245,7 @@ def _dropped(emu):
 
 # (injection, expected fault, cycles until the daemon is safe: 1 = in the cycle whose SYNC saw it)
 FAULTS = [
-    (_stuck, Fault.ENCODER_FAULT, 11),     # encoders.stuck_time 10 ms of unbalanced torque, + 1
+    (_stuck, Fault.ENCODER_FAULT, 10),     # encoders.stuck_time: 10 ms of unbalanced torque without a count
     (_rail, Fault.SG_RAIL, 1),
     (_not_ready, Fault.AMP_NOT_READY, 1),
     (_bus_off, Fault.BUS_OFF, 1),
