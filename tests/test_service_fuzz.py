@@ -11,17 +11,11 @@ import json
 import os
 import random
 import socket
-import subprocess
-import sys
-import time
-from pathlib import Path
-
-import pytest
 
 from ankle_rt.service.protocol import MAX_LINE_BYTES, Command, CommandLimits, SetGains, SetReference
 from ankle_rt.service.server import CommandServer
+from tests.service_helpers import LineClient, activate, daemon, status  # noqa: F401  (daemon is a fixture)
 
-SIM_CONFIG = Path(__file__).resolve().parent.parent / "config" / "sim.yaml"
 GUARD_POLLS = 5000  # generous bound on polls while waiting; no wall-clock timing
 
 
@@ -140,84 +134,10 @@ def test_server_survives_fuzz_and_only_valid_commands_reach_the_handler(tmp_path
 
 # -- a real daemon (`ankle-rt run`, real time, in a subprocess) ---------------------------------------
 
-DAEMON_CONFIG = """\
-include: [{sim}]
-controller: {{rate_hz: 250}}
-safety: {{auto_activate: false}}        # stays configured (amplifiers off) until told
-reference: {{profile: hold}}            # activation holds the ankle at 0
-sim: {{disturbances: []}}               # nothing else may move the ankle
-loop: {{max_consecutive_overruns: 1000000, realtime: {{spin_us: 0}}}}   # a busy CI machine must not fault it
-logging: {{enabled: false}}
-"""
-
-
-class LineClient:
-    """A blocking client; the timeout is only a guard against a hung daemon."""
-
-    def __init__(self, path: Path):
-        self.sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
-        self.sock.settimeout(60.0)
-        self.sock.connect(str(path))
-        self.buf = b""
-
-    def request(self, line: bytes) -> dict:
-        self.sock.sendall(line + b"\n")
-        while b"\n" not in self.buf:
-            chunk = self.sock.recv(65536)
-            assert chunk, "the daemon closed the connection"
-            self.buf += chunk
-        reply, self.buf = self.buf.split(b"\n", 1)
-        return json.loads(reply)
-
-    def close(self) -> None:
-        self.sock.close()
-
-
-@pytest.fixture
-def daemon(tmp_path):
-    cfg = tmp_path / "daemon.yaml"
-    cfg.write_text(DAEMON_CONFIG.format(sim=SIM_CONFIG))
-    path = tmp_path / "ctl.sock"
-    proc = subprocess.Popen([sys.executable, "-m", "ankle_rt.cli", "run", "--config", str(cfg), "--socket", str(path),
-                             "--duration", "600", "--no-plot"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        for _ in range(600):  # guard: up to a minute for start-up on a busy machine
-            if proc.poll() is not None:
-                pytest.fail(f"the daemon exited at start-up: {proc.communicate()}")
-            try:
-                client = LineClient(path)
-                break
-            except (FileNotFoundError, ConnectionRefusedError):
-                time.sleep(0.1)
-        else:
-            pytest.fail("the daemon's socket never appeared")
-        client.close()
-        yield proc, path
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.communicate()
-
-
-def status(path: Path) -> dict:
-    client = LineClient(path)
-    try:
-        reply = client.request(b'{"cmd":"status"}')
-    finally:
-        client.close()
-    assert reply["ok"] is True
-    return reply
-
-
 def test_daemon_survives_fuzz_and_rejects_bad_commands_without_moving(daemon):
     proc, path = daemon
     rng = random.Random(fuzz_seed())
-    for _ in range(200):  # guard: wait for the strain-gauge tare (a few hundred cycles)
-        before = status(path)
-        if before["t"] > 1.0:
-            break
-        time.sleep(0.05)
+    before = status(path)
     assert before["state"] == "configured" and before["motor_pos_rad"] == [0.0, 0.0]
 
     # 1. garbage from clients that come and go, some never reading their replies
@@ -250,7 +170,7 @@ def test_daemon_survives_fuzz_and_rejects_bad_commands_without_moving(daemon):
 
     # 3. active and holding: out-of-range and malformed commands are refused and change nothing
     assert client.request(b'{"cmd":"start_profile","name":"hold"}')["ok"]
-    assert client.request(b'{"cmd":"activate"}') == {"ok": True, "state": "active"}
+    assert activate(client) == {"ok": True, "state": "active"}
     refused = [  # (request, the field the error names, words in the message)
         (b'{"cmd":"set_reference","dp":0.9,"ie":0}', "dp", "outside the ankle range"),
         (b'{"cmd":"set_reference","dp":0,"ie":-2}', "ie", "outside the ankle range"),
