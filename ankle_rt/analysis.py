@@ -224,22 +224,14 @@ def pole_json(s: complex) -> dict:
             "damping_ratio": float(-s.real / wn)}
 
 
-def _position_bode(lm: LinearModel, title: str, freqs: np.ndarray) -> BodePlot:
-    C = position_outputs()
+def _bode(lm: LinearModel, C: np.ndarray, labels: tuple[str, ...], title: str, ylabel: str,
+          freqs: np.ndarray) -> BodePlot:
+    """Responses of the outputs ``C`` (named ``labels``) to the decoupled input of each axis."""
     curves = {}
     for i, axis in enumerate(AXES):
         H = frequency_response(lm.A, decoupled_input(lm, i), C, freqs)
-        curves[axis] = {label: H[:, j] for j, label in enumerate(POSITION_LABELS)}
-    return BodePlot(title, "rad / N m", freqs, curves)
-
-
-def _torque_bode(lm: LinearModel, p: PlantParams, title: str, freqs: np.ndarray) -> BodePlot:
-    C = torque_outputs(lm, p)
-    curves = {}
-    for i, axis in enumerate(AXES):
-        H = frequency_response(lm.A, decoupled_input(lm, i), C, freqs)
-        curves[axis] = {label: H[:, j] for j, label in enumerate(TORQUE_LABELS)}
-    return BodePlot(title, "N m / N m", freqs, curves)
+        curves[axis] = {label: H[:, j] for j, label in enumerate(labels)}
+    return BodePlot(title, ylabel, freqs, curves)
 
 
 def _ankle_resonances(lm: LinearModel) -> dict[str, float]:
@@ -308,10 +300,15 @@ def analyze(p: PlantParams, *, freqs_hz: np.ndarray = FREQS_HZ, with_bodes: bool
     eigenvalues, axes = poles(lm)
     result = Analysis(form=p.transmission.form, poles=eigenvalues, pole_axes=axes, values=values, checks=checks)
     if with_bodes:
+        pos, rad = position_outputs(), "rad / N m"
         result.bodes = {
-            "fig8_unit_ratio": _position_bode(lm_unit, "Fig. 8: decoupled motor torque to positions, R = r", freqs_hz),
-            "fig9_actual_geometry": _position_bode(lm, "Fig. 9: decoupled motor torque to positions, actual geometry", freqs_hz),
-            "fig10_soft_cables": _position_bode(lm_soft, f"Fig. 10: as Fig. 9 with k / {SOFT_CABLE_FACTOR:g}", freqs_hz),
-            "fig11_joint_torque": _torque_bode(lm, p, "Fig. 11: decoupled motor torque to joint torque", freqs_hz),
+            "fig8_unit_ratio": _bode(lm_unit, pos, POSITION_LABELS, "Fig. 8: decoupled motor torque to "
+                                     "positions, R = r", rad, freqs_hz),
+            "fig9_actual_geometry": _bode(lm, pos, POSITION_LABELS, "Fig. 9: decoupled motor torque to "
+                                          "positions, actual geometry", rad, freqs_hz),
+            "fig10_soft_cables": _bode(lm_soft, pos, POSITION_LABELS, f"Fig. 10: as Fig. 9 with "
+                                       f"k / {SOFT_CABLE_FACTOR:g}", rad, freqs_hz),
+            "fig11_joint_torque": _bode(lm, C_tau, TORQUE_LABELS, "Fig. 11: decoupled motor torque to "
+                                        "joint torque", "N m / N m", freqs_hz),
         }
     return result
