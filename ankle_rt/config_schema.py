@@ -174,6 +174,8 @@ CANOPEN = Section({
                                    low=2, high=5000),
     "tpdo_wait_us": Field(int, "after the SYNC, poll up to this long for the cycle's TPDOs (real clock only)",
                           default=400, low=0, high=5000),
+    "rpdo_timeout_ms": Field(int, "the node's RPDO deadline monitoring (0x1400 sub5): no set values for this long "
+                                  "-> outputs to their error values, EMCY 0x8250; 0 = off", default=5, low=0, high=1000),
     "sdo_timeout_s": positive("SDO response timeout during configuration", default=0.5),
     "emulator": Field(str, "lockstep: run the device emulator in this process on the virtual bus, stepped by "
                            "the backend's SYNC (bench tests without hardware); none: a real node",

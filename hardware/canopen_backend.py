@@ -169,6 +169,9 @@ class CanopenBackend(Backend):
             node.sdo[0x6200][1].raw = 0
             node.rpdo.save()
             node.tpdo.save()
+            for m in node.rpdo.map.values():                              # deadline monitoring of the set values
+                if m.enabled and m.map:
+                    m.com_record[5].raw = co["rpdo_timeout_ms"]
             node.nmt.send_command(NMT_START)
         except (canopen.SdoCommunicationError, canopen.SdoAbortedError) as exc:
             raise BackendError(f"canopen: node {self.node_id} on {co['interface']}:{co['channel']} did not "

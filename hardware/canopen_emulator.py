@@ -40,6 +40,9 @@ from hardware.sensors import MotorEncoders, StrainGauges
 from sim_backend.plant import SimulatedPlant
 
 NMT_PRE_OPERATIONAL, NMT_OPERATIONAL = 0x7F, 0x05
+EMCY_BASE = 0x80
+EMCY_RPDO_TIMEOUT = bytes((0x50, 0x82, 0x10, 0, 0, 0, 0, 0))   # 0x8250 RPDO timeout, error register: communication
+EMCY_ERROR_RESET = bytes(8)
 CAN_ERR_BUSOFF = 0x40         # error class bit of a bus-off error frame (linux/can/error.h)
 ADC_MIN, ADC_MAX = -32768, 32767   # INTEGER16 analog inputs (0x6401)
 
@@ -122,7 +125,7 @@ class CanopenEmulator:
         self.faults = InjectedFaults()
         self.schedule: list[tuple[str, float, float]] = []   # (fault, start, stop) in s of plant time
         self.counts = {"sync": 0, "rpdo": 0, "rpdo_bad_length": 0, "tpdo_sent": 0, "tpdo_dropped": 0,
-                       "heartbeats": 0}
+                       "heartbeats": 0, "rpdo_timeouts": 0}
         self.outputs = {SET_VALUE_1: self.amps[0].zero_code << ANALOG_CODE_SHIFT,
                         SET_VALUE_2: self.amps[1].zero_code << ANALOG_CODE_SHIFT, DIGITAL_OUT: 0}
         self._pending = dict(self.outputs)
@@ -132,6 +135,9 @@ class CanopenEmulator:
         self._stuck_raw = [0, 0]
         self._next_heartbeat = 0.0
         self._bus_off_sent = False
+        self._rpdo_timeout_s = 0.0
+        self._last_rpdo = 0.0
+        self._rpdo_timed_out = False
         self.boot()
 
     def _on_write(self, index: int, subindex: int, od, data: bytes) -> None:
@@ -158,8 +164,11 @@ class CanopenEmulator:
                 self.boot()
 
     def _start_pdos(self) -> None:
-        """Compile the PDO mapping as the master configured it (SDO writes into this node's OD)."""
+        """Compile the PDO mapping as the master configured it (SDO writes into this node's OD) and
+        start the RPDO deadline monitoring (0x1400 sub5)."""
         node = self.node
+        self._rpdo_timeout_s = node.sdo[0x1400][5].raw * 1e-3
+        self._last_rpdo = self._now()
         node.tpdo.read()
         node.rpdo.read()
         self._tpdos = tuple(compile_pdo(m, "emulated node") for m in node.tpdo.map.values() if m.enabled and m.map)
@@ -191,6 +200,10 @@ class CanopenEmulator:
             self.counts["rpdo_bad_length"] += 1
             return
         self.counts["rpdo"] += 1
+        self._last_rpdo = self._now()
+        if self._rpdo_timed_out:
+            self._rpdo_timed_out = False
+            self._send(EMCY_BASE + self.node_id, EMCY_ERROR_RESET)
         for obj, value in zip(layout.objects, layout.codec.unpack(bytes(data))):
             self._pending[obj] = value
 
@@ -256,12 +269,25 @@ class CanopenEmulator:
     def _send(self, cob_id: int, data: bytes) -> None:
         self.bus.send(can.Message(arbitration_id=cob_id, is_extended_id=False, data=data))
 
+    def _now(self) -> float:
+        """s: the monotonic clock standalone, the SYNC clock (plant time) in lockstep."""
+        return time.monotonic() if self.realtime else self.plant.t
+
+    def _watch_rpdo(self) -> None:
+        """RPDO deadline monitoring: no set values for the event time -> error values and EMCY 0x8250."""
+        if (self._rpdo_timeout_s > 0.0 and not self._rpdo_timed_out and self.node.nmt._state == NMT_OPERATIONAL
+                and self._now() - self._last_rpdo > self._rpdo_timeout_s + 1e-9):
+            self._rpdo_timed_out = True
+            self.counts["rpdo_timeouts"] += 1
+            self._safe_outputs()
+            self._send(EMCY_BASE + self.node_id, EMCY_RPDO_TIMEOUT)
+
     def _heartbeat(self) -> None:
         """Send the heartbeat when it is due (0x1017; on the SYNC clock in lockstep)."""
         period_ms = self._heartbeat_ms
         if not period_ms:
             return
-        now = time.monotonic() if self.realtime else self.plant.t
+        now = self._now()
         if now >= self._next_heartbeat:
             self._send(HEARTBEAT_BASE + self.node_id, bytes((self.node.nmt._state,)))
             self.counts["heartbeats"] += 1
@@ -295,6 +321,7 @@ class CanopenEmulator:
             return
         self._bus_off_sent = False
         if not f.frozen:
+            self._watch_rpdo()
             self._heartbeat()
 
     def close(self) -> None:

@@ -358,3 +358,34 @@ def test_scheduled_injection_follows_plant_time(bench_cfg):
         clock.advance(backend.period_ns)
     assert rail == [False] * 10 + [True] * 10 + [False] * 10
     backend.close()
+
+
+def test_node_zeroes_its_outputs_when_set_values_stop_and_reports_it(bench_cfg):
+    """RPDO deadline monitoring (0x1400 sub5 = canopen.rpdo_timeout_ms): a master that stops sending
+    set values while the amplifiers are enabled gets safe outputs from the node and an EMCY."""
+    clock = SimClock()
+    backend = open_backend(bench_cfg, clock)
+    emu = backend.emulator
+    assert emu.node.sdo[0x1400][5].raw == bench_cfg["canopen"]["rpdo_timeout_ms"] == 5
+    frame = SensorFrame()
+    backend.activate()
+    for _ in range(10):
+        backend.read(frame)
+        backend.write(2.0, 2.0)
+        clock.advance(backend.period_ns)
+    silent = 0
+    while emu.amplifier_currents() != (0.0, 0.0):     # the loop hangs: SYNCs go on, no RPDO
+        backend.read(frame)
+        clock.advance(backend.period_ns)
+        silent += 1
+        assert silent <= 10
+    assert silent == 6 and emu.counts["rpdo_timeouts"] == 1     # deadline 5 ms after the last RPDO
+    assert emu.outputs[DIGITAL_OUT] == 0
+    backend.read(frame)
+    assert frame.faults & BackendFault.DEVICE_FAULT and backend.counters()["emcy"] == 1
+    backend.deactivate()                                # the daemon goes safe; RPDOs flow again
+    backend.read(frame)
+    clock.advance(backend.period_ns)
+    backend.read(frame)
+    assert not frame.faults & BackendFault.DEVICE_FAULT and backend.counters()["emcy"] == 2   # error reset
+    backend.close()
