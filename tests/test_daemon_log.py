@@ -138,3 +138,14 @@ def test_export_keeps_the_later_of_two_records_with_the_same_sample_time(sim_cfg
     assert len(cols["t"]) == len(rec) - 1
     assert np.all(np.diff(cols["t"]) > 0)
     assert cols["current_cmd_1"][50] == rec["current_cmd_1"][51]
+
+
+def test_bench_loop_json_has_the_figures(capsys):
+    """Smoke test of the benchmark's output format (no timing asserted)."""
+    import json
+
+    assert main(["bench", "loop", "--duration", "0.2", "--lockstep", "0.2", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    for key in ("period_error_p99_us", "compute_p99_us", "late_cycles", "lockstep_realtime_factor"):
+        assert key in out
+    assert out["cycles"] > 0 and out["lockstep_realtime_factor"] > 0
