@@ -127,8 +127,9 @@ def write_plots(bodes: dict, values: dict, out_dir: Path) -> tuple[list[Path], s
             for label, h in curves.items():
                 if np.max(np.abs(h)) < 1e-9 * peak:
                     continue  # an output the decoupled input does not reach
-                mag_ax.semilogx(bode.freqs_hz, 20 * np.log10(np.abs(h)), label=label)
-                ph_ax.semilogx(bode.freqs_hz, np.degrees(np.unwrap(np.angle(h))), label=label)
+                style = "--" if label.endswith("_2") else "-"  # motor 2 often lies on motor 1
+                mag_ax.semilogx(bode.freqs_hz, 20 * np.log10(np.abs(h)), style, label=label)
+                ph_ax.semilogx(bode.freqs_hz, np.degrees(np.unwrap(np.angle(h))), style, label=label)
             if name in marked:
                 f_res = values[marked[name]][axis]
                 f_paper = PAPER[marked[name]][axis]
