@@ -17,7 +17,7 @@ DEVICE_FAULT, a bus-off error frame or a refused send BUS_OFF until frames flow 
 
 There is no python-can Notifier thread while the loop runs: canopen's ``Network.connect()`` would
 start one that runs Python callbacks for every frame and competes with the loop for the GIL. A
-Notifier runs only during configuration and shutdown, where canopen's SDO client needs it.
+Notifier runs only during configuration, where canopen's SDO client needs it.
 
 Start-up (configure): NMT pre-operational -> SDO: identity check, cycle period, heartbeat producer
 time, safe-on-error values, the EDS's PDO mapping (transmission type 1) -> NMT operational with set
@@ -27,7 +27,6 @@ Shutdown (close): set values zero, enables off, NMT pre-operational.
 
 from __future__ import annotations
 
-import logging
 import time
 
 import can
@@ -45,11 +44,9 @@ from hardware.config_values import required
 from hardware.escon import escon_amplifiers
 from hardware.sensors import MotorEncoders, StrainGauges, StuckEncoderDetector
 
-logger = logging.getLogger(__name__)
-
 MAX_FRAMES_PER_READ = 64         # frames handled per read(); the rest wait for the next cycle
-NMT_BOOT_UP, NMT_OPERATIONAL, NMT_PRE_OPERATIONAL_STATE = 0x00, 0x05, 0x7F
-NMT_START, NMT_PRE_OPERATIONAL = 0x01, 0x80
+STATE_BOOT_UP, STATE_OPERATIONAL, STATE_PRE_OPERATIONAL = 0x00, 0x05, 0x7F   # heartbeat states
+CMD_START, CMD_ENTER_PRE_OPERATIONAL = 0x01, 0x80                               # NMT commands
 CAN_ERR_BUSOFF = 0x40            # error-frame class bit (linux/can/error.h), as python-can reports it
 EMCY_BASE = 0x80
 NOTIFIER_POLL_S = 0.01           # configuration-time Notifier: how quickly it can be stopped
@@ -115,7 +112,11 @@ class CanopenBackend(Backend):
                        "heartbeat_timeouts": 0, "emcy": 0, "error_frames": 0, "bus_off": 0,
                        "send_errors": 0, "unknown_frames": 0, "bad_length": 0, "frames_deferred": 0}
         self.start_ns = clock.now_ns()
-        self._configure_node(co)
+        try:
+            self._configure_node(co)
+        except BaseException:
+            self._release_bus()
+            raise
 
     # -- configuration -------------------------------------------------------------------------
     def _open_bus(self, co: dict) -> can.BusABC:
@@ -151,7 +152,7 @@ class CanopenBackend(Backend):
         node.sdo.RESPONSE_TIMEOUT = co["sdo_timeout_s"]
         notifier = can.Notifier(self.bus, self.network.listeners, timeout=NOTIFIER_POLL_S)
         try:
-            node.nmt.send_command(NMT_PRE_OPERATIONAL)
+            node.nmt.send_command(CMD_ENTER_PRE_OPERATIONAL)
             od = node.object_dictionary
             product = node.sdo[0x1018][2].raw
             if product != od[0x1018][2].default:
@@ -172,13 +173,13 @@ class CanopenBackend(Backend):
             for m in node.rpdo.map.values():                              # deadline monitoring of the set values
                 if m.enabled and m.map:
                     m.com_record[5].raw = co["rpdo_timeout_ms"]
-            node.nmt.send_command(NMT_START)
+            node.nmt.send_command(CMD_START)
         except (canopen.SdoCommunicationError, canopen.SdoAbortedError) as exc:
             raise BackendError(f"canopen: node {self.node_id} on {co['interface']}:{co['channel']} did not "
                                f"accept its configuration: {exc}") from None
         finally:
             notifier.stop(timeout=1.0)
-        self._node_state = NMT_OPERATIONAL
+        self._node_state = STATE_OPERATIONAL
         self._last_heartbeat_ns = self.clock.now_ns()
         self._bus_off = self._bus_off_now = False
         self._link_lost = False
@@ -233,8 +234,8 @@ class CanopenBackend(Backend):
                 counts["heartbeats"] += 1
                 self._last_heartbeat_ns = self.clock.now_ns()
                 self._link_lost = False
-                self._node_state = state = msg.data[0] & 0x7F if msg.dlc else NMT_BOOT_UP
-                if state == NMT_PRE_OPERATIONAL_STATE and not self.active:
+                self._node_state = state = msg.data[0] & 0x7F if msg.dlc else STATE_BOOT_UP
+                if state == STATE_PRE_OPERATIONAL and not self.active:
                     self._restart_node()        # e.g. after a bus-off: its configuration is intact
             elif cob == self._emcy_cob:
                 counts["emcy"] += 1
@@ -275,7 +276,7 @@ class CanopenBackend(Backend):
                 self.counts["heartbeat_timeouts"] += 1
             self._link_lost = True
             faults |= BackendFault.LINK_LOST
-        elif self._node_state != NMT_OPERATIONAL:
+        elif self._node_state != STATE_OPERATIONAL:
             faults |= BackendFault.DEVICE_FAULT
         if self._emcy_pending:
             faults |= BackendFault.DEVICE_FAULT
@@ -317,7 +318,8 @@ class CanopenBackend(Backend):
             self._send(msg)
 
     def activate(self) -> None:
-        """Enable the amplifiers with zero set values (sent with the next write)."""
+        """Enable the amplifiers (from the next write on); NMT start first, in case the node fell
+        back to pre-operational."""
         self._restart_node()
         self.active = True
 
@@ -325,11 +327,11 @@ class CanopenBackend(Backend):
         """NMT start (one unconfirmed frame; a no-op for an operational node). Outputs stay as the
         last RPDO set them, so with the amplifiers inactive they stay zero and disabled."""
         try:
-            self.node.nmt.send_command(NMT_START)
+            self.node.nmt.send_command(CMD_START)
         except can.CanError:
             self.counts["send_errors"] += 1
             return
-        self._node_state = NMT_OPERATIONAL      # the next heartbeat confirms it
+        self._node_state = STATE_OPERATIONAL    # the next heartbeat confirms it
 
     def deactivate(self) -> None:
         """Set values zero, enables off, sent at once (the node applies them at the next SYNC)."""
@@ -343,9 +345,12 @@ class CanopenBackend(Backend):
             return
         self.deactivate()
         try:
-            self.node.nmt.send_command(NMT_PRE_OPERATIONAL)
+            self.node.nmt.send_command(CMD_ENTER_PRE_OPERATIONAL)
         except can.CanError:
             self.counts["send_errors"] += 1
+        self._release_bus()
+
+    def _release_bus(self) -> None:
         self.bus.shutdown()
         self.bus = None
         if self.emulator is not None:

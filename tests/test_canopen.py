@@ -7,18 +7,19 @@ import copy
 import itertools
 import math
 
+import can
 import canopen
 import numpy as np
 import pytest
 
-from ankle_rt.backend import BackendFault, SensorFrame, open_backend
+from ankle_rt.backend import BackendError, BackendFault, SensorFrame, open_backend
 from ankle_rt.clock import SimClock
 from ankle_rt.config import Config, ConfigError, load_config
 from ankle_rt.daemon import Daemon, run_lockstep
 from ankle_rt.safety import Fault, State
 from hardware.canbus_load import MAX_BUS_LOAD, frame_bits, loop_bus_load
 from hardware.canopen_backend import CanopenBackend, configured_bus_load
-from hardware.canopen_emulator import parse_schedule
+from hardware.canopen_emulator import lockstep_pair, parse_schedule
 from hardware.canopen_pdo import (COUNTER_1, COUNTER_2, DEFAULT_EDS, DIGITAL_IN, DIGITAL_OUT, SET_VALUE_1,
                                   SET_VALUE_2, STRAIN_1, STRAIN_2, EdsError, load_node)
 from sim_backend.backend import SimBackend
@@ -129,6 +130,18 @@ def test_startup_configures_the_node_over_sdo_and_shutdown_leaves_it_safe(bench_
     backend.close()
     assert emu.state == "PRE-OPERATIONAL"
     assert emu.outputs[DIGITAL_OUT] == 0 and emu.amps[0].current(emu.outputs[SET_VALUE_1] >> 4) == 0.0
+
+
+def test_a_missing_or_wrong_node_is_refused_naming_it(bench_cfg):
+    bench_cfg["canopen"]["sdo_timeout_s"] = 0.05
+    silent = can.Bus(interface="virtual", channel=bench_cfg["canopen"]["channel"] + "-empty")
+    with pytest.raises(BackendError, match="node 1 on virtual:.* did not accept its configuration"):
+        CanopenBackend(bench_cfg, SimClock(), bus=silent)
+    link, emulator = lockstep_pair(bench_cfg, str(DEFAULT_EDS), bench_cfg["canopen"]["channel"])
+    emulator.node.set_data(0x1018, 2, (0x1234).to_bytes(4, "little"))
+    with pytest.raises(BackendError, match="product code 0x00001234"):
+        CanopenBackend(bench_cfg, SimClock(), bus=link)
+    emulator.close()
 
 
 # -- the section 7 experiment: CANopen + emulator against the direct simulated backend ----------
