@@ -80,3 +80,36 @@ def test_second_daemon_on_the_same_socket_refuses_to_start(daemon, tmp_path):
     assert second.returncode == 1
     assert f"another ankle-rt daemon is already listening on {path}" in second.stderr
     assert status(path)["state"] == "configured" and proc.poll() is None
+
+
+def test_log_writer_thread_does_not_inherit_real_time_priority(tmp_path):
+    """The unit leaves scheduling to the daemon so that only the loop runs SCHED_FIFO: the log
+    writer thread, started after the daemon raised its priority, must drop back to normal."""
+    import threading
+    import time
+
+    from ankle_rt.log.writer import LogWriter
+
+    result = {}
+
+    def loop_thread():
+        try:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(1))
+        except OSError as exc:
+            result["refused"] = exc.strerror
+            return
+        writer = LogWriter(tmp_path / "run.arlog", {})
+        for _ in range(5000):  # guard: the writer sets its policy as it starts
+            result["writer"] = os.sched_getscheduler(writer._thread.native_id)
+            if result["writer"] == os.SCHED_OTHER:
+                break
+            time.sleep(0.001)  # let the writer thread take the GIL
+        result["loop"] = os.sched_getscheduler(0)
+        writer.close()
+
+    thread = threading.Thread(target=loop_thread)
+    thread.start()
+    thread.join()
+    if "refused" in result:
+        pytest.skip(f"SCHED_FIFO not allowed here ({result['refused']})")
+    assert result == {"loop": os.SCHED_FIFO, "writer": os.SCHED_OTHER}

@@ -79,6 +79,10 @@ class LogWriter:
         self.flushed = end
 
     def _run(self) -> None:
+        # A thread inherits its creator's scheduling policy; the writer must never run SCHED_FIFO
+        # beside the loop (it would hold the GIL and the CPU at the loop's priority while it writes).
+        if os.sched_getscheduler(0) != os.SCHED_OTHER:
+            os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
         while not self._stop.wait(self.interval):
             self._flush()
 
