@@ -16,11 +16,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ankle_rt.estimation import Estimate
 from ankle_rt.identification.runner import LEAD_S
 from ankle_rt.identification.signals import IdentificationError, motor_channel
 from ankle_rt.identification.stats import Measured, measured
 from ankle_rt.interchange import Recording
-
 
 
 class TorqueStepExperiment:
@@ -38,10 +38,10 @@ class TorqueStepExperiment:
     def duration_s(self) -> float:
         return LEAD_S + self.steps * self.period_s
 
-    def reset(self, est) -> None:
+    def reset(self, est: Estimate) -> None:
         self.t0 = est.t
 
-    def update(self, est, out_torque: np.ndarray) -> None:
+    def update(self, est: Estimate, out_torque: np.ndarray) -> None:
         out_torque[0] = out_torque[1] = 0.0
         phase = est.t - self.t0 - LEAD_S
         if phase < 0.0:

@@ -9,6 +9,7 @@ from typing import Callable, Protocol
 import numpy as np
 
 from ankle_rt.config import Config, ConfigError
+from ankle_rt.estimation import Estimate
 from ankle_rt.identification.signals import IdentificationError
 from ankle_rt.interchange import Recording
 
@@ -23,9 +24,9 @@ class Experiment(Protocol):
 
     duration_s: float
 
-    def reset(self, est) -> None: ...
+    def reset(self, est: Estimate) -> None: ...
 
-    def update(self, est, out_torque: np.ndarray) -> None: ...
+    def update(self, est: Estimate, out_torque: np.ndarray) -> None: ...
 
 
 #: runs ``controller`` for ``duration_s`` on ``cfg``'s backend and returns the interchange columns

@@ -6,7 +6,7 @@ the creep of a smoothed friction law, well below the ramp's final speed). The fr
 the applied torque minus what accelerates the rotor and the viscous part:
 ``kc = tau(t1) - J w'(t1) - D w(t1)``, with w and w' from a quadratic fit of the encoder angle over
 +-``fit_half_window_s`` around t1 (no differentiation of the quantised signal). J and D come from the
-inertia and viscous experiments when available, else from the config; the correction is small
+inertia experiment when available, else from the config; the correction is small
 (J w' ~ 0.02-0.04 N m at 0.25-0.5 N m/s ramps), so a 30 % error in J moves kc by ~0.01 N m.
 Without it a speed threshold reads the ramp late and overestimates kc by 5-15 %.
 """
@@ -17,11 +17,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ankle_rt.estimation import Estimate
 from ankle_rt.identification.runner import LEAD_S
 from ankle_rt.identification.signals import IdentificationError, centred_velocity, motor_channel, runs
 from ankle_rt.identification.stats import Measured, measured
 from ankle_rt.interchange import Recording
-
 
 
 class StictionExperiment:
@@ -43,11 +43,11 @@ class StictionExperiment:
     def duration_s(self) -> float:
         return LEAD_S + self.teeth * self.period_s
 
-    def reset(self, est) -> None:
+    def reset(self, est: Estimate) -> None:
         self.t0 = est.t
         self.stopped_tooth = -1
 
-    def update(self, est, out_torque: np.ndarray) -> None:
+    def update(self, est: Estimate, out_torque: np.ndarray) -> None:
         out_torque[0] = out_torque[1] = 0.0
         phase = est.t - self.t0 - LEAD_S
         if phase < 0.0:

@@ -16,12 +16,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ankle_rt.estimation import Estimate
 from ankle_rt.identification.friction import AffineFit, fit_affine, fit_through_origin
 from ankle_rt.identification.runner import LEAD_S
 from ankle_rt.identification.signals import IdentificationError, centred_velocity, motor_channel, runs
 from ankle_rt.identification.stats import Measured, measured
 from ankle_rt.interchange import Recording
-
 
 
 class VelocityHoldExperiment:
@@ -49,11 +49,11 @@ class VelocityHoldExperiment:
             return 0.0
         return self.targets[k % len(self.targets)]
 
-    def reset(self, est) -> None:
+    def reset(self, est: Estimate) -> None:
         self.t0 = self.t_last = est.t
         self.integral = 0.0
 
-    def update(self, est, out_torque: np.ndarray) -> None:
+    def update(self, est: Estimate, out_torque: np.ndarray) -> None:
         out_torque[0] = out_torque[1] = 0.0
         h, self.t_last = est.t - self.t_last, est.t
         target = self.target(est.t - self.t0)
