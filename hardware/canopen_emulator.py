@@ -35,11 +35,13 @@ from ankle_rt.config import Config
 from hardware.canopen_pdo import (COUNTER_1, COUNTER_2, DIGITAL_IN, DIGITAL_OUT, ENABLE_BITS, HEARTBEAT_BASE,
                                   READY_BITS, SET_VALUE_1, SET_VALUE_2, STRAIN_1, STRAIN_2, SYNC_COB_ID,
                                   ANALOG_CODE_SHIFT, PdoLayout, analog_codec, compile_pdo)
+from hardware.config_values import required
 from hardware.escon import escon_amplifiers
 from hardware.sensors import MotorEncoders, StrainGauges
 from sim_backend.plant import SimulatedPlant
 
 NMT_PRE_OPERATIONAL, NMT_OPERATIONAL = 0x7F, 0x05
+NMT_RESET_NODE = 0x81         # NMT command (0x82: reset communication)
 EMCY_BASE = 0x80
 EMCY_RPDO_TIMEOUT = bytes((0x50, 0x82, 0x10, 0, 0, 0, 0, 0))   # 0x8250 RPDO timeout, error register: communication
 EMCY_ERROR_RESET = bytes(8)
@@ -109,8 +111,6 @@ class CanopenEmulator:
         self.plant = SimulatedPlant(cfg, getattr(cfg, "source", "config"))
         self.dt = self.plant.dt
         self.amps = escon_amplifiers(cfg, analog_codec())
-        self.encoders = MotorEncoders(cfg["actuator"]["encoder_counts_per_rev"], 32, tuple(cfg["encoders"]["sign"]))
-        self._heartbeat_ms = 0
         self.strain = StrainGauges.from_config(cfg)
         self.realtime = realtime
         self.bus = bus
@@ -118,6 +118,10 @@ class CanopenEmulator:
         self.network = canopen.Network(bus)           # no connect(): no Notifier thread
         self.node = canopen.LocalNode(self.node_id, canopen.import_od(eds, self.node_id))
         self.network.add_node(self.node)
+        self.counter_bits = len(self.node.object_dictionary[COUNTER_1[0]][COUNTER_1[1]])
+        self.encoders = MotorEncoders(cfg["actuator"]["encoder_counts_per_rev"], self.counter_bits,
+                                      tuple(required(cfg, "encoders.sign", "+1/-1 per motor encoder")))
+        self._heartbeat_ms = 0
         # heartbeats are sent by service() (no timer thread): catch writes of 0x1017 instead
         self.node._write_callbacks.remove(self.node.nmt.on_write)
         self.node.add_write_callback(self._on_write)
@@ -158,10 +162,15 @@ class CanopenEmulator:
     def _after_nmt(self, can_id: int, data: bytearray, timestamp: float) -> None:
         if self.node.nmt._state == NMT_OPERATIONAL:
             self._start_pdos()
-        else:
-            self._safe_outputs()
-            if self.node.nmt._state == 0:          # reset node / communication: boot again
-                self.boot()
+            return
+        if self.node.nmt._state == 0:              # reset node / communication: defaults, boot again
+            reset_all = data[0] == NMT_RESET_NODE
+            for index in list(self.node.data_store):
+                if reset_all or 0x1000 <= index <= 0x1FFF:
+                    del self.node.data_store[index]
+            self._heartbeat_ms = 0
+            self.boot()
+        self._safe_outputs()
 
     def _start_pdos(self) -> None:
         """Compile the PDO mapping as the master configured it (SDO writes into this node's OD) and
@@ -225,9 +234,10 @@ class CanopenEmulator:
         for i, c in ((0, c1), (1, c2)):
             if self.faults.stuck_encoder != i + 1:
                 self._stuck_raw[i] = c
+        full, half = 1 << self.counter_bits, 1 << (self.counter_bits - 1)
         c1, c2 = self._stuck_raw
-        c1 = c1 - (1 << 32) if c1 >= 1 << 31 else c1          # INTEGER32 object
-        c2 = c2 - (1 << 32) if c2 >= 1 << 31 else c2
+        c1 = c1 - full if c1 >= half else c1           # the counter objects are signed integers
+        c2 = c2 - full if c2 >= half else c2
         s1, s2 = self.strain.raw(*plant.strain_gauge_torques(), ADC_MIN, ADC_MAX)
         if self.faults.strain_gauge_rail == 1:
             s1 = ADC_MAX
@@ -291,6 +301,7 @@ class CanopenEmulator:
         if now >= self._next_heartbeat:
             self._send(HEARTBEAT_BASE + self.node_id, bytes((self.node.nmt._state,)))
             self.counts["heartbeats"] += 1
+            # on the SYNC clock, half a tick early so that float rounding cannot skip a tick
             self._next_heartbeat = now + period_ms * 1e-3 - (0.5 * self.dt if not self.realtime else 0.0)
 
     def service(self) -> None:

@@ -402,3 +402,20 @@ def test_node_zeroes_its_outputs_when_set_values_stop_and_reports_it(bench_cfg):
     backend.read(frame)
     assert not frame.faults & BackendFault.DEVICE_FAULT and backend.counters()["emcy"] == 2   # error reset
     backend.close()
+
+
+def test_a_node_that_reboots_loses_its_configuration_and_is_a_device_fault(bench_cfg):
+    clock = SimClock()
+    backend = open_backend(bench_cfg, clock)
+    frame = SensorFrame()
+    backend.read(frame)
+    assert frame.faults == BackendFault.NONE
+    backend.node.nmt.send_command(0x81)                 # reset node (a power glitch does the same)
+    backend.read(frame)
+    assert frame.faults & BackendFault.DEVICE_FAULT
+    assert backend.emulator.node.sdo[0x1017].raw == 0   # back to the EDS defaults
+    for _ in range(30):                                 # no heartbeat any more: the link is lost too
+        clock.advance(backend.period_ns)
+        backend.read(frame)
+    assert frame.faults & BackendFault.LINK_LOST
+    backend.close()
