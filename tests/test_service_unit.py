@@ -69,3 +69,19 @@ def test_unit_keeps_what_the_daemon_relies_on():
     assert {v for k, v in found if k == "DeviceAllow"} == {"char-ttyACM rw", "char-ttyUSB rw"}
     # These would silently defeat real-time scheduling or make every thread FIFO from exec on.
     assert not {"RestrictRealtime", "CPUSchedulingPolicy", "MemoryDenyWriteExecute", "PrivateNetwork"} & set(keys)
+
+
+def test_service_config_fragment_turns_a_device_config_into_a_service(tmp_path):
+    """/etc/ankle-rt/config.yaml as docs/service.md writes it: the device config, then config/service.yaml."""
+    from ankle_rt.config import load_config
+    from ankle_rt.service.link import socket_mode
+
+    shipped = UNIT.parent.parent / "config"
+    etc = tmp_path / "config.yaml"
+    etc.write_text(f"include: [{shipped / 'hw-serial.yaml'}, {shipped / 'service.yaml'}]\n")
+    cfg = load_config(etc)
+    assert cfg["backend"] == "serial"  # the device config is kept
+    assert cfg["loop"]["duration_s"] == 0 and cfg["safety"]["auto_activate"] is False
+    assert cfg["logging"]["directory"] == "/var/log/ankle-rt"
+    assert socket_mode(cfg) == 0o660 and cfg["service"]["socket_path"] == "auto"
+    assert cfg["loop"]["realtime"]["priority"] <= int(dict(directives(UNIT.read_text()))["LimitRTPRIO"])
