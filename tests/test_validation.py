@@ -71,3 +71,11 @@ def test_sample_period_must_match_the_config(checks, _sim_cfg):
     slow = Recording({**rec.columns, "t": 2.0 * rec["t"]}, "slow.csv")
     with pytest.raises(IdentificationError, match="column 't'"):
         validate_recording(slow, _sim_cfg, "input")
+
+
+def test_cli_bad_recording_names_the_column(checks, tmp_path, capsys):
+    cols = {k: v for k, v in checks[1].measured.columns.items() if k != "t"}
+    data = tmp_path / "no_time.csv"
+    write_csv(data, cols)
+    assert main(["validate", "--config", str(SIM_YAML), "--from", str(data), "--out", str(tmp_path)]) == 2
+    assert "column 't'" in capsys.readouterr().err

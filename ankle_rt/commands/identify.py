@@ -9,6 +9,13 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 
+def _positive_int(text: str) -> int:
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
+    return value
+
+
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
         "identify", help="identify actuator J, D and friction (stiction, viscous, inertia experiments)",
@@ -22,7 +29,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         "for 'all' a directory holding stiction.csv, viscous.csv and inertia.csv (what a "
                         "run writes to --out)")
     p.add_argument("--motor", type=int, choices=(1, 2), default=1, help="which motor (default 1)")
-    p.add_argument("--repeats", type=int, default=3, help="repeats per direction of each experiment (default 3)")
+    p.add_argument("--repeats", type=_positive_int, default=3, help="repeats per direction of each experiment (default 3)")
     p.add_argument("--out", default="identification", help="output directory (default ./identification)")
     p.set_defaults(handler=run)
 
