@@ -83,16 +83,17 @@ class StictionResult:
 def estimate_stiction(rec: Recording, motor: int = 1, kt: float | None = None, *, inertia: float,
                       damping: float, onset_speed: float = 0.05, half_window_s: float = 0.01,
                       fit_half_window_s: float = 0.04) -> StictionResult:
-    """Breakaway friction torques of every torque ramp in ``rec`` (ramps: runs of nonzero input of one
-    sign starting from rest). ``inertia`` kg m^2 and ``damping`` N m s/rad correct the torque for
+    """Breakaway friction torques of every torque ramp in ``rec`` (ramps: runs of input of one sign
+    above 1 % of its largest magnitude, starting from rest). ``inertia`` kg m^2 and ``damping`` N m s/rad correct the torque for
     the rotor's acceleration (module docstring); ``onset_speed`` rad/s."""
     t, pos, tau = motor_channel(rec, motor, kt)
     vel = centred_velocity(t, pos, half_window_s)
     col = ("current_cmd_" if rec.input_kind == "current" else "motor_torque_") + str(motor)
     w = max(2, int(round(fit_half_window_s / rec.dt)))
     events, skipped = [], []
+    floor = 0.01 * float(np.max(np.abs(tau))) if len(tau) else 0.0   # set-value noise is not a ramp
     for sign in (1, -1):
-        for a, b in runs(sign * tau > 1e-9):
+        for a, b in runs(sign * tau > floor):
             if b - a < 10:
                 continue
             end = min(len(t), b + int(0.2 / rec.dt))   # the motor may still be accelerating at the cut
