@@ -419,3 +419,42 @@ def test_a_node_that_reboots_loses_its_configuration_and_is_a_device_fault(bench
         backend.read(frame)
     assert frame.faults & BackendFault.LINK_LOST
     backend.close()
+
+
+def test_standalone_emulator_serves_a_backend_on_the_real_clock(bench_cfg):
+    """The bench's two-computer set-up in one process: the emulator serving in a thread of its own
+    (real-time heartbeats), the backend on the monotonic clock configuring it over SDO with its
+    Notifier. No timing is asserted: only that configuration works against an asynchronous node
+    and that samples flow."""
+    import threading
+    import time
+
+    from ankle_rt.clock import MonotonicClock
+    from hardware.canopen_emulator import CanopenEmulator
+
+    channel = bench_cfg["canopen"]["channel"]
+    bench_cfg["canopen"]["tpdo_wait_us"] = 2000
+    emulator = CanopenEmulator(bench_cfg, can.Bus(interface="virtual", channel=channel), str(DEFAULT_EDS),
+                               realtime=True)
+    serving = threading.Thread(target=emulator.serve, args=(3.0,), daemon=True)
+    backend_bus = can.Bus(interface="virtual", channel=channel)
+    def reaches(state: str) -> bool:          # the node handles frames in its own thread
+        for _ in range(200):
+            if emulator.state == state:
+                return True
+            time.sleep(0.01)
+        return False
+
+    serving.start()
+    try:
+        backend = CanopenBackend(bench_cfg, MonotonicClock(), bus=backend_bus)
+        assert reaches("OPERATIONAL")
+        frame = SensorFrame()
+        for _ in range(50):
+            backend.read(frame)
+        assert frame.seq > 0 and backend.counters()["tpdo_received"] > 0
+        backend.close()
+        assert reaches("PRE-OPERATIONAL")
+    finally:
+        serving.join()
+        emulator.close()
