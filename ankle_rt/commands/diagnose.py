@@ -1,0 +1,93 @@
+"""``ankle-rt diagnose``: name what the simulation gets wrong in measured data, fit the effect, measure
+the gain (method: docs/diagnosis.md)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser(
+        "diagnose", help="find, name and fit the model discrepancy in measured data",
+        description="Re-fit the baseline model (J, D, kc; cable stiffness) to an interchange CSV or a run log, "
+                    "test every named effect (stribeck, asymmetric_friction, load_dependent_friction, backlash, "
+                    "cogging, delay, stiffness_nonlinear) and a catch-all, name the cause (or none / unknown), "
+                    "and report the validation gain of the extended model.")
+    p.add_argument("data", help="identification data: interchange CSV or `ankle-rt run` log")
+    p.add_argument("--validation", metavar="FILE",
+                   help="validation data (default: the last 25 %% of the identification data is held out)")
+    p.add_argument("--plant", choices=("ankle", "actuator"), default="ankle",
+                   help="ankle: two motors on the cables (needs --config); actuator: motors off the cables")
+    p.add_argument("--config", metavar="FILE", help="nominal model config (optional for --plant actuator)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--report", metavar="DIR", help="write report.md and PNG plots here")
+    p.add_argument("--write-model", metavar="FILE", help="write the config fragment that switches the effect on")
+    p.add_argument("--no-closed-loop", action="store_true",
+                   help="skip the free-run closed-loop simulation gain on daemon runs")
+    p.set_defaults(handler=run)
+
+
+def _format(diag, closed) -> str:
+    lines = [f"cause: {diag.cause}  (confidence {diag.confidence:.2f}"
+             + (f", {diag.channel} channel)" if diag.channel else ")")]
+    for k, v in diag.parameters.items():
+        lines.append(f"  {k} = {v['value']:.6g} ± {v['sd']:.2g}")
+    for name, params in diag.baseline.items():
+        vals = ", ".join(f"{k} {', '.join(f'{x:.4g}' for x in p['value'])}" for k, p in params.items())
+        lines.append(f"baseline ({name}, re-fitted): {vals}")
+    lines.append(f"inverse-model NRMSE on {diag.validation}: baseline {diag.nrmse_baseline:.4f}, "
+                 f"extended {diag.nrmse_extended:.4f}, gain {diag.gain:.2f}x")
+    if closed is not None:
+        lines.append(f"closed-loop position NRMSE ({closed.duration_s:.1f} s free run): baseline "
+                     f"{closed.nrmse_baseline:.4f}, extended {closed.nrmse_extended:.4f}, gain {closed.gain:.2f}x")
+    lines.append("candidates (score = information-criterion gain over the baseline):")
+    for c in diag.candidates:
+        lines.append(f"  {c['cause']:<24} {c['channel'] or '-':<6} score {c['score']:>10.1f}  "
+                     f"residual removed {100 * c['rss_reduction']:5.1f} %")
+    lines += [f"note: {n}" for n in diag.notes]
+    return "\n".join(lines)
+
+
+def run(args: argparse.Namespace) -> int:
+    import json
+
+    try:
+        import scipy  # noqa: F401
+    except ImportError:
+        print("ankle-rt diagnose: needs the analysis extra (scipy, matplotlib): pip install 'ankle-rt[analysis]'",
+              file=sys.stderr)
+        return 3
+    from ankle_rt.config import load_config
+    from ankle_rt.diagnosis import DiagnosisError, diagnose
+    from ankle_rt.diagnosis.closed_loop import applicable, closed_loop_gain
+    from ankle_rt.diagnosis.inputs import load_recording
+    from ankle_rt.diagnosis.model_fragment import write_fragment
+    from ankle_rt.interchange import InterchangeError
+
+    cfg = load_config(args.config) if args.config else None
+    try:
+        ident = load_recording(args.data)
+        valid = load_recording(args.validation) if args.validation else None
+        diag = diagnose(ident, valid, plant=args.plant, cfg=cfg)
+    except (InterchangeError, DiagnosisError) as exc:
+        print(f"ankle-rt diagnose: {exc}", file=sys.stderr)
+        return 2
+    closed = None
+    run_data = valid if valid is not None else ident
+    if (not args.no_closed_loop and args.config and args.plant == "ankle" and diag.effect is not None
+            and applicable(run_data)):
+        closed = closed_loop_gain(run_data, args.config, diag)
+    if args.write_model:
+        write_fragment(args.write_model, diag, args.config)
+    if args.report:
+        from ankle_rt.diagnosis.report import write_report
+        write_report(args.report, diag, closed)
+    if args.json:
+        out = diag.to_json()
+        if closed is not None:
+            out["closed_loop"] = closed.to_json()
+        print(json.dumps(out, indent=2, default=float))
+    else:
+        print(_format(diag, closed))
+    return 0

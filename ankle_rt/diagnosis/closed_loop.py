@@ -1,0 +1,71 @@
+"""The second kind of gain: free-run closed-loop simulation error of the positions.
+
+Where the controller and the references are known (a daemon run: its config names them, and the log
+holds ``ref_dp``/``ref_ie``), the run is simulated again through the daemon's own lockstep loop
+(``ankle_rt.daemon.run_lockstep``, which opens the backend by name: the core never imports the
+simulator) once with the re-fitted baseline and once with the extended model, and the simulated motor
+(and joint) angles are compared with the measured ones.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ankle_rt.diagnosis.core import Diagnosis
+from ankle_rt.interchange import Recording
+
+POSITION_COLUMNS = ("motor_pos_1", "motor_pos_2", "ankle_dp", "ankle_ie")
+
+
+@dataclass
+class ClosedLoopGain:
+    nrmse_baseline: float
+    nrmse_extended: float
+    columns: tuple[str, ...]
+    duration_s: float
+    traces: dict[str, dict[str, np.ndarray]]   # "measured" / "baseline" / "extended" -> column -> samples
+
+    @property
+    def gain(self) -> float:
+        return self.nrmse_baseline / self.nrmse_extended if self.nrmse_extended > 0 else 1.0
+
+    def to_json(self) -> dict:
+        return {"nrmse_baseline": self.nrmse_baseline, "nrmse_extended": self.nrmse_extended,
+                "gain": self.gain, "columns": list(self.columns), "duration_s": self.duration_s}
+
+
+def applicable(rec: Recording) -> bool:
+    """A daemon run with references (the controller then comes from the run's config)."""
+    return "ref_dp" in rec and "ref_ie" in rec
+
+
+def _position_nrmse(sim: dict[str, np.ndarray], t_sim: np.ndarray, rec: Recording,
+                    cols: tuple[str, ...]) -> float:
+    errs = []
+    for c in cols:
+        s = np.interp(rec["t"], t_sim, sim[c])
+        scale = max(float(np.std(rec[c])), 1e-12)
+        errs.append(float(np.sqrt(np.mean((s - rec[c]) ** 2))) / scale)
+    return float(np.mean(errs))
+
+
+def closed_loop_gain(rec: Recording, config_path: str | Path, diag: Diagnosis) -> ClosedLoopGain:
+    """Re-run the recorded experiment on the simulator, baseline and extended (see module docstring)."""
+    from ankle_rt.config import load_config
+    from ankle_rt.daemon import run_lockstep
+
+    refit = {"actuator": dict(diag.actuator_refit)} if diag.actuator_refit else {}
+    duration = float(rec["t"][-1] + rec.dt)
+    cols = tuple(c for c in POSITION_COLUMNS if c in rec)
+    traces: dict[str, dict[str, np.ndarray]] = {"measured": {c: rec[c] for c in cols}}
+    out = {}
+    for name, effects in (("baseline", []), ("extended", [diag.effect] if diag.effect else [])):
+        cfg = load_config(config_path, overrides={**refit, "sim": {"effects": effects}})
+        run = run_lockstep(cfg, duration)
+        sim = {c: np.asarray(run[c], dtype=float) for c in cols}
+        out[name] = _position_nrmse(sim, np.asarray(run["t"], dtype=float), rec, cols)
+        traces[name] = {c: np.interp(rec["t"], run["t"], sim[c]) for c in cols}
+    return ClosedLoopGain(out["baseline"], out["extended"], cols, duration, traces)

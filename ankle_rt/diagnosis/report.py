@@ -1,0 +1,182 @@
+"""``--report DIR``: a Markdown report with PNG plots, so a person sees the effect at a glance.
+
+Plots (identification data, baseline residual of each channel): residual against motor velocity,
+against cable torque, against motor angle (or cable stretch); the residual spectrum before and after
+the extension; measured / baseline / extended overlays on the validation data (inverse model, and the
+closed-loop positions when they were simulated)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ankle_rt.diagnosis.candidates import Candidate
+from ankle_rt.diagnosis.core import Diagnosis
+from ankle_rt.diagnosis.selection import ChannelScores, design_matrix
+from ankle_rt.diagnosis.signals import MotorChannel
+
+OVERLAY_S = 3.0
+
+
+def _pyplot():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def _scatter(plt, path: Path, x: np.ndarray, r: np.ndarray, xlabel: str, title: str, m: int) -> str:
+    fig, ax = plt.subplots(figsize=(6.4, 3.6))
+    for i, (xs, rs) in enumerate(zip(np.split(x, m), np.split(r, m))):
+        ax.plot(xs, rs, ".", ms=2, alpha=0.5, label=f"{'motor' if 'motor' in title else 'axis'} {i + 1}")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel("baseline residual (N m)")
+    ax.set_title(title)
+    ax.grid(alpha=0.3)
+    ax.legend(loc="best", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path.name
+
+
+def _extended_residual(cs: ChannelScores, cand: Candidate | None, nl: float) -> np.ndarray | None:
+    if cand is None:
+        return None
+    y, X = design_matrix(cs.channel, cs.channel.baseline_design(), cand, nl)
+    coef, *_ = np.linalg.lstsq(X, y, rcond=None)
+    return y - X @ coef
+
+
+def _spectrum(plt, path: Path, cs: ChannelScores, ext: np.ndarray | None) -> str:
+    from scipy.signal import welch
+    ch = cs.channel
+    fs = 1.0 / (ch.dt * ch.sm.step)
+    fig, ax = plt.subplots(figsize=(6.4, 3.6))
+    for label, r in (("baseline", cs.baseline.residual), ("extended", ext)):
+        if r is None:
+            continue
+        f, p = welch(np.split(r, ch.m)[0], fs=fs, nperseg=min(512, len(r) // ch.m))
+        ax.semilogy(f, p, label=label)
+    ax.set_xlabel("frequency (Hz)")
+    ax.set_ylabel("PSD (N^2 m^2 / Hz)")
+    ax.set_title(f"{cs.name} residual spectrum (first {'motor' if cs.name == 'motor' else 'axis'})")
+    ax.grid(alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path.name
+
+
+def _overlay(plt, path: Path, diag: Diagnosis) -> str:
+    cs = diag.detail["verdict"].channel or diag.detail["channels"][0]
+    vch = diag.detail["validation_channels"][cs.name]
+    Xb = vch.baseline_design()
+    measured = vch.torque() if isinstance(vch, MotorChannel) else vch.target()
+    offset = measured - vch.target()          # the cable torque the motor feels (zero for the cable side)
+    base = Xb @ cs.baseline.coef + offset
+    ext = None
+    if "extended" in diag.detail:
+        e = diag.detail["extended"]
+        y, X = design_matrix(vch, Xb, e.candidate, e.nl)
+        ext = X @ e.coef + offset + (measured - offset - y)   # back to the undelayed torque
+    k = len(measured) // vch.m
+    t = np.arange(k) * vch.dt * vch.sm.step
+    show = t < OVERLAY_S
+    fig, ax = plt.subplots(figsize=(7.5, 3.8))
+    ax.plot(t[show], measured[:k][show], "k", lw=1.2, label="measured")
+    ax.plot(t[show], base[:k][show], lw=1, label=f"baseline (NRMSE {diag.nrmse_baseline:.4f})")
+    if ext is not None:
+        ax.plot(t[show], ext[:k][show], "--", lw=1, label=f"extended (NRMSE {diag.nrmse_extended:.4f})")
+    ax.set_xlabel("time (s) from the first kept row")
+    ax.set_ylabel("torque (N m), filtered")
+    ax.set_title(f"validation, {cs.name} channel ({'motor 1' if cs.name == 'motor' else 'DP axis'})")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path.name
+
+
+def _closed_loop(plt, path: Path, closed) -> str:
+    cols = closed.columns
+    fig, axes = plt.subplots(len(cols), 1, figsize=(7.5, 1.9 * len(cols)), sharex=True)
+    axes = np.atleast_1d(axes)
+    for ax, c in zip(axes, cols):
+        for name, style in (("measured", "k"), ("baseline", "-"), ("extended", "--")):
+            ax.plot(closed.traces[name][c], style, lw=1, label=name)
+        ax.set_ylabel(f"{c} (rad)")
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=8)
+    axes[0].set_title(f"closed-loop free run: position NRMSE {closed.nrmse_baseline:.4f} -> {closed.nrmse_extended:.4f}")
+    axes[-1].set_xlabel("sample")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path.name
+
+
+def write_report(directory: str | Path, diag: Diagnosis, closed=None) -> Path:
+    """Write report.md and its PNGs into ``directory`` (created); returns the report's path."""
+    plt = _pyplot()
+    out = Path(directory)
+    out.mkdir(parents=True, exist_ok=True)
+    images: list[tuple[str, str]] = []
+    verdict = diag.detail["verdict"]
+    for cs in diag.detail["channels"]:
+        ch, r = cs.channel, cs.baseline.residual
+        if cs.name == "motor":
+            images.append(("Residual against motor velocity",
+                           _scatter(plt, out / "residual_vs_velocity.png", ch.pick(ch.vel), r,
+                                    "motor velocity (rad/s)", "motor residual vs velocity", ch.m)))
+            if np.any(ch.tc):
+                images.append(("Residual against cable torque",
+                               _scatter(plt, out / "residual_vs_cable_torque.png", ch.pick(ch.tc), r,
+                                        "cable torque felt by the motor (N m)", "motor residual vs cable tension",
+                                        ch.m)))
+            images.append(("Residual against motor angle",
+                           _scatter(plt, out / "residual_vs_motor_angle.png", ch.pick(ch.pos), r,
+                                    "motor angle (rad)", "motor residual vs motor angle", ch.m)))
+        else:
+            images.append(("Cable residual against stretch",
+                           _scatter(plt, out / "cable_residual_vs_stretch.png", ch.pick(ch.phi), r,
+                                    "cable stretch phi (rad, ankle coordinates)", "cable residual vs stretch", 2)))
+        chosen = verdict.score if verdict.channel is cs else None
+        ext = _extended_residual(cs, chosen.candidate, diag.detail["extended"].nl) \
+            if chosen is not None and "extended" in diag.detail else None
+        images.append((f"{cs.name.capitalize()} residual spectrum",
+                       _spectrum(plt, out / f"{cs.name}_residual_spectrum.png", cs, ext)))
+    images.append(("Validation overlay", _overlay(plt, out / "validation_overlay.png", diag)))
+    if closed is not None:
+        images.append(("Closed-loop free run", _closed_loop(plt, out / "closed_loop.png", closed)))
+
+    lines = ["# Model discrepancy diagnosis", "",
+             f"**Cause: `{diag.cause}`** (confidence {diag.confidence:.2f}"
+             + (f", {diag.channel} channel)" if diag.channel else ")"), ""]
+    if diag.parameters:
+        lines += ["| parameter | value | sd |", "|---|---|---|"]
+        lines += [f"| {k} | {v['value']:.6g} | {v['sd']:.2g} |" for k, v in diag.parameters.items()]
+        lines.append("")
+    lines += [f"Inverse-model NRMSE on {diag.validation}: baseline {diag.nrmse_baseline:.4f}, extended "
+              f"{diag.nrmse_extended:.4f} (gain {diag.gain:.2f}x).", ""]
+    if closed is not None:
+        lines += [f"Closed-loop free-run position NRMSE: baseline {closed.nrmse_baseline:.4f}, extended "
+                  f"{closed.nrmse_extended:.4f} (gain {closed.gain:.2f}x).", ""]
+    lines += ["## Re-fitted baseline", ""]
+    for name, params in diag.baseline.items():
+        for k, p in params.items():
+            lines.append(f"- {name} {k}: {', '.join(f'{x:.5g}' for x in p['value'])} {p.get('unit', '')}")
+    lines += ["", "## Candidates", "", "| cause | channel | score | residual removed |", "|---|---|---|---|"]
+    lines += [f"| {c['cause']} | {c['channel'] or '-'} | {c['score']:.1f} | {100 * c['rss_reduction']:.1f} % |"
+              for c in diag.candidates]
+    if diag.notes:
+        lines += ["", "## Notes", ""] + [f"- {n}" for n in diag.notes]
+    lines += ["", "## Plots", ""]
+    for title, name in images:
+        lines += [f"### {title}", "", f"![{title}]({name})", ""]
+    path = out / "report.md"
+    path.write_text("\n".join(lines))
+    return path

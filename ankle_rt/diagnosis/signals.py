@@ -1,0 +1,206 @@
+"""The two residual channels' signals, built once from a recording with one zero-phase filter.
+
+Every regression in the diagnosis has the form ``L[y] = sum_j c_j L[x_j]``, with ``L`` one zero-phase
+low-pass (Butterworth, order 2, run forwards and backwards: scipy.signal.sosfiltfilt) applied to the
+measured side and to every regressor alike, so filtering never biases a coefficient. Derivatives are
+plain finite differences taken before ``L``: the second difference of a motor driven by a held torque
+equals dt^2 / J times the mean of the two torques around the sample (so the torque is shifted half a
+sample), exactly. After filtering, rows are decimated (the pass band ends far below the decimated
+Nyquist rate) to keep the regressions fast.
+
+Motor channel (per motor i, N m at the gearbox output):
+    L[tau_i(t - dt/2)] - L[tc_i] = J_i L[D2 th_i] + D_i L[D1 th_i] + kc_i L[tanh(v_i / v_eps)] + effect
+where tau is the held set value, tc = R^-T tau_j the cable torque each motor feels, from the strain
+gauges (zero off the cables), and v a Savitzky-Golay velocity (short window) for nonlinear regressors.
+Cable channel (per ankle axis, where joint angles are measured):
+    L[tau_j] = K L[phi] + K beta L[D1 phi] + offset + effect,  phi = R^-1 th_m - th_joint.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ankle_rt.interchange import InterchangeError, Recording
+
+CUTOFF_HZ = 30.0           # pass band of L (and the highest ripple/dynamics the regressions see)
+FAST_WINDOW_S = 0.021      # s, Savitzky-Golay window of the velocity that nonlinear regressors use
+ORDER = 3
+DECIMATED_RATE_HZ = 250.0  # rows kept for the regressions
+EDGE_S = 0.06              # s dropped at each end (filter transients, delay shifts)
+
+
+def _odd_window(seconds: float, dt: float, least: int) -> int:
+    w = max(least, int(round(seconds / dt)))
+    return w if w % 2 else w + 1
+
+
+@dataclass
+class Smoother:
+    """The one zero-phase filter of the diagnosis (scipy imported lazily: analysis extra)."""
+
+    dt: float
+    sos: np.ndarray
+    fast_window: int
+    step: int          # decimation factor
+    margin: int        # rows dropped at each end
+
+    @classmethod
+    def for_period(cls, dt: float) -> "Smoother":
+        from scipy.signal import butter
+        cutoff = min(CUTOFF_HZ, 0.2 / dt)
+        sos = butter(2, cutoff, fs=1.0 / dt, output="sos")
+        step = max(1, int(round(1.0 / (dt * DECIMATED_RATE_HZ))))
+        return cls(dt, sos, _odd_window(FAST_WINDOW_S, dt, ORDER + 2), step, int(round(EDGE_S / dt)) + 2)
+
+    def smooth(self, x: np.ndarray, deriv: int = 0) -> np.ndarray:
+        """L[x], or L of the first / second central difference of x (per second, per second^2)."""
+        from scipy.signal import sosfiltfilt
+        if deriv == 1:
+            x = np.gradient(x, self.dt, axis=0)
+        elif deriv == 2:
+            d = np.zeros_like(x)
+            d[1:-1] = (x[2:] - 2.0 * x[1:-1] + x[:-2]) / self.dt ** 2
+            x = d
+        return sosfiltfilt(self.sos, x, axis=0)
+
+    def fast_derivative(self, x: np.ndarray) -> np.ndarray:
+        from scipy.signal import savgol_filter
+        return savgol_filter(x, self.fast_window, ORDER, deriv=1, delta=self.dt, axis=0, mode="interp")
+
+    def rows(self, n: int) -> slice:
+        return slice(self.margin, n - self.margin, self.step)
+
+
+def shift_rows(x: np.ndarray, samples: float) -> np.ndarray:
+    """x delayed by a fractional number of samples (linear interpolation; the first rows repeat)."""
+    whole = int(np.floor(samples))
+    frac = samples - whole
+    out = np.empty_like(x)
+    src = np.arange(x.shape[0]) - whole
+    a = x[np.clip(src, 0, x.shape[0] - 1)]
+    b = x[np.clip(src - 1, 0, x.shape[0] - 1)]
+    np.multiply(a, 1.0 - frac, out=out)
+    out += frac * b
+    return out
+
+
+@dataclass
+class Geometry:
+    """What the ankle plant's channels need from the config: kinematics and the nominal cable model."""
+
+    R_inv: np.ndarray        # theta = R_inv theta_m
+    R_inv_T: np.ndarray      # motor torque of an ankle torque
+    K: np.ndarray            # (2,) N m/rad nominal ankle stiffness [DP, IE]
+    levers: np.ndarray       # (2,) m, [R_DP, R_IE]
+
+
+class MotorChannel:
+    """Motor-side signals of all motors in a recording (columns = motors)."""
+
+    def __init__(self, rec: Recording, kt: float | None, geometry: Geometry | None, v_eps: float | None):
+        self.source = rec.source
+        self.dt = rec.dt
+        self.sm = sm = Smoother.for_period(self.dt)
+        n = len(rec)
+        if n < 2 * sm.margin + 20 * sm.step:
+            raise InterchangeError(f"too short for the diagnosis: {n} rows, need at least "
+                                   f"{2 * sm.margin + 20 * sm.step}", rec.source, "t", n)
+        self.m = 2 if rec.two_motors else 1
+        self.pos = np.column_stack([rec[f"motor_pos_{i}"] for i in range(1, self.m + 1)])
+        self.tau = rec.motor_input(kt)
+        self.tc = np.zeros_like(self.pos)
+        if geometry is not None and self.m == 2:
+            for col in ("sg_torque_dp", "sg_torque_ie"):
+                if col not in rec:
+                    raise InterchangeError("the ankle plant needs the strain-gauge torques", rec.source, col, 0)
+            tau_j = np.column_stack([rec["sg_torque_dp"], rec["sg_torque_ie"]])
+            self.tc = tau_j @ geometry.R_inv_T.T
+        self.vel = sm.fast_derivative(self.pos)
+        self.v_eps = v_eps if v_eps else 1e-3 * float(np.percentile(np.abs(self.vel), 99) or 1.0)
+        self.rows = sm.rows(n)
+        self.L_acc = sm.smooth(self.pos, 2)
+        self.L_vel = sm.smooth(self.pos, 1)
+        self.L_tau = sm.smooth(self.tau)
+        self.L_tc = sm.smooth(self.tc)
+        self.sign = np.tanh(self.vel / self.v_eps)
+
+    @property
+    def n_rows(self) -> int:
+        return len(range(*self.rows.indices(self.pos.shape[0])))
+
+    def filt(self, x: np.ndarray) -> np.ndarray:
+        """L[x] at the kept rows, stacked motor after motor (x: samples x motors)."""
+        return self.sm.smooth(x)[self.rows].T.ravel()
+
+    def pick(self, filtered: np.ndarray) -> np.ndarray:
+        """Already-filtered samples x motors -> kept rows, stacked."""
+        return filtered[self.rows].T.ravel()
+
+    def torque(self, delay_s: float = 0.0) -> np.ndarray:
+        """L[tau] at the kept rows for an actuation delay (s), ZOH half sample included (stacked)."""
+        return self.pick(shift_rows(self.L_tau, 0.5 + delay_s / self.dt))
+
+    def target(self, delay_s: float = 0.0) -> np.ndarray:
+        """The regression's left side: L[tau(t - dt/2 - delay)] - L[tc] (stacked)."""
+        return self.torque(delay_s) - self.pick(self.L_tc)
+
+    def baseline_design(self) -> np.ndarray:
+        """Columns J_i, D_i, kc_i for each motor i (block diagonal over motors)."""
+        per = [self.L_acc, self.L_vel, self.sm.smooth(self.sign)]
+        k = self.n_rows
+        X = np.zeros((k * self.m, 3 * self.m))
+        for i in range(self.m):
+            for j, sig in enumerate(per):
+                X[i * k:(i + 1) * k, 3 * i + j] = sig[self.rows, i]
+        return X
+
+
+class CableChannel:
+    """Cable-side signals per ankle axis [DP, IE]; needs joint encoders and strain gauges."""
+
+    AXES = ("dp", "ie")
+
+    def __init__(self, rec: Recording, geometry: Geometry):
+        self.source = rec.source
+        self.dt = rec.dt
+        self.sm = sm = Smoother.for_period(self.dt)
+        self.geometry = geometry
+        n = len(rec)
+        pos_m = np.column_stack([rec["motor_pos_1"], rec["motor_pos_2"]])
+        joint = np.column_stack([rec["ankle_dp"], rec["ankle_ie"]])
+        self.phi = pos_m @ geometry.R_inv.T - joint
+        self.tau_j = np.column_stack([rec["sg_torque_dp"], rec["sg_torque_ie"]])
+        self.m = 2
+        self.rows = sm.rows(n)
+        self.L_tau_j = sm.smooth(self.tau_j)
+        self.L_phi = sm.smooth(self.phi)
+        self.L_dphi = sm.smooth(self.phi, 1)
+
+    @staticmethod
+    def available(rec: Recording) -> bool:
+        return all(c in rec for c in ("ankle_dp", "ankle_ie", "sg_torque_dp", "sg_torque_ie", "motor_pos_2"))
+
+    @property
+    def n_rows(self) -> int:
+        return len(range(*self.rows.indices(self.phi.shape[0])))
+
+    def filt(self, x: np.ndarray) -> np.ndarray:
+        return self.sm.smooth(x)[self.rows].T.ravel()
+
+    def pick(self, filtered: np.ndarray) -> np.ndarray:
+        return filtered[self.rows].T.ravel()
+
+    def target(self, delay_s: float = 0.0) -> np.ndarray:
+        return self.pick(self.L_tau_j)
+
+    def baseline_design(self) -> np.ndarray:
+        """Columns K_a, K_a beta, offset_a per axis a (block diagonal)."""
+        k = self.n_rows
+        X = np.zeros((2 * k, 6))
+        for a in range(2):
+            X[a * k:(a + 1) * k, 3 * a] = self.L_phi[self.rows, a]
+            X[a * k:(a + 1) * k, 3 * a + 1] = self.L_dphi[self.rows, a]
+            X[a * k:(a + 1) * k, 3 * a + 2] = 1.0
+        return X
