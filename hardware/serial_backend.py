@@ -113,8 +113,10 @@ class SerialBackend(Backend):
         import serial
 
         try:
+            # write_timeout=0: pyserial's finite write timeout raises when os.write was merely slow,
+            # even after all bytes went out; a 22-byte frame into an empty OS buffer never blocks.
             return serial.serial_for_url(name, baudrate=s["baudrate"], timeout=s["sample_wait_s"],
-                                         write_timeout=s["sample_wait_s"])
+                                         write_timeout=0)
         except (serial.SerialException, ValueError) as exc:
             raise BackendError(f"serial bridge: cannot open {name}: {exc}") from None
 
@@ -179,10 +181,12 @@ class SerialBackend(Backend):
 
     def _command(self, code_1: int, code_2: int, outputs: int) -> None:
         self.commanded = True
+        frame = self.writer.frame(MsgType.COMMAND, code_1, code_2, outputs, self.sample_count % SEQ_MODULUS)
         try:
-            self.port.write(self.writer.frame(MsgType.COMMAND, code_1, code_2, outputs,
-                                              self.sample_count % SEQ_MODULUS))
+            sent = self.port.write(frame)
         except Exception:          # pyserial raises SerialException/OSError when the device vanishes
+            sent = -1
+        if sent != len(frame):     # gone, or the OS buffer is full: the link cannot carry the commands
             self.count["port_errors"] += 1
             self.cycle_faults |= BackendFault.LINK_LOST
 

@@ -25,6 +25,7 @@ import argparse
 import math
 import os
 import select
+import signal
 import sys
 import time
 import tty
@@ -67,6 +68,7 @@ class BridgeEmulator:
         self.safe_codes = list(self.codes)
         self.enable_levels = [self.amps[0].enable_level(False), self.amps[1].enable_level(False)]
         self.watchdog_ticks = 1
+        self.config_tick = 0
         self.since_command = 0
         self.watchdog_tripped = False
         self.last_command_seq = 0
@@ -164,6 +166,7 @@ class BridgeEmulator:
                 self._send(MsgType.FAULT, FAULT_BAD_CONFIG, index)
                 return
         self.watchdog_ticks = max(1, math.ceil(watchdog_us / self.period_us))
+        self.config_tick = self.plant.ticks          # sample time counts from the configuration
         self.safe_codes[0], self.safe_codes[1] = safe_1, safe_2
         self._go_safe()
         self.watchdog_tripped = False
@@ -228,7 +231,7 @@ class BridgeEmulator:
                 j1, j2 = self.joints.raw(*plant.ankle_positions())
                 inputs |= IN_JOINT_VALID
             status = ST_CONFIGURED | (ST_WATCHDOG if self.watchdog_tripped else 0)
-            fields = (plant.ticks * self.period_us, e1, e2, s1, s2, j1, j2, inputs, status, self.last_command_seq)
+            fields = ((plant.ticks - self.config_tick) * self.period_us, e1, e2, s1, s2, j1, j2, inputs, status, self.last_command_seq)
             self._last_sample = fields
         frame = self.writer.frame(MsgType.SAMPLE, *fields)   # numbered even when lost: the host sees a gap
         self.awaiting_command = True
@@ -330,6 +333,10 @@ def open_lockstep(cfg: Config) -> LockstepLink:
 
 # -- ankle-rt emulate --transport serial ----------------------------------------------------------
 
+def _interrupt(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt
+
+
 def run_standalone(cfg: Config, args: argparse.Namespace) -> int:
     """Serve the bridge protocol on a serial device or a new pty until Ctrl-C or ``--duration``.
 
@@ -346,7 +353,6 @@ def run_standalone(cfg: Config, args: argparse.Namespace) -> int:
     port_name = args.port or cfg["serial"]["port"]
     if not port_name:
         raise ConfigError("no port: give --port PATH or --port pty", getattr(cfg, "source", None), "serial.port")
-    keep_open = None
     if port_name == "pty":
         fd, slave = os.openpty()
         tty.setraw(fd)
@@ -364,6 +370,7 @@ def run_standalone(cfg: Config, args: argparse.Namespace) -> int:
         keep_open = port
         fd = port.fileno()
         print(f"emulator: serial bridge on {port_name}", flush=True)
+    signal.signal(signal.SIGTERM, _interrupt)
     watchdog_s = cfg["serial"]["watchdog_s"]
     last_command = time.monotonic()
     seen = 0
@@ -388,7 +395,9 @@ def run_standalone(cfg: Config, args: argparse.Namespace) -> int:
     except KeyboardInterrupt:
         pass
     finally:
-        if keep_open is not None and hasattr(keep_open, "close"):
+        if isinstance(keep_open, int):
+            os.close(keep_open)
+        else:
             keep_open.close()
     print(f"emulator: {emulator.plant.ticks} ticks, {emulator.commands} commands, "
           f"{emulator.parser.crc_errors} CRC errors received, {emulator.samples_dropped} samples dropped, "

@@ -243,3 +243,90 @@ def test_no_bridge_on_the_port(bench_cfg):
     finally:
         os.close(master)
         os.close(slave)
+
+
+def test_16_bit_counters_unwrap_end_to_end_and_a_negative_start_reads_negative(bench_cfg):
+    assert bench_cfg["encoders"]["counter_bits"] == 16
+    emu = BridgeEmulator(bench_cfg)
+    emu.plant.model.set_rest_at((0.0, 0.1))                  # motor 2 starts at -0.25 rad: counter near 2^16
+    backend = SerialBackend(bench_cfg, SimClock(), port=LockstepLink(emu))
+    rad = 2 * math.pi / bench_cfg["actuator"]["encoder_counts_per_rev"]
+    frame = SensorFrame()
+    backend.activate()
+    travelled = [0, 0]
+    last = emu.plant.encoder_counts()
+    for k in range(400):
+        backend.read(frame)
+        truth = emu.plant.encoder_counts()                   # the plant has not stepped since the sample
+        assert (frame.motor_pos[0], frame.motor_pos[1]) == (truth[0] * rad, truth[1] * rad), k
+        travelled = [t + abs(c - p) for t, c, p in zip(travelled, truth, last)]
+        last = truth
+        backend.write(15.0 if k < 200 else -15.0, -15.0 if k < 200 else 15.0)
+        backend.clock.advance(backend.period_ns)
+    assert min(travelled) > 3 * 2**16                        # each counter wrapped several times
+    assert frame.faults == BackendFault.NONE
+    backend.close()
+
+
+def test_pwm_set_values_reach_the_amplifiers(bench_cfg):
+    for amp in bench_cfg["escon"]["amplifiers"]:
+        amp.update(mode="pwm", current_at_min=-15.0, current_at_max=15.0)
+    backend = open_backend(bench_cfg, SimClock())
+    emu = backend.emulator
+    assert emu.modes == 0b11 and backend.zero_codes == (5000, 5000)
+    frame = SensorFrame()
+    backend.read(frame)
+    backend.activate()
+    for i1, i2 in ((2.0, -1.0), (-14.9, 14.9), (40.0, -40.0)):
+        backend.write(i1, i2)
+        lsb = emu.amps[0].current_lsb
+        assert emu.amplifier_currents() == pytest.approx((max(-15, min(15, i1)), max(-15, min(15, i2))), abs=lsb / 2)
+        backend.read(frame)
+    backend.deactivate()
+    assert emu.codes == [5000, 5000] and emu.amplifier_currents() == (0.0, 0.0)
+    backend.close()
+
+
+def test_a_new_configuration_restarts_the_sample_time(bench_cfg):
+    clock = SimClock()
+    first = open_backend(bench_cfg, clock)
+    run_frames(first, 50)
+    second = SerialBackend(bench_cfg, clock, port=first.port)   # the daemon restarts on the same link
+    frame = SensorFrame()
+    second.read(frame)
+    assert frame.t == 0.0 and first.emulator.plant.ticks == 50
+    second.close()
+
+
+def test_emulate_standalone_on_a_pty_serves_a_daemon_in_another_process(bench_cfg, tmp_path):
+    """`ankle-rt emulate --transport serial --port pty` in a subprocess, the backend in this one.
+    No timing is asserted: only that every command stepped the emulator once and samples came back."""
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen([sys.executable, "-m", "ankle_rt.cli", "emulate", "--transport", "serial",
+                             "--config", str(BENCH), "--port", "pty", "--duration", "20"],
+                            stdout=subprocess.PIPE, text=True)
+    try:
+        line = proc.stdout.readline()
+        assert line.startswith("emulator: serial bridge on /dev/pts/"), line
+        bench_cfg["serial"].update(emulator="none", port=line.split(" on ")[1].split(" ")[0], open_timeout_s=10.0)
+        backend = open_backend(bench_cfg, SimClock())
+        seen = run_frames(backend, 300)
+        counters = backend.counters()
+        backend.close()
+        assert counters["crc_errors"] == counters["frames_lost"] == 0
+        assert counters["samples"] > 0 and seen[-1][0] > seen[0][0]
+    finally:
+        proc.terminate()
+        out, _ = proc.communicate(timeout=10)
+    ticks, commands = (int(w) for w in out.split("emulator: ")[1].split()[::2][:2])
+    assert ticks == 300 + 1 and commands == 300 + 1           # each command one tick (+ close's command)
+
+
+def test_emulate_refuses_a_bad_injection(capsys):
+    from ankle_rt.cli import main
+
+    assert main(["emulate", "--transport", "serial", "--config", str(BENCH), "--port", "pty",
+                 "--inject", "melt@1"]) == 2
+    assert "unknown fault 'melt'" in capsys.readouterr().err
