@@ -31,7 +31,7 @@ from ankle_rt.log.reader import interchange_columns
 from ankle_rt.log.writer import log_metadata
 from ankle_rt.loop import FixedRateLoop
 from ankle_rt.params import TransmissionParams
-from ankle_rt.references import Hold, RampTo, ReferenceGenerator, make_profile, reference_from_config
+from ankle_rt.references import Hold, Profile, RampTo, ReferenceGenerator, make_profile, reference_from_config
 from ankle_rt.safety import Fault, Safety, State
 from ankle_rt.service import protocol as proto
 
@@ -208,7 +208,9 @@ class Daemon:
             elif isinstance(command, proto.SetGains):
                 self.set_gains(**command.given())
             elif isinstance(command, proto.StartProfile):
-                self.reference.start(make_profile(command.name, command.params))
+                profile = make_profile(command.name, command.params)
+                self._check_reach(profile)
+                self.reference.start(profile)
             else:
                 raise proto.CommandError("cmd", f"not supported: {type(command).__name__}")
         except RuntimeError as exc:
@@ -221,6 +223,17 @@ class Daemon:
         except ValueError as exc:
             raise proto.CommandError(_gain_field(str(exc)), str(exc)) from None
         return {"state": State(self.safety.state).name.lower()}
+
+    def _check_reach(self, profile: Profile) -> None:
+        """Refuse (before it starts) a profile that would take the reference beyond the ankle range."""
+        limit = proto.CommandLimits.from_config(self.cfg).reference_limit_rad
+        for axis, name, (low, high) in zip((0, 1), ("DP", "IE"), profile.bounds()):
+            start = float(self.reference.ref[axis]) if profile.relative else 0.0
+            worst = low + start if abs(low + start) > abs(high + start) else high + start
+            if abs(worst) > limit:
+                raise proto.CommandError("params", f"the profile would take {name} to {math.degrees(worst):.1f} deg"
+                                                   f"{f' (from {math.degrees(start):.1f} deg)' if start else ''}, "
+                                                   f"beyond the ankle range +/-{math.degrees(limit):.3g} deg")
 
     def status(self) -> dict:
         s, est = self.safety, self.est

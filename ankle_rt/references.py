@@ -36,6 +36,11 @@ class Profile:
     def value(self, tau: float) -> tuple[float, float]:
         raise NotImplementedError
 
+    def bounds(self) -> tuple[tuple[float, float], tuple[float, float]]:
+        """((DP min, max), (IE min, max)) rad that ``value`` can reach, so a command can be refused
+        before it would drive the ankle beyond its range (relative profiles: offsets)."""
+        raise NotImplementedError
+
 
 class Hold(Profile):
     """Hold the ankle at (dp, ie) rad."""
@@ -47,6 +52,9 @@ class Hold(Profile):
 
     def value(self, tau: float) -> tuple[float, float]:
         return self.dp, self.ie
+
+    def bounds(self) -> tuple[tuple[float, float], tuple[float, float]]:
+        return (self.dp, self.dp), (self.ie, self.ie)
 
 
 class RampTo(Profile):
@@ -68,6 +76,10 @@ class RampTo(Profile):
         s0, s1 = self.start
         return s0 + f * (self.dp - s0), s1 + f * (self.ie - s1)
 
+    def bounds(self) -> tuple[tuple[float, float], tuple[float, float]]:
+        """The target; the ramp from a reference already in range stays between the two."""
+        return (self.dp, self.dp), (self.ie, self.ie)
+
 
 class Step(Profile):
     """Steps of ``dp`` / ``ie`` rad at ``start_s`` (the paper's section 7: 10 deg DP, 5 deg IE)."""
@@ -77,6 +89,9 @@ class Step(Profile):
 
     def value(self, tau: float) -> tuple[float, float]:
         return (self.dp, self.ie) if tau >= self.start else (0.0, 0.0)
+
+    def bounds(self) -> tuple[tuple[float, float], tuple[float, float]]:
+        return (min(0.0, self.dp), max(0.0, self.dp)), (min(0.0, self.ie), max(0.0, self.ie))
 
 
 class Sine(Profile):
@@ -93,6 +108,9 @@ class Sine(Profile):
             return 0.0, 0.0
         return self.a0 * math.sin(self.w * x), self.a1 * math.sin(self.w * x - self.phase)
 
+    def bounds(self) -> tuple[tuple[float, float], tuple[float, float]]:
+        return (-abs(self.a0), abs(self.a0)), (-abs(self.a1), abs(self.a1))
+
 
 class Chirp(Profile):
     """Linear chirp from ``f0_hz`` to ``f1_hz`` over ``duration_s`` (then zero): an identification sweep."""
@@ -108,6 +126,9 @@ class Chirp(Profile):
             return 0.0, 0.0
         s = math.sin(2.0 * math.pi * (self.f0 * x + 0.5 * self.k * x * x))
         return self.a0 * s, self.a1 * s
+
+    def bounds(self) -> tuple[tuple[float, float], tuple[float, float]]:
+        return (-abs(self.a0), abs(self.a0)), (-abs(self.a1), abs(self.a1))
 
 
 # A plausible level-walking ankle cycle (heel strike at phase 0, toe-off near 0.62), after the
@@ -163,6 +184,9 @@ class Gait(Profile):
         dp, ie = self.dp, self.ie
         return (dp[i] + f * (dp[i + 1] - dp[i]) - self.dp0, ie[i] + f * (ie[i + 1] - ie[i]) - self.ie0)
 
+    def bounds(self) -> tuple[tuple[float, float], tuple[float, float]]:
+        return ((min(self.dp) - self.dp0, max(self.dp) - self.dp0), (min(self.ie) - self.ie0, max(self.ie) - self.ie0))
+
 
 class CsvProfile(Profile):
     """Absolute references from a CSV with columns ``t`` (s), ``ref_dp``, ``ref_ie`` (rad), linearly
@@ -212,6 +236,9 @@ class CsvProfile(Profile):
         f = (tau - t[i - 1]) / (t[i] - t[i - 1])
         return (self.dp[i - 1] + f * (self.dp[i] - self.dp[i - 1]),
                 self.ie[i - 1] + f * (self.ie[i] - self.ie[i - 1]))
+
+    def bounds(self) -> tuple[tuple[float, float], tuple[float, float]]:
+        return (min(self.dp), max(self.dp)), (min(self.ie), max(self.ie))
 
 
 PROFILES: dict[str, Callable[..., Profile]] = {
