@@ -182,6 +182,7 @@ def test_daemon_survives_fuzz_and_rejects_bad_commands_without_moving(daemon):
         (b'{"cmd":"start_profile","name":"sine","params":{"bogus":1}}', "params.bogus", "unknown key (expected one of"),
         (b'{"cmd":"start_profile","name":"csv","params":{"path":"/nonexistent/refs.csv"}}', "params.path", "cannot read"),
         (b'{"cmd":"start_profile","name":"fly"}', "name", "unknown profile"),
+        (b'{"cmd":"start_profile","name":"step","params":{"dp":0.7}}', "params", "beyond the ankle range"),
         (b'{"cmd":"activate"}', "cmd", "cannot activate"),  # already active
         (b'{"cmd":"set_reference","dp":0.1,"ie":0', "line", "not valid JSON"),
     ]
