@@ -56,8 +56,8 @@ class Estimator:
 
     def __init__(self, kin: Kinematics, dt: float, velocity_cutoff_hz: float, tare_samples: int):
         """``dt`` s is the nominal period (used for the filter constant); ``tare_samples`` >= 1."""
-        self.Ri = kin.R_inv.ravel().tolist()
-        self.Ki = [kin.K_inv[0, 0], kin.K_inv[1, 1]]
+        self.Ri = tuple(kin.R_inv.ravel().tolist())
+        self.Ki0, self.Ki1 = float(kin.K_inv[0, 0]), float(kin.K_inv[1, 1])
         self.dt = dt
         self.alpha = 1.0 - math.exp(-2.0 * math.pi * velocity_cutoff_hz * dt)
         self.tare_samples = tare_samples
@@ -75,8 +75,8 @@ class Estimator:
     def update(self, frame: SensorFrame, est: Estimate) -> None:
         """Estimate from ``frame`` into ``est`` (no allocation)."""
         t = frame.t
-        p1 = float(frame.motor_pos[0])
-        p2 = float(frame.motor_pos[1])
+        mp, sg = frame.motor_pos, frame.sg_torque
+        p1, p2, s0, s1 = mp.item(0), mp.item(1), sg.item(0), sg.item(1)
         h = t - self._t
         if h > 0.0:          # NaN on the first sample; a repeated (stale) sample keeps the velocity
             a = self.alpha
@@ -84,8 +84,6 @@ class Estimator:
             self._v2 += a * ((p2 - self._p2) / h - self._v2)
         self._t, self._p1, self._p2 = t, p1, p2
 
-        s0 = float(frame.sg_torque[0])
-        s1 = float(frame.sg_torque[1])
         n = self._n
         if n < self.tare_samples:
             self._sum0 += s0
@@ -98,18 +96,22 @@ class Estimator:
         s0 -= self.offset[0]
         s1 -= self.offset[1]
 
-        Ri, Ki = self.Ri, self.Ki
+        r0, r1, r2, r3 = self.Ri
         v1, v2 = self._v1, self._v2
         est.t = t
-        est.motor_pos[0] = p1
-        est.motor_pos[1] = p2
-        est.motor_vel[0] = v1
-        est.motor_vel[1] = v2
-        est.sg_torque[0] = s0
-        est.sg_torque[1] = s1
-        est.ankle_pos[0] = Ri[0] * p1 + Ri[1] * p2 - Ki[0] * s0
-        est.ankle_pos[1] = Ri[2] * p1 + Ri[3] * p2 - Ki[1] * s1
-        est.ankle_vel[0] = Ri[0] * v1 + Ri[1] * v2
-        est.ankle_vel[1] = Ri[2] * v1 + Ri[3] * v2
-        est.joint_pos[0] = frame.ankle_pos[0]
-        est.joint_pos[1] = frame.ankle_pos[1]
+        a = est.motor_pos
+        a[0] = p1
+        a[1] = p2
+        a = est.motor_vel
+        a[0] = v1
+        a[1] = v2
+        a = est.sg_torque
+        a[0] = s0
+        a[1] = s1
+        a = est.ankle_pos
+        a[0] = r0 * p1 + r1 * p2 - self.Ki0 * s0
+        a[1] = r2 * p1 + r3 * p2 - self.Ki1 * s1
+        a = est.ankle_vel
+        a[0] = r0 * v1 + r1 * v2
+        a[1] = r2 * v1 + r3 * v2
+        est.joint_pos[:] = frame.ankle_pos

@@ -89,6 +89,12 @@ _FATAL_BACKEND_BITS = 0
 for _bit, _ in _BACKEND_FAULTS:
     _FATAL_BACKEND_BITS |= int(_bit)
 
+# Plain ints for the per-cycle code (an enum attribute lookup costs more than the check itself).
+_ACTIVE = int(State.ACTIVE)
+_AMP_NOT_READY, _SENSOR_INVALID, _SG_RAIL = int(Fault.AMP_NOT_READY), int(Fault.SENSOR_INVALID), int(Fault.SG_RAIL)
+_SENSOR_STALE, _MOTOR_JUMP, _SG_JUMP = int(Fault.SENSOR_STALE), int(Fault.MOTOR_JUMP), int(Fault.SG_JUMP)
+_ANKLE_RANGE, _OVERCURRENT, _OUTPUT_INVALID = int(Fault.ANKLE_RANGE), int(Fault.OVERCURRENT), int(Fault.OUTPUT_INVALID)
+
 
 class Safety:
     """Sensor plausibility checks, current limits and the state machine (see the module docstring)."""
@@ -140,64 +146,67 @@ class Safety:
     # -- per cycle -------------------------------------------------------------------------------
     def check_sensors(self, frame: SensorFrame, est: Estimate) -> int:
         """Return the first fault the sample shows (0 if none). Plain-float checks, no allocation."""
-        bits = int(frame.faults)
-        if bits & _FATAL_BACKEND_BITS:
+        bits = frame.faults
+        if bits and bits & _FATAL_BACKEND_BITS:
             for bit, code in _BACKEND_FAULTS:
                 if bits & bit:
                     return code
-        if self.state == State.ACTIVE and not (frame.amp_ready[0] and frame.amp_ready[1]):
-            return Fault.AMP_NOT_READY
-        p1 = float(frame.motor_pos[0])
-        p2 = float(frame.motor_pos[1])
-        s0 = float(frame.sg_torque[0])
-        s1 = float(frame.sg_torque[1])
+        if self.state == _ACTIVE and not (frame.amp_ready[0] and frame.amp_ready[1]):
+            return _AMP_NOT_READY
+        mp, sg = frame.motor_pos, frame.sg_torque
+        p1, p2, s0, s1 = mp.item(0), mp.item(1), sg.item(0), sg.item(1)
         t = frame.t
-        if not (math.isfinite(p1) and math.isfinite(p2) and math.isfinite(s0) and math.isfinite(s1)
-                and math.isfinite(t)):
-            return Fault.SENSOR_INVALID
-        if abs(s0) >= self.sg_rail or abs(s1) >= self.sg_rail:
-            return Fault.SG_RAIL
-        if frame.seq == self._seq:
+        if not math.isfinite(p1 + p2 + s0 + s1 + t):      # any NaN or inf makes the sum non-finite
+            return _SENSOR_INVALID
+        rail = self.sg_rail
+        if s0 >= rail or s0 <= -rail or s1 >= rail or s1 <= -rail:
+            return _SG_RAIL
+        seq = frame.seq
+        if seq == self._seq:
             self._stale += 1
             if self._stale >= self.stale_cycles:
-                return Fault.SENSOR_STALE
+                return _SENSOR_STALE
         else:
             self._stale = 0
-        self._seq = frame.seq
+            self._seq = seq
         if self._have_last:
             h = t - self._t
             allowed = self.max_motor_speed * (h if h > self.dt else self.dt)
             if abs(p1 - self._p1) > allowed or abs(p2 - self._p2) > allowed:
-                return Fault.MOTOR_JUMP
-            if abs(s0 - self._s0) > self.max_sg_step or abs(s1 - self._s1) > self.max_sg_step:
-                return Fault.SG_JUMP
+                return _MOTOR_JUMP
+            step = self.max_sg_step
+            if abs(s0 - self._s0) > step or abs(s1 - self._s1) > step:
+                return _SG_JUMP
         self._have_last = True
         self._p1, self._p2, self._s0, self._s1, self._t = p1, p2, s0, s1, t
         lim = self.ankle_limit
-        if self.check_estimated_ankle and (abs(float(est.ankle_pos[0])) > lim or abs(float(est.ankle_pos[1])) > lim):
-            return Fault.ANKLE_RANGE
-        j0 = float(est.joint_pos[0])
-        j1 = float(est.joint_pos[1])
-        if abs(j0) > lim or abs(j1) > lim:   # NaN (no joint encoders) compares False
-            return Fault.ANKLE_RANGE
-        return Fault.NONE
+        a0, a1 = est.ankle_pos.item(0), est.ankle_pos.item(1)
+        if self.check_estimated_ankle and (a0 > lim or a0 < -lim or a1 > lim or a1 < -lim):
+            return _ANKLE_RANGE
+        j0, j1 = est.joint_pos.item(0), est.joint_pos.item(1)
+        if j0 > lim or j0 < -lim or j1 > lim or j1 < -lim:   # NaN (no joint encoders) compares False
+            return _ANKLE_RANGE
+        return 0
 
     def limit_currents(self, i1: float, i2: float) -> int:
         """Clamp set values (A) to the peak current into ``self.current`` and update the I^2 t
         estimate; return OVERCURRENT once the peak budget is spent, OUTPUT_INVALID for NaN."""
-        if not (math.isfinite(i1) and math.isfinite(i2)):
-            self.current[0] = self.current[1] = 0.0
-            return Fault.OUTPUT_INVALID
+        cur = self.current
+        if not math.isfinite(i1 + i2):
+            cur[0] = cur[1] = 0.0
+            return _OUTPUT_INVALID
         pk = self.i_peak
         if i1 > pk or i1 < -pk or i2 > pk or i2 < -pk:
             self.saturated += 1
             i1 = pk if i1 > pk else (-pk if i1 < -pk else i1)
             i2 = pk if i2 > pk else (-pk if i2 < -pk else i2)
-        self.current[0] = i1
-        self.current[1] = i2
+        cur[0] = i1
+        cur[1] = i2
         dt, ic2, q = self.dt, self.i_cont2, self.i2t
-        q[0] = max(0.0, q[0] + (i1 * i1 - ic2) * dt)
-        q[1] = max(0.0, q[1] + (i2 * i2 - ic2) * dt)
-        if q[0] >= self.i2t_budget or q[1] >= self.i2t_budget:
-            return Fault.OVERCURRENT
-        return Fault.NONE
+        q0 = q[0] + (i1 * i1 - ic2) * dt
+        q1 = q[1] + (i2 * i2 - ic2) * dt
+        q[0] = q0 if q0 > 0.0 else 0.0
+        q[1] = q1 if q1 > 0.0 else 0.0
+        if q0 >= self.i2t_budget or q1 >= self.i2t_budget:
+            return _OVERCURRENT
+        return 0
