@@ -87,7 +87,8 @@ class CanopenBackend(Backend):
         print(f"canopen: bus load at {cfg['controller']['rate_hz']} Hz\n{self.bus_load.table()}")
         check_bus_load(self.bus_load, source)
         self.amps = escon_amplifiers(cfg, analog_codec())
-        self.encoders = MotorEncoders(cfg["actuator"]["encoder_counts_per_rev"], counter_bits(self.layout),
+        self.encoders = MotorEncoders(cfg["actuator"]["encoder_counts_per_rev"],
+                                      counter_bits(self.node.object_dictionary),
                                       tuple(required(cfg, "encoders.sign", "+1/-1 per motor encoder")))
         self.strain = StrainGauges.from_config(cfg)
         self.stuck = StuckEncoderDetector.from_config(cfg, self.period_ns * 1e-9)

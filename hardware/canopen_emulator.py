@@ -34,7 +34,7 @@ import canopen
 from ankle_rt.config import Config
 from hardware.canopen_pdo import (COUNTER_1, COUNTER_2, DIGITAL_IN, DIGITAL_OUT, ENABLE_BITS, HEARTBEAT_BASE,
                                   READY_BITS, SET_VALUE_1, SET_VALUE_2, STRAIN_1, STRAIN_2, SYNC_COB_ID,
-                                  ANALOG_CODE_SHIFT, PdoLayout, analog_codec, compile_pdo)
+                                  ANALOG_CODE_SHIFT, PdoLayout, analog_codec, compile_pdo, counter_bits)
 from hardware.config_values import required
 from hardware.escon import escon_amplifiers
 from hardware.sensors import MotorEncoders, StrainGauges
@@ -118,7 +118,7 @@ class CanopenEmulator:
         self.network = canopen.Network(bus)           # no connect(): no Notifier thread
         self.node = canopen.LocalNode(self.node_id, canopen.import_od(eds, self.node_id))
         self.network.add_node(self.node)
-        self.counter_bits = len(self.node.object_dictionary[COUNTER_1[0]][COUNTER_1[1]])
+        self.counter_bits = counter_bits(self.node.object_dictionary)
         self.encoders = MotorEncoders(cfg["actuator"]["encoder_counts_per_rev"], self.counter_bits,
                                       tuple(required(cfg, "encoders.sign", "+1/-1 per motor encoder")))
         self._heartbeat_ms = 0

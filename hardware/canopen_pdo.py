@@ -25,7 +25,7 @@ COUNTER_2 = (0x2100, 2)       # motor 2 encoder
 STRAIN_1 = (0x6401, 1)        # strain-gauge bridge 1, raw ADC value
 STRAIN_2 = (0x6401, 2)        # strain-gauge bridge 2
 DIGITAL_IN = (0x6000, 1)      # bit 0 / bit 1: ESCON 1 / 2 ready
-SET_VALUE_1 = (0x6411, 1)     # ESCON 1 analog set value (INTEGER16, +/-32767 = +/-10 V)
+SET_VALUE_1 = (0x6411, 1)     # ESCON 1 analog set value (INTEGER16, left-justified: 12-bit code << 4)
 SET_VALUE_2 = (0x6411, 2)     # ESCON 2 analog set value
 DIGITAL_OUT = (0x6200, 1)     # bit 0 / bit 1: ESCON 1 / 2 enable
 
@@ -57,10 +57,9 @@ def analog_codec() -> SetValueCode:
     return SetValueCode.analog(DAC_BITS)
 
 
-def counter_bits(layout: "NodeLayout") -> int:
-    """Width of the encoder counters as the EDS maps them (32 for INTEGER32)."""
-    pdo, pos = layout.slot(COUNTER_1)
-    return 8 * struct.calcsize("<" + pdo.codec.format.lstrip("<")[pos])
+def counter_bits(od: objectdictionary.ObjectDictionary) -> int:
+    """Width of the encoder counter objects in the object dictionary (32 for INTEGER32)."""
+    return len(od[COUNTER_1[0]][COUNTER_1[1]])
 
 
 class EdsError(ValueError):

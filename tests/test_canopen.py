@@ -17,7 +17,7 @@ from ankle_rt.clock import SimClock
 from ankle_rt.config import Config, ConfigError, load_config
 from ankle_rt.daemon import Daemon, run_lockstep
 from ankle_rt.safety import Fault, State
-from hardware.canbus_load import MAX_BUS_LOAD, frame_bits, loop_bus_load
+from hardware.canbus_load import MAX_BUS_LOAD, frame_bits
 from hardware.canopen_backend import CanopenBackend, configured_bus_load
 from hardware.canopen_emulator import lockstep_pair, parse_schedule
 from hardware.canopen_pdo import (COUNTER_1, COUNTER_2, DEFAULT_EDS, DIGITAL_IN, DIGITAL_OUT, SET_VALUE_1,
