@@ -104,7 +104,7 @@ class Bench:
 # the fault). Lockstep: the bridge takes the sample a cycle reads when it gets the previous cycle's
 # command, so the sample in flight when a fault is injected predates it: the test allows that cycle.
 FAULTS = [
-    ("stuck_encoder_1", Fault.ENCODER_FAULT, 11),   # encoders.stuck_time = 10 ms unbalanced, + 1
+    ("stuck_encoder_1", Fault.ENCODER_FAULT, 10),   # encoders.stuck_time = 10 ms out of balance
     ("sg_rail_2", Fault.SG_RAIL, 1),
     ("not_ready_1", Fault.AMP_NOT_READY, 1),
     ("stale", Fault.SENSOR_STALE, 1),                # the bridge's time stopped: STALE_SAMPLE

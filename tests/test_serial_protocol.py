@@ -20,6 +20,10 @@ def test_crc_check_value_and_frame_layout():
     assert frame_size(MsgType.SAMPLE) == 7 + 36 + 4 == len(encode_frame(MsgType.SAMPLE, 0, *([0] * 10)))
 
 
+def test_the_documented_example_frame():
+    assert encode_frame(MsgType.HEARTBEAT, 3, 1, 2).hex(" ") == "a5 5a 05 01 04 03 00 01 02 00 00 00 2d 42 13 30"
+
+
 def test_writer_numbers_frames_and_wraps():
     w = FrameWriter()
     w.seq = 65535
