@@ -65,8 +65,8 @@ def test_ref_takes_degrees_and_sends_rad(daemon):
 def test_gains_and_profile(daemon):
     server, got = daemon
     assert ctl(server, "gains", "--kp", "90", "--stiffness-ie", "3") == 0
-    assert ctl(server, "profile", "csv", "path=/tmp/r.csv", "rate=2") == 0
-    assert got == [SetGains(kp=90.0, stiffness_ie=3.0), StartProfile("csv", {"path": "/tmp/r.csv", "rate": 2.0})]
+    assert ctl(server, "profile", "csv", "path=r.csv", "rate=2") == 0
+    assert got == [SetGains(kp=90.0, stiffness_ie=3.0), StartProfile("csv", {"path": str(Path("r.csv").resolve()), "rate": 2.0})]
 
 
 def test_error_replies_exit_non_zero_naming_the_field(daemon, capsys):

@@ -12,17 +12,10 @@ import socket
 import sys
 from pathlib import Path
 
+from ankle_rt.service.protocol import GAIN_FIELDS, PROFILE_NAMES
+
 EXIT_REFUSED = 1
 EXIT_UNREACHABLE = 3
-
-GAIN_OPTIONS = {
-    "kp": "motor-side PD position gain, N m/rad",
-    "kd": "motor-side PD velocity gain, N m s/rad",
-    "stiffness_dp": "impedance stiffness DP, N m/rad",
-    "stiffness_ie": "impedance stiffness IE, N m/rad",
-    "damping_dp": "impedance damping DP, N m s/rad",
-    "damping_ie": "impedance damping IE, N m s/rad",
-}
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -50,13 +43,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     ref.add_argument("--rad", action="store_true", help="DP and IE are given in rad")
     ref.add_argument("--ramp", type=float, help="s to ramp linearly to the new reference")
     gains = sub.add_parser("gains", help="change controller gains at run time (bumpless, SI units)")
-    for name, doc in GAIN_OPTIONS.items():
+    for name, doc in GAIN_FIELDS.items():
         gains.add_argument("--" + name.replace("_", "-"), dest=name, type=float, help=doc)
     profile = sub.add_parser("profile", help="start a reference profile",
                              description="Start a reference profile. Parameters are KEY=VALUE in SI units "
-                                         "(angles in rad, frequencies in Hz); non-numbers are passed as strings "
-                                         "(e.g. path=refs.csv).")
-    profile.add_argument("name", choices=("hold", "step", "sine", "chirp", "gait", "csv"))
+                                         "(angles in rad, frequencies in Hz); non-numbers are passed as strings. "
+                                         "csv: path=FILE is sent as an absolute path; the daemon reads it, so its "
+                                         "user must be able to (the service sees neither /home nor /tmp).")
+    profile.add_argument("name", choices=PROFILE_NAMES)
     profile.add_argument("params", nargs="*", metavar="KEY=VALUE")
     parser.set_defaults(handler=run)
 
@@ -71,9 +65,12 @@ def request_from_args(args: argparse.Namespace) -> dict:
             req["ramp"] = args.ramp
         return req
     if name == "gains":
-        return {"cmd": "set_gains", **{k: getattr(args, k) for k in GAIN_OPTIONS if getattr(args, k) is not None}}
+        return {"cmd": "set_gains", **{k: getattr(args, k) for k in GAIN_FIELDS if getattr(args, k) is not None}}
     if name == "profile":
-        return {"cmd": "start_profile", "name": args.name, "params": dict(_param(p) for p in args.params)}
+        params = dict(_param(p) for p in args.params)
+        if args.name == "csv" and isinstance(params.get("path"), str):
+            params["path"] = str(Path(params["path"]).resolve())
+        return {"cmd": "start_profile", "name": args.name, "params": params}
     return {"cmd": name}
 
 
