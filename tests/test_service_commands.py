@@ -77,3 +77,11 @@ def test_profiles_beyond_the_ankle_range_are_refused_before_they_start(daemon, t
     assert daemon.handle(StartProfile("step", step_down))["state"] == "configured"
     daemon.run(0.02)
     assert reference_deg(daemon) == pytest.approx([5.0, -39.0])
+
+
+def test_protocol_knows_exactly_the_daemons_profiles():
+    """protocol.PROFILE_NAMES is a literal (the ctl client must not import numpy to build its parser)."""
+    from ankle_rt.references import PROFILES
+    from ankle_rt.service.protocol import PROFILE_NAMES
+
+    assert set(PROFILE_NAMES) == set(PROFILES)

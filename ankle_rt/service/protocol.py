@@ -29,7 +29,7 @@ from typing import Any, Mapping, Union
 MAX_LINE_BYTES = 4096
 """Longest accepted request line in bytes, newline included."""
 
-PROFILE_NAMES = ("hold", "step", "sine", "chirp", "gait", "csv")
+PROFILE_NAMES = ("hold", "step", "sine", "chirp", "gait", "csv")  # = references.PROFILES (tested); no numpy import here
 MAX_PROFILE_PARAMS = 16
 MAX_STRING_CHARS = 256
 
