@@ -15,8 +15,9 @@ once and every read first waits until the emulator's answer has crossed the pty.
 competes for the GIL and nothing depends on scheduling (docs/serial-protocol.md, "Emulator").
 
 Fault injection (:data:`FAULTS`, by name, on/off or scheduled in plant time): dropped samples, a
-corrupted CRC, a stuck encoder, a strain gauge at its rail, an ESCON dropping ready, a frozen bridge
-(silent) and a stale bridge (repeats its last sample).
+corrupted CRC, line noise (random bytes between frames, random bit flips), a stuck encoder, a strain
+gauge at its rail, an ESCON dropping ready, a frozen bridge (silent) and a stale bridge (repeats its
+last sample).
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import random
 import select
 import signal
 import sys
@@ -38,8 +40,10 @@ from hardware.serial_protocol import (FAULT_BAD_CONFIG, IN_JOINT_VALID, IN_READY
                                       ST_WATCHDOG, FrameWriter, MsgType, StreamParser)
 from sim_backend.plant import SimulatedPlant
 
-FAULTS = ("drop", "corrupt", "stuck_encoder_1", "stuck_encoder_2", "sg_rail_1", "sg_rail_2",
+FAULTS = ("drop", "corrupt", "noise", "stuck_encoder_1", "stuck_encoder_2", "sg_rail_1", "sg_rail_2",
           "not_ready_1", "not_ready_2", "frozen", "stale")
+NOISE_BYTES = 24          # "noise": up to this many random bytes before each sample ...
+NOISE_FLIP_EVERY = 8      # ... and one random bit flipped in one sample in this many (on average)
 BRIDGE_STATE_RUNNING = 2
 SETTLE_TIMEOUT_S = 5.0   # LockstepLink: longest wait for bytes to cross the pty (a safety net only)
 
@@ -80,6 +84,7 @@ class BridgeEmulator:
         self.commands = 0
         self.samples_dropped = 0
         self.samples_corrupted = 0
+        self.rng = random.Random(cfg["sim"]["seed"])   # line noise, reproducible
 
     # -- fault injection -------------------------------------------------------------------------
     def inject(self, name: str, on: bool = True) -> None:
@@ -241,6 +246,14 @@ class BridgeEmulator:
             self.samples_corrupted += 1
             self.output += frame
             self.output[-1] ^= 0xFF
+        elif "noise" in active:
+            rng = self.rng
+            self.output += rng.randbytes(rng.randrange(NOISE_BYTES + 1))
+            start = len(self.output)
+            self.output += frame
+            if rng.randrange(NOISE_FLIP_EVERY) == 0:
+                self.samples_corrupted += 1
+                self.output[start + rng.randrange(len(frame))] ^= 1 << rng.randrange(8)
         else:
             self.output += frame
 
