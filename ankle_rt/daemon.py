@@ -40,7 +40,6 @@ if TYPE_CHECKING:
 
 ACTIVE = int(State.ACTIVE)
 CONFIGURED = int(State.CONFIGURED)
-SAFE = int(State.SAFE)
 FAULT = int(State.FAULT)
 
 
@@ -177,7 +176,8 @@ class Daemon:
             self.service.status("safe")
 
     def request_stop(self) -> None:
-        """Go safe now and end the loop after this cycle (SIGINT/SIGTERM/stop command)."""
+        """Go safe now and end the loop after this cycle (the stop command, handled inside a cycle;
+        a signal handler only calls ``loop.stop()`` and lets :meth:`run` go safe)."""
         if self.safety.state == State.ACTIVE:
             self.deactivate()
         self.loop.stop()

@@ -3,7 +3,6 @@ friction feed-forward, impedance stiffness, bumpless gain changes and the soft s
 
 from __future__ import annotations
 
-import math
 
 import numpy as np
 import pytest

@@ -3,7 +3,6 @@ columns with interchange names, and a custom CycleController plugged in."""
 
 from __future__ import annotations
 
-import math
 
 import numpy as np
 import pytest

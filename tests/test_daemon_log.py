@@ -45,10 +45,8 @@ def test_not_a_log_is_refused_with_the_reason(tmp_path):
 
 def test_writer_thread_writes_everything_and_counts_drops(tmp_path):
     w = LogWriter(tmp_path / "w.arlog", {"rate_hz": 1000}, capacity=256, flush_interval_s=0.01)
-    n_fields = len(RECORD_DTYPE.names)
-    for k in range(1000):
+    for k in range(1000):     # 18 float64 fields, seq, period, latency, overruns, state, fault, bits
         w.append(*([float(k)] * 18 + [k, 0.0, 0.0, 0, 1, 0, 0]))
-        assert len(RECORD_DTYPE.names) == n_fields
         if k % 100 == 0:
             time.sleep(0.03)                 # let the writer catch up now and then
     w.close()

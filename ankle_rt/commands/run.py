@@ -76,7 +76,9 @@ def run(args: argparse.Namespace) -> int:
         notes.append(f"command socket: {daemon.service.path}")
 
     def stop(signum, _frame):
-        daemon.request_stop()
+        # Only flag it: the handler may run in the middle of a backend transaction. The loop ends
+        # after the current cycle (< 1 period), and Daemon.run then deactivates before anything else.
+        daemon.loop.stop()
 
     old = {s: signal.signal(s, stop) for s in (signal.SIGINT, signal.SIGTERM)}
     mode = "lockstep (--fast)" if args.fast else "real time"
