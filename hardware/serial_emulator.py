@@ -157,7 +157,8 @@ class BridgeEmulator:
             self.last_command_seq = seq
             self.since_command = 0
             self.watchdog_tripped = False
-            if self.lockstep and self.awaiting_command:
+            if self.lockstep and self.awaiting_command:   # the first command after a sample
+                self.awaiting_command = False
                 self.tick()
         elif mtype == MsgType.HEARTBEAT:
             self._send(MsgType.HEARTBEAT, BRIDGE_STATE_RUNNING if self.configured else 0,

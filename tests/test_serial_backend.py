@@ -322,7 +322,9 @@ def test_emulate_standalone_on_a_pty_serves_a_daemon_in_another_process(bench_cf
         proc.terminate()
         out, _ = proc.communicate(timeout=10)
     ticks, commands = (int(w) for w in out.split("emulator: ")[1].split()[::2][:2])
-    assert ticks == 300 + 1 and commands == 300 + 1           # each command one tick (+ close's command)
+    # One tick per command that followed a sample; the last commands may still be in the pty when
+    # the emulator is stopped, so only bounds: every sample received was a tick, no tick without one.
+    assert counters["samples"] - 1 <= ticks <= commands <= 301
 
 
 def test_emulate_refuses_a_bad_injection(capsys):
