@@ -86,15 +86,9 @@ class MotorEncoders:
         out[0] = self.signs[0] * c1.count * self.rad_per_count
         out[1] = self.signs[1] * c2.count * self.rad_per_count
 
-    def raw(self, angle_1: float, angle_2: float) -> tuple[int, int]:
-        """The counter values an encoder pair at these angles (rad) shows (floor, as a counter
-        counts; wrapped to the counter width). Used by the emulators."""
-        m = (1 << self.counter_bits) - 1
-        k = 1.0 / self.rad_per_count
-        return (self.signs[0] * math.floor(angle_1 * k)) & m, (self.signs[1] * math.floor(angle_2 * k)) & m
-
     def raw_from_counts(self, count_1: int, count_2: int) -> tuple[int, int]:
-        """Counter values for positions given in counts (model direction), wrapped. Emulators."""
+        """The counter values (wrapped to the counter width) an encoder pair shows at these positions
+        in counts, model direction (``SimulatedPlant.encoder_counts``). Used by the emulators."""
         m = (1 << self.counter_bits) - 1
         return (self.signs[0] * count_1) & m, (self.signs[1] * count_2) & m
 

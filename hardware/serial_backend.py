@@ -34,10 +34,9 @@ from ankle_rt.config import Config
 from hardware.config_values import config_error, required
 from hardware.escon import escon_amplifiers
 from hardware.sensors import JointEncoders, MotorEncoders, StrainGauges, StuckEncoderDetector
-from hardware.serial_protocol import (IN_JOINT_VALID, IN_READY_1, IN_READY_2, MODE_PWM_1, MODE_PWM_2,
-                                      OUT_ENABLE_1, OUT_ENABLE_2, PAYLOADS, SEQ_MODULUS, ST_ADC_STALE,
-                                      ST_QUADRATURE, ST_WATCHDOG, FrameWriter, MsgType, StreamParser,
-                                      frame_size)
+from hardware.serial_protocol import (IN_JOINT_VALID, IN_READY_1, IN_READY_2, OUT_ENABLE_1, OUT_ENABLE_2,
+                                      PAYLOADS, SEQ_MODULUS, ST_ADC_STALE, ST_QUADRATURE, ST_WATCHDOG,
+                                      FrameWriter, MsgType, StreamParser, frame_size, set_value_modes)
 
 MAX_LINK_LOAD = 0.70          # share of the baud rate the 1 kHz sample stream may use
 BITS_PER_BYTE = 10            # UART: start + 8 data + stop
@@ -67,6 +66,10 @@ class SerialBackend(Backend):
                                f"({SAMPLE_FRAME} bytes) would use {load:.0%} of it (limit {MAX_LINK_LOAD:.0%})")
         if s["sample_wait_s"] * 1e9 >= self.period_ns:
             raise config_error(cfg, "serial.sample_wait_s", f"must be shorter than one period ({1.0 / rate:g} s)")
+        for key in ("link_timeout_s", "watchdog_s"):      # one late sample or command must not trip them
+            if s[key] * 1e9 < 2 * self.period_ns:
+                raise config_error(cfg, f"serial.{key}", f"must be at least two periods ({2.0 / rate:g} s), "
+                                   f"got {s[key]:g}")
         self.amps = escon_amplifiers(cfg)
         self.encoders = MotorEncoders.from_config(cfg)
         self.gauges = StrainGauges.from_config(cfg)
@@ -121,9 +124,8 @@ class SerialBackend(Backend):
             raise BackendError(f"serial bridge: cannot open {name}: {exc}") from None
 
     def _config_fields(self, s: dict) -> tuple[int, ...]:
-        modes = (MODE_PWM_1 if self.amps[0].mode == "pwm" else 0) | (MODE_PWM_2 if self.amps[1].mode == "pwm" else 0)
         return (self.cfg["controller"]["rate_hz"], round(s["watchdog_s"] * 1e6), self.encoders.counter_bits,
-                modes, self.zero_codes[0], self.zero_codes[1])
+                set_value_modes(self.amps[0].mode, self.amps[1].mode), self.zero_codes[0], self.zero_codes[1])
 
     def _configure(self, s: dict) -> None:
         """Send CONFIG and wait for the bridge's echo of it."""

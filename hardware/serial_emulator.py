@@ -35,9 +35,9 @@ import tty
 from ankle_rt.config import Config, ConfigError
 from hardware.escon import escon_amplifiers
 from hardware.sensors import JointEncoders, MotorEncoders, StrainGauges
-from hardware.serial_protocol import (FAULT_BAD_CONFIG, IN_JOINT_VALID, IN_READY_1, IN_READY_2, MODE_PWM_1,
-                                      MODE_PWM_2, OUT_ENABLE_1, OUT_ENABLE_2, PAYLOADS, ST_CONFIGURED,
-                                      ST_WATCHDOG, FrameWriter, MsgType, StreamParser)
+from hardware.serial_protocol import (FAULT_BAD_CONFIG, IN_JOINT_VALID, IN_READY_1, IN_READY_2, OUT_ENABLE_1,
+                                      OUT_ENABLE_2, PAYLOADS, ST_CONFIGURED, ST_WATCHDOG, FrameWriter, MsgType,
+                                      StreamParser, set_value_modes)
 from sim_backend.plant import SimulatedPlant
 
 FAULTS = ("drop", "corrupt", "noise", "stuck_encoder_1", "stuck_encoder_2", "sg_rail_1", "sg_rail_2",
@@ -62,7 +62,7 @@ class BridgeEmulator:
         self.adc_min, self.adc_max = -(1 << (bits - 1)), (1 << (bits - 1)) - 1
         self.rate_hz = cfg["controller"]["rate_hz"]
         self.period_us = round(1e6 / self.rate_hz)
-        self.modes = (MODE_PWM_1 if self.amps[0].mode == "pwm" else 0) | (MODE_PWM_2 if self.amps[1].mode == "pwm" else 0)
+        self.modes = set_value_modes(self.amps[0].mode, self.amps[1].mode)
         self.lockstep = lockstep
         self.parser = StreamParser()
         self.writer = FrameWriter()

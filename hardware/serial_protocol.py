@@ -81,6 +81,11 @@ def frame_size(mtype: MsgType) -> int:
     return HEADER.size + PAYLOADS[mtype].size + CRC.size
 
 
+def set_value_modes(mode_1: str, mode_2: str) -> int:
+    """CONFIG.modes for the two amplifiers' set-value inputs ('analog' or 'pwm')."""
+    return (MODE_PWM_1 if mode_1 == "pwm" else 0) | (MODE_PWM_2 if mode_2 == "pwm" else 0)
+
+
 def crc32(data: bytes | bytearray | memoryview) -> int:
     """The frame CRC: CRC-32/ISO-HDLC (zlib.crc32)."""
     return zlib.crc32(data)

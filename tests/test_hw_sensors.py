@@ -31,10 +31,11 @@ def test_unwrap_follows_the_true_count_through_any_number_of_wraps(bits, start, 
 def test_16_bit_counter_over_more_than_a_revolution():
     enc = MotorEncoders(CPR, 16, (1, -1))
     out = np.zeros(2)
-    enc.reset(*enc.raw(0.0, 0.0), out)
+    enc.reset(*enc.raw_from_counts(0, 0), out)
+    counts = lambda a: math.floor(a * CPR / (2 * math.pi))   # noqa: E731
     for k in range(1, 800):          # 8 rad in 10 mrad steps: the 16-bit counter wraps ~10 times
         angle = 0.01 * k
-        enc.update(*enc.raw(angle, -angle), out)
+        enc.update(*enc.raw_from_counts(counts(angle), counts(-angle)), out)
     assert out[0] == pytest.approx(angle, abs=2 * math.pi / CPR)
     assert out[1] == pytest.approx(-angle, abs=2 * math.pi / CPR)
 

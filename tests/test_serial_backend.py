@@ -218,6 +218,10 @@ def test_configuration_errors_name_the_key(bench_cfg, tmp_path):
     with pytest.raises(ConfigError, match=r"bench.yaml: serial.baudrate: 460800 bit/s is too slow.*102%"):
         open_backend(cfg, SimClock())
     cfg["serial"]["baudrate"] = 2_000_000
+    cfg["serial"]["link_timeout_s"] = 0.0015
+    with pytest.raises(ConfigError, match=r"serial.link_timeout_s: must be at least two periods \(0.002 s\)"):
+        open_backend(cfg, SimClock())
+    cfg["serial"]["link_timeout_s"] = 0.003
     cfg["escon"]["amplifiers"] = None
     with pytest.raises(ConfigError, match=r"escon.amplifiers: missing"):
         open_backend(cfg, SimClock())

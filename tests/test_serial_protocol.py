@@ -7,7 +7,7 @@ import struct
 
 from hypothesis import given, settings, strategies as st
 
-from hardware.serial_protocol import (CRC, HEADER, MAX_FRAME, PAYLOADS, FrameWriter, MsgType, StreamParser,
+from hardware.serial_protocol import (CRC, MAX_FRAME, PAYLOADS, FrameWriter, MsgType, StreamParser,
                                       crc32, encode_frame, frame_size)
 
 
