@@ -372,3 +372,18 @@ def test_line_noise_never_crashes_the_backend_nor_yields_a_sample_that_was_not_s
     assert c["samples"] + c["cycles_without_sample"] == 300
     lost = 300 - c["samples"]                            # only the corrupted ones (the 301st is unread)
     assert emu.samples_corrupted - 1 <= lost <= emu.samples_corrupted
+
+
+def test_a_scheduled_fault_is_in_the_run_log_with_its_reason(bench_cfg, tmp_path):
+    """The whole run through run_lockstep: the strain gauge goes to its rail at 1.0 s of plant time.
+    The log records the reason and the backend's fault bits from that cycle on, the set values are
+    zero and the run ends normally."""
+    backend = SerialBackend(bench_cfg, SimClock())
+    backend.emulator.add_schedule("sg_rail_1@1.0")
+    res = run_lockstep(bench_cfg, 1.5, backend=backend, log_path=tmp_path / "run.arlog")
+    backend.close()
+    first = int(np.argmax(res["fault"] != 0))
+    assert res["t"][first] == pytest.approx(1.0, abs=1.5e-3) and res["fault"][first] == Fault.SG_RAIL
+    assert res["backend_faults"][first] & BackendFault.STRAIN_GAUGE_RAIL
+    assert set(res["state"][first:]) <= {State.FAULT, State.SAFE} and not res["current_cmd_1"][first:].any()
+    assert res.summary["fault"] == "SG_RAIL" and (tmp_path / "run.arlog").stat().st_size > 0
