@@ -22,6 +22,7 @@ class GainRamp:
         self.cycles_per_ramp = max(1, round(ramp_s / dt))
         self.soft_step = 1.0 if soft_start_s <= 0.0 else min(1.0, dt / soft_start_s)
         self.scale = 1.0
+        self.ramping = False
 
     def set_targets(self, **gains: float) -> None:
         """Ramp the named gains to new values. Raises ValueError naming an unknown or bad gain."""
@@ -34,6 +35,7 @@ class GainRamp:
             i = self.names.index(name)
             self.targets[i] = float(value)
             self.steps[i] = (self.targets[i] - self.values[i]) / self.cycles_per_ramp
+        self.ramping = True
 
     def start(self) -> None:
         """Begin the soft start: the output scale restarts from zero."""
@@ -42,8 +44,12 @@ class GainRamp:
     def advance(self) -> None:
         """One cycle of ramping (call once per update)."""
         if self.scale < 1.0:
-            self.scale = min(1.0, self.scale + self.soft_step)
+            scale = self.scale + self.soft_step
+            self.scale = scale if scale < 1.0 else 1.0
+        if not self.ramping:
+            return
         values, targets, steps = self.values, self.targets, self.steps
+        moving = False
         for i in range(len(values)):
             s = steps[i]
             if s != 0.0:
@@ -51,7 +57,10 @@ class GainRamp:
                 if (s > 0.0 and v >= targets[i]) or (s < 0.0 and v <= targets[i]):
                     v = targets[i]
                     steps[i] = 0.0
+                else:
+                    moving = True
                 values[i] = v
+        self.ramping = moving
 
     def as_dict(self) -> dict[str, float]:
         """Current gains (for status replies; allocates, not for the cycle)."""

@@ -41,9 +41,10 @@ class ImpedanceController:
         g.advance()
         k0, k1, b0, b1 = g.values
         s = g.scale
-        t0 = k0 * (float(self.ref[0]) - float(est.ankle_pos[0])) - b0 * float(est.ankle_vel[0])
-        t1 = k1 * (float(self.ref[1]) - float(est.ankle_pos[1])) - b1 * float(est.ankle_vel[1])
+        ref, pos, vel = self.ref, est.ankle_pos, est.ankle_vel
+        t0 = k0 * (ref.item(0) - pos.item(0)) - b0 * vel.item(0)
+        t1 = k1 * (ref.item(1) - pos.item(1)) - b1 * vel.item(1)
         RiT = self.RiT
         ff = self.friction
-        out_torque[0] = s * (RiT[0] * t0 + RiT[1] * t1 + ff.torque(float(est.motor_vel[0])))
-        out_torque[1] = s * (RiT[2] * t0 + RiT[3] * t1 + ff.torque(float(est.motor_vel[1])))
+        out_torque[0] = s * (RiT[0] * t0 + RiT[1] * t1 + ff.torque(est.motor_vel.item(0)))
+        out_torque[1] = s * (RiT[2] * t0 + RiT[3] * t1 + ff.torque(est.motor_vel.item(1)))

@@ -37,10 +37,9 @@ class MotorPD:
         kp, kd = g.values
         s = g.scale
         R = self.R
-        r0 = float(self.ref[0])
-        r1 = float(self.ref[1])
-        v1 = float(est.motor_vel[0])
-        v2 = float(est.motor_vel[1])
+        ref, pos, vel = self.ref, est.motor_pos, est.motor_vel
+        r0, r1 = ref.item(0), ref.item(1)
+        v1, v2 = vel.item(0), vel.item(1)
         ff = self.friction
-        out_torque[0] = s * (kp * (R[0] * r0 + R[1] * r1 - float(est.motor_pos[0])) - kd * v1 + ff.torque(v1))
-        out_torque[1] = s * (kp * (R[2] * r0 + R[3] * r1 - float(est.motor_pos[1])) - kd * v2 + ff.torque(v2))
+        out_torque[0] = s * (kp * (R[0] * r0 + R[1] * r1 - pos.item(0)) - kd * v1 + ff.torque(v1))
+        out_torque[1] = s * (kp * (R[2] * r0 + R[3] * r1 - pos.item(1)) - kd * v2 + ff.torque(v2))
