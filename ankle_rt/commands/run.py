@@ -37,6 +37,7 @@ def run(args: argparse.Namespace) -> int:
     import json
     import signal
 
+    from ankle_rt.backend import BackendError
     from ankle_rt.clock import MonotonicClock, SimClock
     from ankle_rt.config import load_config
     from ankle_rt.daemon import Daemon
@@ -58,7 +59,11 @@ def run(args: argparse.Namespace) -> int:
         print("ankle-rt run: --fast needs a duration (lockstep would never end)", file=sys.stderr)
         return 2
     notes = [] if args.fast else apply_realtime(rt)
-    daemon = Daemon(cfg, clock)
+    try:
+        daemon = Daemon(cfg, clock)
+    except BackendError as exc:
+        print(f"ankle-rt run: backend {cfg['backend']!r} could not be opened: {exc}", file=sys.stderr)
+        return 1
     log_path = None
     if cfg["logging"]["enabled"] and not args.no_log:
         log_path = Path(args.log) if args.log else default_log_path(cfg["logging"]["directory"])
