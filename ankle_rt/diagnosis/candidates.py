@@ -97,10 +97,11 @@ class Cogging(Candidate):
     integer = True
 
     def grid(self, ch):
-        # ripple frequency n |v| / 2 pi must stay inside the smoother's pass band (~30 Hz) most of the time
-        v_typ = float(np.percentile(np.abs(ch.vel), 60)) or 1.0
-        n_max = int(np.clip(2.0 * np.pi * 25.0 / v_typ, 8, 400))
-        return [float(n) for n in np.unique(np.geomspace(1, n_max, 160).astype(int))]
+        # every integer period count (one off and the phase drifts over a long motion) up to where the
+        # ripple n |v| / 2 pi leaves the filter's pass band for most slow-to-medium motion
+        v_slow = float(np.percentile(np.abs(ch.vel), 25)) or 1.0
+        n_max = int(np.clip(2.0 * np.pi * 25.0 / v_slow, 8, MAX_COGGING_PERIODS))
+        return [float(n) for n in range(1, n_max + 1)]
 
     def design(self, ch, nl):
         ang = nl * ch.pos
@@ -173,6 +174,7 @@ MOTOR_CANDIDATES: tuple[Candidate, ...] = (Stribeck(), AsymmetricFriction(), Loa
                                            Cogging(), Delay())
 CABLE_CANDIDATES: tuple[Candidate, ...] = (Backlash(), HardeningStiffness())
 
+MAX_COGGING_PERIODS = 300
 DELAY_LAGS_S = (0.001, 0.002, 0.004, 0.007, 0.011, 0.016, 0.022)
 
 

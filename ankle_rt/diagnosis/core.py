@@ -36,6 +36,9 @@ IC_THRESHOLD = 20.0
 MIN_REDUCTION = 0.04
 #: the catch-all must remove this fraction before a discrepancy counts as real without a name
 MIN_UNKNOWN_REDUCTION = 0.10
+#: practical size: what a model explains must reach this NRMSE (RMS / std of the measured torque); smaller
+#: discrepancies (friction-transition noise of the velocity estimate: ~0.003) are not worth a model
+MIN_SIZE = 0.006
 #: a named candidate must explain at least this fraction of what the catch-all removes
 MIN_EXPLAINED = 0.6
 HOLDOUT_FRACTION = 0.25
@@ -137,7 +140,7 @@ def _sigmoid(x: float) -> float:
 
 
 def significant(score: Score) -> bool:
-    return score.delta_ic > IC_THRESHOLD and score.reduction > MIN_REDUCTION
+    return score.delta_ic > IC_THRESHOLD and score.reduction > MIN_REDUCTION and score.size > MIN_SIZE
 
 
 def cv_confirms(cs: ChannelScores, score: Score) -> tuple[bool, int]:
@@ -173,7 +176,7 @@ def catch_all_cv_reduction(cs: ChannelScores) -> float:
 def unexplained(cs: ChannelScores) -> bool:
     """A discrepancy is real when the catch-all beats the baseline in the criterion and in held-out blocks."""
     return (cs.catch_all_delta_ic > IC_THRESHOLD and cs.catch_all_reduction > MIN_UNKNOWN_REDUCTION
-            and catch_all_cv_reduction(cs) > MIN_UNKNOWN_REDUCTION)
+            and cs.catch_all_size > MIN_SIZE and catch_all_cv_reduction(cs) > MIN_UNKNOWN_REDUCTION)
 
 
 def decide(channels: list[ChannelScores]) -> Verdict:
@@ -200,7 +203,10 @@ def decide(channels: list[ChannelScores]) -> Verdict:
         return Verdict("unknown", min(1.0, cs.catch_all_reduction / 0.2), cs,
                        reason=f"catch-all removes {100 * cs.catch_all_reduction:.0f} % of the residual; "
                               "no named candidate is significant")
-    hint = max([min(1.0, s.reduction / MIN_REDUCTION) for cs in channels for s in cs.scores] + [0.0])
+    hint = max([min(s.reduction / MIN_REDUCTION, s.size / MIN_SIZE) for cs in channels for s in cs.scores] +
+               [min(cs.catch_all_reduction / MIN_UNKNOWN_REDUCTION, cs.catch_all_size / MIN_SIZE) for cs in channels]
+               + [0.0])
+    hint = min(1.0, hint)
     return Verdict("none", 1.0 - 0.5 * max(0.0, hint))
 
 
@@ -250,7 +256,7 @@ def nrmse(ch: Channel, coef: np.ndarray, cand: Candidate | None = None, nl: floa
         y, X = ch.target(), Xb
     else:
         y, X = design_matrix(ch, Xb, cand, nl)
-    scale = ch.torque() if isinstance(ch, MotorChannel) else ch.target()
+    scale = ch.measured()
     err = y - X @ coef
     return float(np.sqrt(np.mean(err ** 2)) / max(np.std(scale), 1e-300))
 
@@ -303,16 +309,17 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
     if verdict.reason:
         notes.append(verdict.reason)
 
-    candidates = [{"cause": "none", "channel": None, "score": 0.0, "rss_reduction": 0.0}]
+    candidates = [{"cause": "none", "channel": None, "score": 0.0, "rss_reduction": 0.0, "size": 0.0}]
     for cs in scored:
         for s in cs.scores:
             item = {"cause": s.cause, "channel": cs.name, "score": round(s.delta_ic, 2),
-                    "rss_reduction": round(s.reduction, 5)}
+                    "rss_reduction": round(s.reduction, 5), "size": round(s.size, 5)}
             if s.candidate.nonlinear:
                 item[s.candidate.nonlinear] = s.nl
             candidates.append(item)
         candidates.append({"cause": "unknown", "channel": cs.name, "score": round(cs.catch_all_delta_ic, 2),
-                           "rss_reduction": round(cs.catch_all_reduction, 5), "catch_all": True})
+                           "rss_reduction": round(cs.catch_all_reduction, 5), "size": round(cs.catch_all_size, 5),
+                           "catch_all": True})
     candidates.sort(key=lambda c: -c["score"])
 
     main = verdict.channel or scored[0]

@@ -7,6 +7,7 @@ estimate of how many independent samples the noise holds."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -26,6 +27,7 @@ class Score:
     ic: float = 0.0
     delta_ic: float = 0.0          # baseline IC - this IC (> 0: better than the baseline)
     reduction: float = 0.0         # 1 - rss / rss_baseline
+    size: float = 0.0              # RMS of what it explains / std of the measured side (an NRMSE)
 
 
 @dataclass
@@ -40,6 +42,7 @@ class ChannelScores:
     catch_all_delta_ic: float = 0.0
     catch_all_reduction: float = 0.0
     catch_all_X: np.ndarray | None = field(default=None, repr=False)
+    catch_all_size: float = 0.0
 
     def best(self) -> Score | None:
         return max(self.scores, key=lambda s: s.delta_ic) if self.scores else None
@@ -79,11 +82,18 @@ def score_channel(name: str, ch: Channel, candidates: tuple[Candidate, ...],
     n_eff = effective_samples(full.residual, ch.m)
     n = len(y0)
     ic_base = information_criterion(base.rss, n, Xb.shape[1], n_eff)
+    scale = float(np.std(ch.measured()))
+
+    def size(rss: float) -> float:
+        return math.sqrt(max(0.0, base.rss - rss) / n) / max(scale, 1e-300)
+
     for s in scores:
         s.ic = information_criterion(s.rss, n, s.k, n_eff)
         s.delta_ic = ic_base - s.ic
         s.reduction = 1.0 - s.rss / base.rss
+        s.size = size(s.rss)
     out = ChannelScores(name, ch, base, scores, full.rss, Xc.shape[1], n_eff, catch_all_X=Xc)
     out.catch_all_delta_ic = ic_base - information_criterion(full.rss, n, Xc.shape[1], n_eff)
     out.catch_all_reduction = 1.0 - full.rss / base.rss
+    out.catch_all_size = size(full.rss)
     return out

@@ -142,6 +142,10 @@ class MotorChannel:
         """L[tau] at the kept rows for an actuation delay (s), ZOH half sample included (stacked)."""
         return self.pick(shift_rows(self.L_tau, 0.5 + delay_s / self.dt))
 
+    def measured(self) -> np.ndarray:
+        """What an NRMSE is relative to: the filtered motor torque (stacked)."""
+        return self.torque()
+
     def target(self, delay_s: float = 0.0) -> np.ndarray:
         """The regression's left side: L[tau(t - dt/2 - delay)] - L[tc] (stacked)."""
         return self.torque(delay_s) - self.pick(self.L_tc)
@@ -194,6 +198,9 @@ class CableChannel:
 
     def target(self, delay_s: float = 0.0) -> np.ndarray:
         return self.pick(self.L_tau_j)
+
+    def measured(self) -> np.ndarray:
+        return self.target()
 
     def baseline_design(self) -> np.ndarray:
         """Columns K_a, K_a beta, offset_a per axis a (block diagonal)."""
