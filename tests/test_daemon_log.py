@@ -117,7 +117,7 @@ def test_run_fast_then_log_info_and_export(tmp_path, capsys):
     log = tmp_path / "fast.arlog"
     assert main(["run", "--fast", "--duration", "1", "--log", str(log), "--no-plot"]) == 0
     out = capsys.readouterr().out
-    assert "tracking error" in out and "DP:" in out and "IE:" in out and str(log) in out
+    assert "tracking error" in out and "\n  DP " in out and "\n  IE " in out and str(log) in out
     assert main(["log", "info", str(log)]) == 0
     assert "1000 cycles" in capsys.readouterr().out
     csv = tmp_path / "out.csv"
