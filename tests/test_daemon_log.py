@@ -147,3 +147,13 @@ def test_bench_loop_json_has_the_figures(capsys):
     for key in ("period_error_p99_us", "compute_p99_us", "late_cycles", "lockstep_realtime_factor"):
         assert key in out
     assert out["cycles"] > 0 and out["lockstep_realtime_factor"] > 0
+
+
+def test_a_failing_disk_costs_records_not_the_loop(tmp_path):
+    w = LogWriter(tmp_path / "full.arlog", {"rate_hz": 1000}, capacity=256, flush_interval_s=0.01)
+    with open("/dev/full", "wb") as full:
+        os.dup2(full.fileno(), w.fd)                 # every later write fails with ENOSPC
+    for k in range(100):
+        w.append(*([float(k)] * 18 + [k, 0.0, 0.0, 0, 1, 0, 0]))
+    w.close()
+    assert w.dropped == 100 and "No space left" in w.error

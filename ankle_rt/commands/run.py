@@ -67,8 +67,13 @@ def run(args: argparse.Namespace) -> int:
     log_path = None
     if cfg["logging"]["enabled"] and not args.no_log:
         log_path = Path(args.log) if args.log else default_log_path(cfg["logging"]["directory"])
-        daemon.recorder = LogWriter(log_path, daemon.log_metadata(), cfg["logging"]["ring_records"],
-                                    cfg["logging"]["flush_interval_s"])
+        try:
+            daemon.recorder = LogWriter(log_path, daemon.log_metadata(), cfg["logging"]["ring_records"],
+                                        cfg["logging"]["flush_interval_s"])
+        except OSError as exc:
+            daemon.close()
+            print(f"ankle-rt run: cannot write the log {log_path}: {exc.strerror or exc}", file=sys.stderr)
+            return 1
     if not args.fast and cfg["service"]["enabled"]:
         from ankle_rt.service.link import ServiceLink
         from ankle_rt.service.server import ServiceError
@@ -108,8 +113,10 @@ def run(args: argparse.Namespace) -> int:
     summary = summarize(records)
     summary["log"] = str(log_path)
     summary["loop_stats"] = daemon.loop.stats.summary()
-    if getattr(daemon.recorder, "dropped", 0):
+    if daemon.recorder.dropped:
         summary["log_records_dropped"] = daemon.recorder.dropped
+        print(f"WARNING: {daemon.recorder.dropped} log records were lost ({daemon.recorder.error or 'disk too slow'})",
+              file=sys.stderr)
     plot_note = None
     if not args.no_plot and len(records):
         plot_note = plot_run(records, daemon.kt, str(log_path.with_suffix(".png")))

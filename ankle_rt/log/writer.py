@@ -5,8 +5,8 @@ The loop packs each cycle's record into the next slot of a ``bytearray`` ring wi
 ``logging.flush_interval_s`` and hands whole ring slices to ``os.write`` (which releases the GIL), so
 it does almost no Python work per record and never competes with the loop for long. Records reach
 the kernel within one flush interval and survive a kill -9 of the daemon; ``close()`` writes the
-rest and fsyncs. If the disk stalls for longer than the ring holds, the oldest unwritten records are
-dropped and counted (``dropped``), never the loop delayed.
+rest and fsyncs. If the disk stalls for longer than the ring holds, or a write fails (disk full), the
+records are dropped and counted (``dropped``, ``error``), never the loop delayed.
 """
 
 from __future__ import annotations
@@ -50,6 +50,7 @@ class LogWriter:
         self.written = 0     # records packed by the loop (only the loop writes this)
         self.flushed = 0     # records handed to the kernel (only the writer thread writes this)
         self.dropped = 0
+        self.error = ""      # the latest write error (the records it cost are counted in dropped)
         self.interval = flush_interval_s
         self.fd = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
         os.write(self.fd, encode_header(meta))
@@ -71,11 +72,17 @@ class LogWriter:
             self.dropped += end - start - (self.capacity - 1)
             start = end - (self.capacity - 1)
         cap, size, view = self.capacity, self.size, self.view
-        while start < end:
-            i = start % cap
-            j = min(cap, i + (end - start))
-            os.write(self.fd, view[i * size:j * size])
-            start += j - i
+        try:
+            while start < end:
+                i = start % cap
+                j = min(cap, i + (end - start))
+                chunk = view[i * size:j * size]
+                while chunk:                        # os.write may write less than asked
+                    chunk = chunk[os.write(self.fd, chunk):]
+                start += j - i
+        except OSError as exc:                      # disk full, I/O error: count, keep the loop going
+            self.dropped += end - start
+            self.error = f"{self.path}: {exc.strerror or exc}"
         self.flushed = end
 
     def _run(self) -> None:
@@ -93,7 +100,10 @@ class LogWriter:
         self._stop.set()
         self._thread.join()
         self._flush()
-        os.fsync(self.fd)
+        try:
+            os.fsync(self.fd)
+        except OSError as exc:
+            self.error = self.error or f"{self.path}: fsync: {exc.strerror or exc}"
         os.close(self.fd)
         self.fd = -1
 
