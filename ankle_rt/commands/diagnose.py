@@ -33,9 +33,10 @@ def _format(diag, closed) -> str:
              + (f", {diag.channel} channel)" if diag.channel else ")")]
     for k, v in diag.parameters.items():
         lines.append(f"  {k} = {v['value']:.6g} ± {v['sd']:.2g}")
-    for name, params in diag.baseline.items():
-        vals = ", ".join(f"{k} {', '.join(f'{x:.4g}' for x in p['value'])}" for k, p in params.items())
-        lines.append(f"baseline ({name}, re-fitted): {vals}")
+    for label, fits in (("re-fitted alone", diag.baseline), ("within the extended model", diag.baseline_extended)):
+        for name, params in (fits or {}).items():
+            vals = ", ".join(f"{k} {', '.join(f'{x:.4g}' for x in p['value'])}" for k, p in params.items())
+            lines.append(f"baseline ({name}, {label}): {vals}")
     lines.append(f"inverse-model NRMSE on {diag.validation}: baseline {diag.nrmse_baseline:.4f}, "
                  f"extended {diag.nrmse_extended:.4f}, gain {diag.gain:.2f}x")
     if closed is not None:

@@ -58,13 +58,14 @@ class Diagnosis:
     channel: str | None
     candidates: list[dict[str, Any]]
     parameters: dict[str, dict[str, float]]
-    baseline: dict[str, Any]
+    baseline: dict[str, Any]          # baseline-only re-fit, per channel
     nrmse_baseline: float
     nrmse_extended: float
     validation: str
     notes: list[str] = field(default_factory=list)
     effect: dict[str, Any] | None = None        # the sim.effects entry, when a cause is named
     actuator_refit: dict[str, float] | None = None
+    baseline_extended: dict[str, Any] | None = None   # the baseline part of the extended model's fit
     detail: dict[str, Any] = field(default_factory=dict, repr=False)   # fits and channels for the report
 
     @property
@@ -75,6 +76,7 @@ class Diagnosis:
     def to_json(self) -> dict[str, Any]:
         return {"cause": self.cause, "confidence": round(self.confidence, 4), "channel": self.channel,
                 "candidates": self.candidates, "parameters": self.parameters, "baseline": self.baseline,
+                "baseline_extended": self.baseline_extended,
                 "nrmse_baseline": self.nrmse_baseline, "nrmse_extended": self.nrmse_extended,
                 "gain": self.gain, "validation": self.validation, "effect": self.effect,
                 "notes": self.notes}
@@ -333,6 +335,7 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
     parameters: dict[str, dict[str, float]] = {}
     effect = None
     actuator_refit = None
+    baseline_extended = None
     detail: dict[str, Any] = {"channels": scored, "validation_channels": vchans, "verdict": verdict}
     motor = scored[0]
     motor_coef = motor.baseline.coef
@@ -345,6 +348,7 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
         effect = effect_entry(verdict.cause, params)
         nrmse_ext = nrmse(vch, ext.coef, ext.candidate, ext.nl)
         detail["extended"] = ext
+        baseline_extended = {main.name: baseline_dict(main.name, ext.coef[:k0], ext.cov[:k0, :k0], per)}
         if main.name == "motor":
             motor_coef = ext.coef[:k0]
     if cfg is not None:
@@ -355,4 +359,5 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
                      channel=verdict.channel.name if verdict.channel and verdict.cause != "none" else None,
                      candidates=candidates, parameters=parameters, baseline=baseline,
                      nrmse_baseline=nrmse_base, nrmse_extended=nrmse_ext, validation=vname, notes=notes,
-                     effect=effect, actuator_refit=actuator_refit, detail=detail)
+                     effect=effect, actuator_refit=actuator_refit, baseline_extended=baseline_extended,
+                     detail=detail)
