@@ -36,6 +36,7 @@ class InjectingBackend(Backend):
         self.at, self.mutate = at, mutate
         self.cycle = -1
         self.deactivated_at: list[int] = []
+        self.writes: list[tuple[int, float, float]] = []   # (cycle, i1, i2) of every write
 
     @property
     def active(self) -> bool:
@@ -49,6 +50,7 @@ class InjectingBackend(Backend):
         self.sim.deactivate()
 
     def write(self, current_1: float, current_2: float) -> None:
+        self.writes.append((self.cycle, current_1, current_2))
         self.sim.write(current_1, current_2)
 
     def read(self, frame: SensorFrame) -> None:

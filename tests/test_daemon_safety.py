@@ -237,3 +237,19 @@ def test_commands_with_bad_fields_are_refused_naming_the_field(sim_cfg):
     assert status["state"] == "active" and status["gains"] == {"kp": 90.0, "kd": 5.0}
     run_cycles(d, 10)
     assert d.safety.state == State.ACTIVE
+
+
+def test_set_values_reach_the_amplifiers_only_while_active(sim_cfg):
+    cfg = variant(sim_cfg, reference={"profile": "hold", "hold": {"dp": 0.05, "ie": 0.02}})
+    backend = InjectingBackend(cfg, SimClock(), at=AT, mutate=_bits(BackendFault.LINK_LOST))
+    d = lockstep_daemon(cfg, backend=backend)
+    run_cycles(d, AT + 50)
+    backend.mutate = None                              # the link is back
+    d.handle(proto.ResetFault())
+    run_cycles(d, 50)                                  # SAFE: sensors read, nothing sent
+    state = d.recorder.records["state"]
+    nonzero = [(k, i1, i2) for k, i1, i2 in backend.writes if i1 != 0.0 or i2 != 0.0]
+    assert len(nonzero) > 100
+    assert all(state[k] == State.ACTIVE for k, _, _ in nonzero)
+    assert all(k < AT for k, _, _ in nonzero)
+    assert np.all(state[AT + 50:] == State.SAFE)
