@@ -84,6 +84,7 @@ class BridgeEmulator:
         self.commands = 0
         self.samples_dropped = 0
         self.samples_corrupted = 0
+        self.bytes_lost = 0                             # standalone: output the link could not take
         self.rng = random.Random(cfg["sim"]["seed"])   # line noise, reproducible
 
     # -- fault injection -------------------------------------------------------------------------
@@ -185,6 +186,10 @@ class BridgeEmulator:
         self.enable_levels[0] = self.amps[0].enable_level(False)
         self.enable_levels[1] = self.amps[1].enable_level(False)
 
+    def outputs_enabled(self) -> bool:
+        """Whether an enable line is on (the watchdog has something to switch off)."""
+        return any(amp.is_enabled(level) for amp, level in zip(self.amps, self.enable_levels))
+
     def trip_watchdog(self) -> None:
         """No valid command within the watchdog time: zero set values, enables off, status bit set."""
         self._go_safe()
@@ -205,7 +210,7 @@ class BridgeEmulator:
         if "frozen" in self.active or not self.configured:
             return
         self.since_command += 1
-        if self.since_command > self.watchdog_ticks:
+        if self.since_command > self.watchdog_ticks and self.outputs_enabled():
             self.trip_watchdog()
         self.plant.step(*self.amplifier_currents())
         self._sample()
@@ -352,12 +357,15 @@ def _interrupt(signum: int, frame: object) -> None:
 
 
 def run_standalone(cfg: Config, args: argparse.Namespace) -> int:
-    """Serve the bridge protocol on a serial device or a new pty until Ctrl-C or ``--duration``.
+    """Serve the bridge protocol on a serial device or a new pty until Ctrl-C, SIGTERM or ``--duration``.
 
-    Lockstep: the plant steps on each command. The bridge's watchdog runs on wall time: no valid
-    command for ``serial.watchdog_s`` zeroes the set values and drops the enables.
+    Lockstep (default): the plant steps on each command; the bridge's watchdog runs on wall time (no
+    valid command for ``serial.watchdog_s`` zeroes the set values and drops the enables).
+    ``--free-run``: the emulator ticks on its own clock at ``controller.rate_hz`` like the real
+    bridge, commands only update the outputs, and the watchdog counts ticks.
     """
-    emulator = BridgeEmulator(cfg)
+    free_run = bool(getattr(args, "free_run", False))
+    emulator = BridgeEmulator(cfg, lockstep=not free_run)
     try:
         for spec in args.inject:
             emulator.add_schedule(spec)
@@ -372,7 +380,7 @@ def run_standalone(cfg: Config, args: argparse.Namespace) -> int:
         tty.setraw(fd)
         tty.setraw(slave)
         keep_open = slave        # keeps the pty alive between daemon runs
-        print(f"emulator: serial bridge on {os.ttyname(slave)} (set serial.port to it)", flush=True)
+        where = f"{os.ttyname(slave)} (set serial.port to it)"
     else:
         import serial
 
@@ -383,29 +391,12 @@ def run_standalone(cfg: Config, args: argparse.Namespace) -> int:
             return 1
         keep_open = port
         fd = port.fileno()
-        print(f"emulator: serial bridge on {port_name}", flush=True)
+        where = port_name
+    os.set_blocking(fd, False)
+    print(f"emulator: serial bridge on {where}, {'free-running' if free_run else 'lockstep'}", flush=True)
     signal.signal(signal.SIGTERM, _interrupt)
-    watchdog_s = cfg["serial"]["watchdog_s"]
-    last_command = time.monotonic()
-    seen = 0
-    end = time.monotonic() + args.duration if args.duration else math.inf
     try:
-        while time.monotonic() < end:
-            if select.select([fd], [], [], 0.001)[0]:
-                try:
-                    data = os.read(fd, 4096)
-                except OSError:          # pty: no process has the slave open right now
-                    data = b""
-                    time.sleep(0.01)
-                emulator.receive(data)
-                out = emulator.take_output()
-                if out:
-                    os.write(fd, out)
-            now = time.monotonic()
-            if emulator.commands != seen:
-                seen, last_command = emulator.commands, now
-            elif emulator.configured and not emulator.watchdog_tripped and now - last_command > watchdog_s:
-                emulator.trip_watchdog()
+        _serve(emulator, fd, cfg, args.duration, free_run)
     except KeyboardInterrupt:
         pass
     finally:
@@ -415,5 +406,44 @@ def run_standalone(cfg: Config, args: argparse.Namespace) -> int:
             keep_open.close()
     print(f"emulator: {emulator.plant.ticks} ticks, {emulator.commands} commands, "
           f"{emulator.parser.crc_errors} CRC errors received, {emulator.samples_dropped} samples dropped, "
-          f"{emulator.samples_corrupted} corrupted", flush=True)
+          f"{emulator.samples_corrupted} corrupted, {emulator.bytes_lost} bytes not sent (nobody reading)",
+          flush=True)
     return 0
+
+
+def _serve(emulator: BridgeEmulator, fd: int, cfg: Config, duration_s: float, free_run: bool) -> None:
+    period_s = 1.0 / cfg["controller"]["rate_hz"]
+    watchdog_s = cfg["serial"]["watchdog_s"]
+    now = time.monotonic()
+    end = now + duration_s if duration_s else math.inf
+    next_tick = now + period_s
+    last_command, seen = now, 0
+    while now < end:
+        wait = max(0.0, next_tick - now) if free_run else 0.001
+        if select.select([fd], [], [], wait)[0]:
+            try:
+                emulator.receive(os.read(fd, 4096))
+            except OSError:              # pty: no process has the slave open right now
+                time.sleep(0.01)
+        now = time.monotonic()
+        if free_run and now >= next_tick:
+            emulator.tick()
+            next_tick = max(next_tick + period_s, now)   # a late tick is not caught up: the clock slips
+        elif not free_run:
+            if emulator.commands != seen:
+                seen, last_command = emulator.commands, now
+            elif now - last_command > watchdog_s and emulator.outputs_enabled():
+                emulator.trip_watchdog()
+        _send(fd, emulator.take_output(), emulator)
+
+
+def _send(fd: int, data: bytes, emulator: BridgeEmulator) -> None:
+    """Write without blocking; what the OS buffer cannot take is lost, as from a UART with nobody
+    listening (a free-running bridge whose host is gone must not hang)."""
+    view = memoryview(data)
+    while len(view):
+        try:
+            view = view[os.write(fd, view):]
+        except (BlockingIOError, OSError):
+            emulator.bytes_lost += len(view)
+            return

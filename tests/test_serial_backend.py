@@ -331,6 +331,63 @@ def test_emulate_standalone_on_a_pty_serves_a_daemon_in_another_process(bench_cf
     assert counters["samples"] - 1 <= ticks <= commands <= 301
 
 
+def test_emulate_free_running_like_the_real_bridge(bench_cfg):
+    """`--free-run`: the emulator owns the clock; a real-time host loop reads whatever arrived. Only
+    what does not depend on timing is asserted: samples arrive intact and the sample time advances."""
+    import subprocess
+    import sys
+
+    from ankle_rt.clock import MonotonicClock
+
+    proc = subprocess.Popen([sys.executable, "-m", "ankle_rt.cli", "emulate", "--transport", "serial",
+                             "--config", str(BENCH), "--port", "pty", "--free-run", "--duration", "20"],
+                            stdout=subprocess.PIPE, text=True)
+    try:
+        line = proc.stdout.readline()
+        assert line.endswith("free-running\n"), line
+        bench_cfg["serial"].update(emulator="none", port=line.split(" on ")[1].split(" ")[0], open_timeout_s=10.0)
+        clock = MonotonicClock()
+        backend = open_backend(bench_cfg, clock)
+        frame = SensorFrame()
+        times = []
+        deadline = clock.now_ns()
+        for _ in range(300):
+            deadline += backend.period_ns
+            clock.sleep_until(deadline)
+            backend.read(frame)
+            times.append(frame.t)
+            backend.write(0.0, 0.0)
+        counters = backend.counters()
+        backend.close()
+    finally:
+        proc.terminate()
+        proc.communicate(timeout=10)
+    assert counters["crc_errors"] == 0 and counters["samples"] > 0
+    assert times[-1] > times[0] and all(b >= a for a, b in zip(times, times[1:]))
+
+
+def test_a_free_running_emulator_whose_host_left_does_not_hang(bench_cfg):
+    """The daemon configures the bridge and leaves; the bridge keeps sampling into a pty nobody reads.
+    What the pty cannot take is dropped and the emulator still ends at --duration."""
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen([sys.executable, "-m", "ankle_rt.cli", "emulate", "--transport", "serial",
+                             "--config", str(BENCH), "--port", "pty", "--free-run", "--duration", "4"],
+                            stdout=subprocess.PIPE, text=True)
+    try:
+        line = proc.stdout.readline()
+        bench_cfg["serial"].update(emulator="none", port=line.split(" on ")[1].split(" ")[0], open_timeout_s=10.0)
+        backend = open_backend(bench_cfg, SimClock())
+        run_frames(backend, 10)
+        backend.close()
+        out, _ = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    assert proc.returncode == 0 and int(out.split("emulator: ")[1].split()[0]) > 0   # ended, having ticked
+    assert "bytes not sent (nobody reading)" in out
+
+
 def test_emulate_refuses_a_bad_injection(capsys):
     from ankle_rt.cli import main
 

@@ -38,6 +38,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--baudrate", type=int, help="serial: bit/s (default: serial.baudrate of the config)")
     parser.add_argument("--interface", help="canopen: python-can interface (default: canopen.interface)")
     parser.add_argument("--channel", help="canopen: python-can channel (default: canopen.channel)")
+    parser.add_argument("--free-run", action="store_true", help="serial: tick on the emulator's own clock at "
+                        "controller.rate_hz like the real bridge (default: lockstep, one tick per command)")
     parser.add_argument("--duration", type=float, default=0.0, metavar="S",
                         help="stop after this many seconds of wall time (0: until Ctrl-C)")
     parser.add_argument("--inject", action="append", default=[], metavar="NAME@START[:STOP]",
