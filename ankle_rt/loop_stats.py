@@ -7,6 +7,8 @@ updates an exact maximum: O(1) work, no allocation, and percentiles over the who
 
 from __future__ import annotations
 
+from array import array
+
 import numpy as np
 
 MAX_US = 100_000   # histogram range; slower values land in the overflow bin (their max is exact)
@@ -16,7 +18,10 @@ class Histogram:
     """Counts of integer microsecond values."""
 
     def __init__(self, max_us: int = MAX_US):
-        self.counts = np.zeros(max_us + 2, dtype=np.int64)
+        # array('q') increments cost a fraction of a numpy element update; numpy reads the same
+        # memory (no copy) when percentiles are asked for.
+        self.bins = array("q", bytes(8 * (max_us + 2)))
+        self.counts = np.frombuffer(self.bins, dtype=np.int64)
         self.top = max_us + 1
         self.n = 0
         self.max_ns = 0
@@ -25,7 +30,7 @@ class Histogram:
         if value_ns > self.max_ns:
             self.max_ns = value_ns
         us = value_ns // 1000
-        self.counts[us if us < self.top else self.top] += 1
+        self.bins[us if us < self.top else self.top] += 1
         self.n += 1
 
     def percentile_us(self, q: float, cumulative: np.ndarray | None = None) -> float:
