@@ -66,6 +66,7 @@ class Daemon:
         self.frame = SensorFrame()
         self.est = Estimate()
         self.estimator = Estimator(self.kin, self.dt, est_cfg["velocity_cutoff_hz"], est_cfg["tare_samples"])
+        self.own_controller = controller is None
         if controller is None:
             self.reference = reference_from_config(cfg)
             self.controller = build_controller(cfg, self.kin, self.reference.ref)
@@ -140,16 +141,23 @@ class Daemon:
 
     # -- state changes (commands) ----------------------------------------------------------------
     def activate(self) -> None:
-        """CONFIGURED/SAFE -> ACTIVE. The first activation runs the configured reference; later ones
-        hold the ankle where it is. Raises RuntimeError when not allowed."""
+        """CONFIGURED/SAFE -> ACTIVE. The first activation runs the configured reference (a configured
+        hold is reached by a ramp from the current ankle angle); later ones hold the ankle where it
+        is. Raises RuntimeError when not allowed."""
         s = self.safety
         if s.state not in (State.CONFIGURED, State.SAFE):
             raise RuntimeError(f"cannot activate in state {State(s.state).name}"
                                + (" (reset the fault first)" if s.state == State.FAULT else ""))
         if not self.est.tared:
             raise RuntimeError("strain gauges not tared yet")
+        ankle = self.est.ankle_pos
         if self.activations > 0:
-            self.reference.start(Hold(float(self.est.ankle_pos[0]), float(self.est.ankle_pos[1])))
+            self.reference.start(Hold(ankle.item(0), ankle.item(1)))
+        elif self.own_controller and isinstance(self.reference.profile, Hold) and self.reference.pending is None:
+            # a configured hold is approached from where the ankle is, over reference.ramp_s
+            hold = self.reference.profile
+            self.reference.ref[:] = ankle
+            self.reference.start(RampTo(hold.dp, hold.ie, self.cfg["reference"]["ramp_s"]))
         self.backend.activate()
         s.current[0] = s.current[1] = 0.0
         self.controller.reset(self.est)

@@ -299,17 +299,17 @@ class ReferenceGenerator:
         self.base = (0.0, 0.0)
         self.profile = profile
         self.t0 = t0
-        self._pending: Profile | None = None
+        self.pending: Profile | None = None
         profile.begin(self.base)
 
     def start(self, profile: Profile) -> None:
         """Switch to ``profile`` at the next update (relative profiles start from the current reference)."""
-        self._pending = profile
+        self.pending = profile
 
     def update(self, t: float) -> None:
         """Refresh ``ref`` for sample time ``t`` (s)."""
-        if self._pending is not None:
-            self.profile, self._pending = self._pending, None
+        if self.pending is not None:
+            self.profile, self.pending = self.pending, None
             self.t0 = t
             self.base = (float(self.ref[0]), float(self.ref[1]))
             self.profile.begin(self.base)

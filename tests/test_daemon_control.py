@@ -122,13 +122,26 @@ def test_gain_change_is_bumpless_and_reaches_the_new_gains(sim_cfg):
 
 
 def test_soft_start_ramps_the_output_in(sim_cfg):
-    cfg = variant(sim_cfg, reference={"profile": "hold", "hold": {"dp": 0.1, "ie": 0.0}})
+    cfg = variant(sim_cfg, reference={"profile": "hold", "hold": {"dp": 0.1, "ie": 0.0}, "ramp_s": 0.0})
     res = run_lockstep(cfg, 0.3)
     first = int(np.flatnonzero(res["state"] == State.ACTIVE)[0])
     g = cfg["controller"]["step_gains"]
     kin = Kinematics.from_params(TransmissionParams(**cfg["transmission"]))
-    full = g["kp"] * ((kin.R @ [0.1, 0.0])[0] - res["motor_pos_1"][first]) - g["kd"] * res["motor_vel_1"][first]
+    k = first + 1          # the activation cycle still holds the ankle where it is; the hold acts from here
+    full = g["kp"] * ((kin.R @ [0.1, 0.0])[0] - res["motor_pos_1"][k]) - g["kd"] * res["motor_vel_1"][k]
     steps = cfg["controller"]["soft_start_s"] * cfg["controller"]["rate_hz"]
     tau = res["torque_cmd_1"]
-    assert tau[first] == pytest.approx(full / steps, rel=1e-9)        # 1/200 of the full command
-    assert tau[first + 3] == pytest.approx(4 * tau[first], rel=0.02)   # growing linearly, motor still
+    assert tau[k] == pytest.approx(2 * full / steps, rel=1e-9)        # 2/200 of the full command
+    assert tau[k + 3] == pytest.approx(2.5 * tau[k], rel=0.02)        # growing linearly, motor still
+
+
+def test_a_configured_hold_is_approached_by_a_ramp_from_where_the_ankle_is(sim_cfg):
+    cfg = variant(sim_cfg, reference={"profile": "hold", "hold": {"dp": 0.2, "ie": -0.1}, "ramp_s": 1.0},
+                  sim={"disturbances": []})
+    res = run_lockstep(cfg, 2.5)
+    first = int(np.flatnonzero(res["state"] == State.ACTIVE)[0])
+    ref = np.column_stack([res["ref_dp"], res["ref_ie"]])
+    assert np.allclose(ref[first], [res["est_ankle_dp"][first], res["est_ankle_ie"][first]], atol=1e-6)
+    assert np.allclose(ref[first + 500], [0.1, -0.05], atol=1e-3)       # half way after 0.5 s
+    assert np.allclose(ref[first + 1001:], [0.2, -0.1])
+    assert abs(res["ankle_dp"][-1] - 0.2) < 1e-3 and abs(res["ankle_ie"][-1] + 0.1) < 1e-3
