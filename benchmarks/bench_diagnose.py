@@ -36,6 +36,8 @@ def main() -> int:
     ap.add_argument("--ident-s", type=float, default=12.0)
     ap.add_argument("--valid-s", type=float, default=6.0)
     ap.add_argument("--runtime-s", type=float, default=30.0, help="length of the runtime file (0: skip)")
+    ap.add_argument("--sweep", type=float, nargs="*", default=[0.5, 0.25, 0.1],
+                    help="strengths below the weakest plausible size for the detection sweep (none: skip)")
     args = ap.parse_args()
 
     rows = []
@@ -91,6 +93,20 @@ def main() -> int:
     print("per effect: " + ", ".join(f"{k} {sum(v)}/{len(v)}" for k, v in sorted(by_effect.items())))
     print(f"diagnose time per case ({args.ident_s:g} s + {args.valid_s:g} s files): median "
           f"{np.median([r[3] for r in rows]):.2f} s")
+
+    if args.sweep:
+        print("detection below the plausible range (strength x the weakest plausible size; 1 seed per cell):")
+        effects = ("stribeck", "asymmetric_friction", "load_dependent_friction", "cogging", "delay", "backlash",
+                   "stiffness_nonlinear")
+        print("  " + " " * 24 + "".join(f"{s:>8g}" for s in args.sweep))
+        for k, name in enumerate(effects):
+            cells = []
+            for j, strength in enumerate(args.sweep):
+                case = make_case(args.seed + 5000 + 10 * k + j, "ankle", name, ident_s=args.ident_s,
+                                 valid_s=args.valid_s, strength=strength)
+                diag = diagnose(case.ident, case.valid, plant="ankle", cfg=case.nominal_cfg)
+                cells.append("hit" if diag.cause == name else diag.cause[:7])
+            print(f"  {name:<24}" + "".join(f"{c:>8}" for c in cells), flush=True)
 
     if args.runtime_s > 0:
         case = make_case(args.seed - 1, "ankle", "stribeck", ident_s=args.runtime_s, valid_s=args.runtime_s / 3)

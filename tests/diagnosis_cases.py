@@ -66,11 +66,15 @@ MOTOR_EFFECTS = ("stribeck", "asymmetric_friction", "cogging", "delay")
 ANKLE_EFFECTS = MOTOR_EFFECTS + ("load_dependent_friction", "backlash", "stiffness_nonlinear")
 
 
-def draw_effect(name: str, rng: np.random.Generator) -> tuple[dict, float]:
-    """(sim.effects entry, magnitude in [0, 1]) with a plausible random size."""
+def draw_effect(name: str, rng: np.random.Generator, strength: float | None = None) -> tuple[dict, float]:
+    """(sim.effects entry, magnitude in [0, 1]) with a plausible random size; ``strength`` < 1 instead
+    makes it that fraction of the weakest plausible size (magnitude reported as 0)."""
     key, (lo, hi) = MAGNITUDES[name]
     mag = float(rng.uniform())
     value = lo + mag * (hi - lo)
+    if strength is not None:
+        mag = 0.0
+        value = lo * strength if hi > lo else lo / strength
     entry: dict = {"type": name, key: value}
     if name == "stribeck":
         entry["stribeck_velocity"] = float(np.exp(rng.uniform(np.log(0.03), np.log(0.3))))
@@ -178,9 +182,11 @@ def simulate(cfg: Config, plant_kind: str, rng: np.random.Generator, duration_s:
 
 
 def make_case(seed: int, plant: str = "ankle", cause: str | None = None, ident_s: float = 12.0,
-              valid_s: float = 6.0, p_none: float = 0.25, p_unknown: float = 0.1) -> Case:
+              valid_s: float = 6.0, p_none: float = 0.25, p_unknown: float = 0.1,
+              strength: float | None = None) -> Case:
     """Draw a case from ``seed``. ``cause``: force an effect name, "none" or "kt_saturation"; else random
-    (``p_none`` effect-free, ``p_unknown`` out of vocabulary, the rest uniform over the vocabulary)."""
+    (``p_none`` effect-free, ``p_unknown`` out of vocabulary, the rest uniform over the vocabulary).
+    ``strength``: see :func:`draw_effect`."""
     rng = np.random.default_rng(seed)
     pool = ANKLE_EFFECTS if plant == "ankle" else MOTOR_EFFECTS
     if cause is None:
@@ -190,7 +196,7 @@ def make_case(seed: int, plant: str = "ankle", cause: str | None = None, ident_s
     truth = perturbed(nominal, rng)
     truth["sim"]["seed"] = int(seed)
     truth["sim"]["cables"] = plant == "ankle"
-    effect, mag = (None, 0.0) if cause == "none" else draw_effect(cause, rng)
+    effect, mag = (None, 0.0) if cause == "none" else draw_effect(cause, rng, strength)
     truth["sim"]["effects"] = [effect] if effect else []
     ident = simulate(truth, plant, rng, ident_s)
     valid = simulate(truth, plant, rng, valid_s)
