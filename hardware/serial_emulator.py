@@ -16,8 +16,8 @@ competes for the GIL and nothing depends on scheduling (docs/serial-protocol.md,
 
 Fault injection (:data:`FAULTS`, by name, on/off or scheduled in plant time): dropped samples, a
 corrupted CRC, line noise (random bytes between frames, random bit flips), a stuck encoder, a strain
-gauge at its rail, an ESCON dropping ready, a frozen bridge (silent) and a stale bridge (repeats its
-last sample).
+gauge at its rail, an ESCON dropping ready, a frozen bridge (silent, commands ignored, outputs held
+until its hardware watchdog forces them safe) and a stale bridge (repeats its last sample).
 """
 
 from __future__ import annotations
@@ -127,8 +127,6 @@ class BridgeEmulator:
     # -- bytes in, bytes out ---------------------------------------------------------------------
     def receive(self, data: bytes) -> None:
         """Handle received bytes: frames are acted on as they complete (a frozen bridge ignores them)."""
-        if "frozen" in self.active:
-            return
         view = memoryview(data)
         parser = self.parser
         while len(view):
@@ -147,6 +145,10 @@ class BridgeEmulator:
         self.output += self.writer.frame(mtype, *fields)
 
     def _handle(self, mtype: int, seq: int, fields: tuple) -> None:
+        if "frozen" in self.active:      # the firmware hangs; in lockstep each command is still a period
+            if mtype == MsgType.COMMAND and self.lockstep:
+                self.tick()
+            return
         if mtype == MsgType.CONFIG:
             self._configure(fields)
         elif mtype == MsgType.COMMAND and self.configured:
@@ -205,15 +207,20 @@ class BridgeEmulator:
         return out[0], out[1]
 
     def tick(self) -> None:
-        """One period of the bridge's clock: watchdog, plant step, sample."""
+        """One period of the bridge's clock: watchdog, plant step, sample.
+
+        A frozen bridge sends nothing and applies no command, but the world goes on: the plant steps
+        with the outputs as they were until the watchdog, which a real bridge must implement in an
+        independent hardware watchdog (it outlives a firmware hang), forces them safe."""
         self._apply_schedule()
-        if "frozen" in self.active or not self.configured:
+        if not self.configured:
             return
         self.since_command += 1
         if self.since_command > self.watchdog_ticks and self.outputs_enabled():
             self.trip_watchdog()
         self.plant.step(*self.amplifier_currents())
-        self._sample()
+        if "frozen" not in self.active:
+            self._sample()
 
     def _sample(self) -> None:
         active = self.active

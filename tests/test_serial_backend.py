@@ -128,8 +128,9 @@ def test_injected_fault_goes_safe_in_time_and_resumes_after_reset(bench_cfg, nam
         assert bench.state in (State.FAULT, State.SAFE) and took <= 1 + within
         assert bench.daemon.safety.fault == expected
         bench.cycles(1)
-        if name != "frozen":                                 # a hung bridge applies nothing
-            assert emu.codes == [a.zero_code for a in emu.amps] and emu.amplifier_currents() == (0.0, 0.0)
+        if name == "frozen":       # a hung bridge applies nothing: its (hardware) watchdog makes it safe
+            bench.cycles(round(bench_cfg["serial"]["watchdog_s"] * bench_cfg["controller"]["rate_hz"]))
+        assert emu.codes == [a.zero_code for a in emu.amps] and emu.amplifier_currents() == (0.0, 0.0)
         bench.cycles(20)
         assert bench.state in (State.FAULT, State.SAFE) and bench.daemon.safety.fault == expected  # latched
         emu.inject(name, on=False)
@@ -444,3 +445,29 @@ def test_a_scheduled_fault_is_in_the_run_log_with_its_reason(bench_cfg, tmp_path
     assert res["backend_faults"][first] & BackendFault.STRAIN_GAUGE_RAIL
     assert set(res["state"][first:]) <= {State.FAULT, State.SAFE} and not res["current_cmd_1"][first:].any()
     assert res.summary["fault"] == "SG_RAIL" and (tmp_path / "run.arlog").stat().st_size > 0
+
+
+def test_a_frozen_bridge_holds_its_outputs_until_its_watchdog_and_resumes(bench_cfg):
+    """Scheduled in plant time: hung from 10 ms to 20 ms. The plant goes on with the outputs as they
+    were until the watchdog (5 ms) zeroes them; the host sees no samples (LINK_LOST after 3 ms);
+    afterwards samples resume with the plant's time, the first one reporting the watchdog trip."""
+    backend = open_backend(bench_cfg, SimClock())
+    emu = backend.emulator
+    emu.add_schedule("frozen@0.010:0.020")
+    backend.activate()
+    frame = SensorFrame()
+    log = []
+    for _ in range(30):
+        backend.read(frame)
+        log.append((round(frame.t * 1000), frame.faults, emu.amplifier_currents()[0]))
+        backend.write(2.0, 2.0)
+        backend.clock.advance(backend.period_ns)
+    times = [t for t, _, _ in log]
+    assert times[:11] == list(range(11)) and times[11:21] == [10] * 10     # nothing new while hung
+    assert [f for _, f, _ in log[11:21]] == [BackendFault.NONE] * 2 + [BackendFault.LINK_LOST] * 8
+    held = [i for _, _, i in log[11:21]]
+    assert held[:5] == pytest.approx([2.0] * 5, abs=0.01) and held[5:] == [0.0] * 5   # watchdog: 5 ms
+    assert times[21:] == list(range(21, 30))                                 # resumed in plant time
+    assert log[21][1] == BackendFault.DEVICE_FAULT and log[22][1] == BackendFault.NONE
+    assert log[22][2] == pytest.approx(2.0, abs=0.01)
+    backend.close()
