@@ -1,0 +1,72 @@
+"""The statistics under the diagnosis: effective sample size, fractional shifts, the exact
+zero-order-hold relation the motor channel relies on, and block cross-validation."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ankle_rt.diagnosis.regression import block_cv_mse, effective_samples, fit, information_criterion
+from ankle_rt.diagnosis.signals import MotorChannel, shift_rows
+from ankle_rt.interchange import Recording
+
+
+def test_effective_sample_size_of_white_and_ar1_noise():
+    rng = np.random.default_rng(7)
+    n = 20000
+    white = rng.standard_normal(n)
+    assert effective_samples(white, 1) == pytest.approx(n, rel=0.1)
+    a = 0.8
+    ar = np.empty(n)
+    ar[0] = 0.0
+    e = rng.standard_normal(n)
+    for k in range(1, n):
+        ar[k] = a * ar[k - 1] + e[k]
+    assert effective_samples(ar, 1) == pytest.approx(n * (1 - a) / (1 + a), rel=0.25)
+    # two stacked series count separately
+    assert effective_samples(np.concatenate([white, white[::-1]]), 2) == pytest.approx(2 * n, rel=0.1)
+
+
+def test_information_criterion_penalises_parameters_by_effective_samples():
+    assert information_criterion(1.0, 100, 3, 50.0) - information_criterion(1.0, 100, 2, 50.0) == \
+        pytest.approx(np.log(50.0))
+
+
+def test_fractional_shift_is_linear_interpolation():
+    x = np.arange(10.0) ** 2
+    shifted = shift_rows(x[:, None], 2.25)[:, 0]
+    k = np.arange(10)
+    assert np.allclose(shifted[3:], np.interp(k[3:] - 2.25, k, x))
+    assert shifted[0] == x[0]
+
+
+def test_motor_channel_recovers_inertia_exactly_from_a_held_torque():
+    """theta of J theta'' = tau with tau held per sample: the filtered second difference equals the
+    filtered half-sample-shifted torque / J (no noise, no friction): J to 1e-6, D and kc ~ 0."""
+    dt, n, J = 1e-3, 6000, 0.05
+    rng = np.random.default_rng(3)
+    tau = np.repeat(rng.standard_normal(n // 20), 20) * 0.5
+    th = np.zeros(n)
+    w = 0.0
+    for k in range(n - 1):
+        th[k + 1] = th[k] + dt * w + 0.5 * dt * dt * tau[k] / J
+        w += dt * tau[k] / J
+    rec = Recording({"t": np.arange(n) * dt, "motor_pos_1": th, "motor_torque_1": tau})
+    ch = MotorChannel(rec, None, None, 0.01)
+    f = fit(ch.target(), ch.baseline_design())
+    assert f.coef[0] == pytest.approx(J, rel=1e-6)
+    assert abs(f.coef[1]) < 1e-6 and abs(f.coef[2]) < 1e-6
+
+
+def test_block_cross_validation_rewards_a_true_regressor_not_a_noise_one():
+    rng = np.random.default_rng(11)
+    n = 4000
+    x = np.sin(np.linspace(0, 40, n))
+    true_extra = np.cos(np.linspace(0, 97, n))
+    noise_extra = rng.standard_normal(n)
+    y = 2.0 * x + 0.3 * true_extra + 0.1 * rng.standard_normal(n)
+    base = block_cv_mse(y, x[:, None], 1)
+    good = block_cv_mse(y, np.column_stack([x, true_extra]), 1)
+    bad = block_cv_mse(y, np.column_stack([x, noise_extra]), 1)
+    assert np.all(good < 0.5 * base)
+    assert np.median(bad / base) > 0.98
