@@ -67,6 +67,7 @@ class Daemon:
         self.est = Estimate()
         self.estimator = Estimator(self.kin, self.dt, est_cfg["velocity_cutoff_hz"], est_cfg["tare_samples"])
         self.own_controller = controller is None
+        self.reference_commanded = False   # a set_reference / start_profile command chose the reference
         if controller is None:
             self.reference = reference_from_config(cfg)
             self.controller = build_controller(cfg, self.kin, self.reference.ref)
@@ -153,8 +154,8 @@ class Daemon:
         ankle = self.est.ankle_pos
         if self.activations > 0:
             self.reference.start(Hold(ankle.item(0), ankle.item(1)))
-        elif self.own_controller and isinstance(self.reference.profile, Hold) and self.reference.pending is None:
-            # a configured hold is approached from where the ankle is, over reference.ramp_s
+        elif self.own_controller and not self.reference_commanded and isinstance(self.reference.profile, Hold):
+            # the configured hold is approached from where the ankle is, over reference.ramp_s
             hold = self.reference.profile
             self.reference.ref[:] = ankle
             self.reference.start(RampTo(hold.dp, hold.ie, self.cfg["reference"]["ramp_s"]))
@@ -213,12 +214,14 @@ class Daemon:
             elif isinstance(command, proto.SetReference):
                 ramp = self.cfg["reference"]["ramp_s"] if command.ramp is None else command.ramp
                 self.reference.start(RampTo(command.dp, command.ie, ramp))
+                self.reference_commanded = True
             elif isinstance(command, proto.SetGains):
                 self.set_gains(**command.given())
             elif isinstance(command, proto.StartProfile):
                 profile = make_profile(command.name, command.params)
                 self._check_reach(profile)
                 self.reference.start(profile)
+                self.reference_commanded = True
             else:
                 raise proto.CommandError("cmd", f"not supported: {type(command).__name__}")
         except RuntimeError as exc:
