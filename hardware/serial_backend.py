@@ -27,6 +27,7 @@ cycles (``safety.stale_cycles``) and the link timeout ends them.
 from __future__ import annotations
 
 import time
+from typing import Protocol
 
 from ankle_rt.backend import Backend, BackendError, BackendFault, SensorFrame
 from ankle_rt.clock import Clock
@@ -50,10 +51,23 @@ def link_load(cfg: Config) -> float:
     return bits / cfg["serial"]["baudrate"]
 
 
+class SerialPort(Protocol):
+    """What the backend uses of a pyserial port (``LockstepLink`` offers the same)."""
+
+    @property
+    def in_waiting(self) -> int: ...
+
+    def read(self, size: int = 1) -> bytes: ...
+
+    def write(self, data: bytes | bytearray) -> int | None: ...
+
+    def close(self) -> None: ...
+
+
 class SerialBackend(Backend):
     name = "serial"
 
-    def __init__(self, cfg: Config, clock: Clock, port=None):
+    def __init__(self, cfg: Config, clock: Clock, port: SerialPort | None = None):
         """``port``: an open pyserial-like port (tests); default: ``serial.port``, or the in-process
         lockstep emulator when ``serial.emulator`` is ``lockstep``."""
         super().__init__(cfg, clock)
@@ -112,7 +126,7 @@ class SerialBackend(Backend):
 
     # -- configuration (not per cycle: may block up to serial.open_timeout_s) ----------------------
     @staticmethod
-    def _open(name: str, s: dict):
+    def _open(name: str, s: dict) -> SerialPort:
         import serial
 
         try:

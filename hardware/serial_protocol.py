@@ -67,8 +67,7 @@ MODE_PWM_1 = 0x01        # ESCON 1 set value as PWM duty (else analog)
 MODE_PWM_2 = 0x02
 # FAULT codes
 FAULT_BAD_CONFIG = 1     # detail: index of the offending CONFIG field
-FAULT_RX_CRC = 2         # detail: CRC errors the bridge counted on received frames
-FAULT_INTERNAL = 3
+FAULT_INTERNAL = 2       # detail: the bridge's own error number (ADC, DAC, clock)
 
 MAX_PAYLOAD = max(s.size for s in PAYLOADS.values())
 MAX_FRAME = HEADER.size + MAX_PAYLOAD + CRC.size
