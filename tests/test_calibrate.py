@@ -142,3 +142,16 @@ def test_a_wrong_enable_polarity_leaves_the_motors_still_and_is_named(bench_cfg)
     report, _ = calibrate_against(bench_cfg, host)
     assert [p.split(" (")[0] for p in report.problems] == ["motor 1 did not move", "motor 2 did not move"]
     assert "escon.amplifiers.1.enable_active_high" in report.problems[1]
+
+
+def test_calibrate_runs_on_the_canopen_emulator_too():
+    cfg = load_config(ROOT / "config" / "bench-canopen.yaml")
+    cfg["canopen"]["channel"] = "test-calibrate-canopen"
+    clock = SimClock()
+    backend = open_backend(cfg, clock)
+    try:
+        report = calibrate(cfg, backend, clock)
+    finally:
+        backend.close()
+    assert report.ok, report.problems
+    assert all(c.motor_motion[c.motor - 1] > 0.01 for c in report.motors)
