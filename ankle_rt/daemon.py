@@ -295,6 +295,7 @@ class Daemon:
 
     def log_metadata(self) -> dict[str, Any]:
         return log_metadata(config=getattr(self.cfg, "source", "<memory>"), backend=self.cfg["backend"],
+                            clock="simulated" if self.clock.simulated else "monotonic",
                             rate_hz=self.cfg["controller"]["rate_hz"], torque_constant=self.kt,
                             controller=type(self.controller).__name__,
                             states={s.name: int(s) for s in State}, faults={f.name: int(f) for f in Fault})

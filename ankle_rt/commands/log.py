@@ -39,7 +39,7 @@ def info_cmd(args: argparse.Namespace) -> int:
     log = _read(args.path)
     if log is None:
         return 1
-    summary = summarize(log.records)
+    summary = summarize(log.records, log.meta)
     summary["log"] = log.source
     summary["meta"] = log.meta
     summary["torn_bytes"] = log.torn_bytes

@@ -109,8 +109,9 @@ def run(args: argparse.Namespace) -> int:
     if log_path is None:
         print(f"stopped after {daemon.loop.stats.cycles} cycles (no log written)")
         return 0
-    records = read_log(log_path).records
-    summary = summarize(records)
+    run_log = read_log(log_path)
+    records = run_log.records
+    summary = summarize(records, run_log.meta)
     summary["log"] = str(log_path)
     summary["loop_stats"] = daemon.loop.stats.summary()
     if daemon.recorder.dropped:

@@ -18,10 +18,11 @@ def _pct(values: np.ndarray, q: float) -> float:
     return float(np.percentile(values, q)) if len(values) else math.nan
 
 
-def summarize(records: np.ndarray) -> dict[str, Any]:
-    """Summary of a run's records (RECORD_DTYPE). Angles in degrees, currents in A, times in µs."""
+def summarize(records: np.ndarray, meta: dict[str, Any] | None = None) -> dict[str, Any]:
+    """Summary of a run's records (RECORD_DTYPE); ``meta`` is the log header's metadata (its
+    ``clock`` says whether loop timing was measured). Angles in degrees, currents in A, times in µs."""
     n = len(records)
-    out: dict[str, Any] = {"cycles": n}
+    out: dict[str, Any] = {"cycles": n, "clock": (meta or {}).get("clock", "monotonic")}
     if n == 0:
         return out
     t = records["t"]
@@ -94,6 +95,10 @@ def format_summary(s: dict[str, Any]) -> str:
     pk, rms = s["peak_current_a"], s["rms_current_a"]
     lines.append(f"current: peak {pk[0]:.2f} / {pk[1]:.2f} A, rms while active {rms[0]:.2f} / {rms[1]:.2f} A")
     lp = s["loop"]
+    if s.get("clock") == "simulated":
+        lines.append("loop: lockstep on a simulated clock (no timing to measure); "
+                     "`ankle-rt bench loop` measures the real-time loop")
+        return "\n".join(lines)
     pe, la = lp["period_error_us"], lp["latency_us"]
     lines.append(f"loop: period {lp['period_nominal_us']:.0f} us; period error p50/p99/p99.9/max "
                  f"{pe['p50']:.1f} / {pe['p99']:.1f} / {pe['p99.9']:.1f} / {pe['max']:.1f} us")
