@@ -26,6 +26,7 @@ cycles (``safety.stale_cycles``) and the link timeout ends them.
 
 from __future__ import annotations
 
+import math
 import time
 from typing import Protocol
 
@@ -121,7 +122,7 @@ class SerialBackend(Backend):
         self.link_down = False
         self.count = dict(crc_errors=0, frames_lost=0, stale_samples=0, cycles_without_sample=0,
                           link_lost=0, port_errors=0, device_faults=0, watchdog_trips=0, amp_not_ready=0,
-                          strain_gauge_rail=0, encoder_faults=0, samples=0)
+                          strain_gauge_rail=0, encoder_faults=0, samples=0, seq_resyncs=0)
         self._configure(s)
 
     # -- configuration (not per cycle: may block up to serial.open_timeout_s) ----------------------
@@ -258,15 +259,16 @@ class SerialBackend(Backend):
     def _on_frame(self) -> bool:
         parser = self.parser
         seq = parser.seq
-        if self.last_frame_seq >= 0:
-            step = (seq - self.last_frame_seq) % SEQ_MODULUS
-            if step == 0 or step > SEQ_MODULUS // 2:
-                return False                          # a repeat or an old frame: ignore
-            if step > 1:
-                self.count["frames_lost"] += step - 1
-                self.faults |= BackendFault.SEQUENCE_GAP
-        else:
+        step = (seq - self.last_frame_seq) % SEQ_MODULUS if self.last_frame_seq >= 0 else 1
+        if step == 0:
+            return False                              # the same frame again: ignore
+        if step > SEQ_MODULUS // 2:                   # numbering went back: the bridge restarted, or half
+            self.count["seq_resyncs"] += 1            # the sequence space was lost; take it from here
+            self.faults |= BackendFault.SEQUENCE_GAP
             step = 1
+        elif step > 1:
+            self.count["frames_lost"] += step - 1
+            self.faults |= BackendFault.SEQUENCE_GAP
         self.last_frame_seq = seq
         mtype = parser.mtype
         if mtype == MsgType.SAMPLE:
@@ -297,8 +299,11 @@ class SerialBackend(Backend):
         if self.gauges.convert(s1, s2, frame.sg_torque):
             self.count["strain_gauge_rail"] += 1
             faults |= BackendFault.STRAIN_GAUGE_RAIL
-        if self.joints is not None and inputs & IN_JOINT_VALID:
-            self.joints.convert(j1, j2, frame.ankle_pos)
+        if self.joints is not None:
+            if inputs & IN_JOINT_VALID:
+                self.joints.convert(j1, j2, frame.ankle_pos)
+            else:
+                frame.ankle_pos[0] = frame.ankle_pos[1] = math.nan
         r1 = self.amps[0].is_ready(bool(inputs & IN_READY_1))
         r2 = self.amps[1].is_ready(bool(inputs & IN_READY_2))
         frame.amp_ready[0] = r1

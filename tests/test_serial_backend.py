@@ -471,3 +471,17 @@ def test_a_frozen_bridge_holds_its_outputs_until_its_watchdog_and_resumes(bench_
     assert log[21][1] == BackendFault.DEVICE_FAULT and log[22][1] == BackendFault.NONE
     assert log[22][2] == pytest.approx(2.0, abs=0.01)
     backend.close()
+
+
+def test_bridge_numbering_that_jumps_back_is_taken_up_again(bench_cfg):
+    """After a restart of the bridge (or more than half the 16-bit sequence lost) the numbering goes
+    back: the backend reports it once and follows the new numbering instead of ignoring it forever."""
+    backend = open_backend(bench_cfg, SimClock())
+    frame = SensorFrame()
+    run_frames(backend, 5, frame)
+    backend.emulator.writer.seq = (backend.last_frame_seq + 40000) % 65536
+    seen = run_frames(backend, 4, frame)
+    assert [f for _, f in seen] == [BackendFault.NONE, BackendFault.SEQUENCE_GAP, BackendFault.NONE,
+                                    BackendFault.NONE]
+    assert [s for s, _ in seen] == [6, 7, 8, 9] and backend.counters()["seq_resyncs"] == 1
+    backend.close()
