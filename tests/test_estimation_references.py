@@ -121,3 +121,5 @@ def test_csv_profile_interpolates_and_bad_files_name_column_and_row(sim_cfg, tmp
         make_profile("csv", {"path": str(tmp_path / "nocol.csv")})
     with pytest.raises(ConfigError, match="reference.csv.path"):
         reference_from_config(variant(sim_cfg, reference={"profile": "csv"}))
+    with pytest.raises(ConfigError, match=r"reference\.csv\.path.*'ref_dp'.*row 2"):
+        reference_from_config(variant(sim_cfg, reference={"profile": "csv", "csv": {"path": str(bad)}}))
