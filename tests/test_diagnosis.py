@@ -13,7 +13,7 @@ import pytest
 from ankle_rt.cli import main
 from ankle_rt.config import load_config
 from ankle_rt.diagnosis import diagnose
-from ankle_rt.interchange import write_csv
+from ankle_rt.interchange import Recording, write_csv
 from tests.diagnosis_cases import SIM_CONFIG, make_case, primary_error
 
 PARAM_TOLERANCE = 0.15
@@ -111,3 +111,22 @@ def test_ankle_plant_needs_a_config(tmp_path, capsys):
     write_csv(path, case.ident.columns)
     assert main(["diagnose", str(path)]) == 2
     assert "--config" in capsys.readouterr().err
+
+
+def test_linear_axis_in_newtons_and_metres_without_config():
+    """Single-actuator data in any consistent units: a linear axis (1 rad -> 1 cm), forces in N."""
+    case = make_case(77, "actuator", "cogging", ident_s=10.0, valid_s=5.0)
+    print(case.describe())
+    kt, metre_per_rad = case.truth_cfg["actuator"]["torque_constant"], 0.01
+
+    def linear(rec: Recording) -> Recording:
+        return Recording({"t": rec["t"], "motor_pos_1": rec["motor_pos_1"] * metre_per_rad,
+                          "motor_torque_1": rec["current_cmd_1"] * kt / metre_per_rad}, "linear axis")
+
+    diag = diagnose(linear(case.ident), linear(case.valid), plant="actuator", cfg=None)
+    assert diag.cause == "cogging", case.describe()
+    assert diag.parameters["amplitude"]["value"] == pytest.approx(case.effect["amplitude"] / metre_per_rad,
+                                                                 rel=PARAM_TOLERANCE)
+    assert diag.parameters["periods_per_rev"]["value"] == case.effect["periods_per_rev"] / metre_per_rad
+    mass = case.truth_cfg["actuator"]["inertia"] / metre_per_rad ** 2   # kg
+    assert diag.baseline["motor"]["inertia"]["value"][0] == pytest.approx(mass, rel=0.05)

@@ -97,11 +97,19 @@ class Cogging(Candidate):
     integer = True
 
     def grid(self, ch):
-        # every integer period count (one off and the phase drifts over a long motion) up to where the
-        # ripple n |v| / 2 pi leaves the filter's pass band for most slow-to-medium motion
+        # up to where the ripple n |v| / 2 pi leaves the filter's pass band for slow-to-medium motion; in
+        # steps small enough that the ripple's phase drifts < pi/2 over the travel (every integer on a
+        # rotary axis), at most MAX_COGGING_POINTS of them (a linear axis in metres has large n)
         v_slow = float(np.percentile(np.abs(ch.vel), 25)) or 1.0
-        n_max = int(np.clip(2.0 * np.pi * 25.0 / v_slow, 8, MAX_COGGING_PERIODS))
-        return [float(n) for n in range(1, n_max + 1)]
+        n_max = max(8, int(2.0 * np.pi * 25.0 / v_slow))
+        step = max(1, min(int(0.5 * np.pi / max(float(np.ptp(ch.pos)), 1e-12)), -(-n_max // MAX_COGGING_POINTS)))
+        return [float(n) for n in range(step, n_max + 1, step)]
+
+    def local_grid(self, ch, best: float) -> list[float]:
+        """Every integer between the coarse grid's neighbours of ``best``."""
+        grid = self.grid(ch)
+        step = int(grid[1] - grid[0]) if len(grid) > 1 else 1
+        return [float(n) for n in range(max(1, int(best) - step + 1), int(best) + step)] if step > 1 else []
 
     def design(self, ch, nl):
         ang = nl * ch.pos
@@ -174,7 +182,7 @@ MOTOR_CANDIDATES: tuple[Candidate, ...] = (Stribeck(), AsymmetricFriction(), Loa
                                            Cogging(), Delay())
 CABLE_CANDIDATES: tuple[Candidate, ...] = (Backlash(), HardeningStiffness())
 
-MAX_COGGING_PERIODS = 300
+MAX_COGGING_POINTS = 400
 DELAY_LAGS_S = (0.001, 0.002, 0.004, 0.007, 0.011, 0.016, 0.022)
 
 

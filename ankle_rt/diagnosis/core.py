@@ -25,7 +25,7 @@ import numpy as np
 from ankle_rt.config import Config
 from ankle_rt.diagnosis.candidates import (CABLE_CANDIDATES, MOTOR_CANDIDATES, Candidate, Channel,
                                            catch_all_cable, catch_all_motor)
-from ankle_rt.diagnosis.regression import block_cv_mse, fit
+from ankle_rt.diagnosis.regression import block_cv_mse, fit, rss_only
 from ankle_rt.diagnosis.selection import ChannelScores, Score, design_matrix, score_channel
 from ankle_rt.diagnosis.signals import CableChannel, Geometry, MotorChannel
 from ankle_rt.interchange import InterchangeError, Recording
@@ -104,7 +104,7 @@ def split_recording(rec: Recording, fraction: float) -> tuple[Recording, Recordi
 @dataclass
 class Inputs:
     kt: float | None
-    v_eps: float | None
+    v_eps: float
     geometry: Geometry | None
     notes: list[str]
 
@@ -122,11 +122,30 @@ def resolve_inputs(rec: Recording, plant: str, cfg: Config | None) -> Inputs:
     if kt is None and rec.input_kind == "current":
         kt = 1.0
         notes.append("no config: currents used as the input unit (J, D, kc per ampere)")
-    v_eps = cfg["actuator"]["friction_smoothing_velocity"] if cfg is not None else None
-    if v_eps is None:
-        notes.append("no config: Coulomb smoothing velocity taken as 0.1 % of the 99th-percentile speed")
     geometry = geometry_of(cfg) if plant == "ankle" else None
+    if cfg is not None:
+        v_eps = cfg["actuator"]["friction_smoothing_velocity"]
+    else:
+        v_eps = fit_smoothing_velocity(rec, kt, geometry)
+        notes.append(f"no config: Coulomb smoothing velocity fitted from the data: {v_eps:.3g} (position unit/s)")
     return Inputs(kt, v_eps, geometry, notes)
+
+
+def fit_smoothing_velocity(rec: Recording, kt: float | None, geometry: Geometry | None) -> float:
+    """The baseline's nonlinear parameter when no config gives it: v_eps of kc tanh(v / v_eps), searched on
+    a grid relative to the 99th-percentile speed. Scored jointly with the Stribeck block (at its best
+    velocity), which acts at the same low speeds and would otherwise pull v_eps towards itself."""
+    probe = MotorChannel(rec, kt, geometry, 1.0)
+    v99 = float(np.percentile(np.abs(probe.vel), 99)) or 1.0
+    stribeck = next(c for c in MOTOR_CANDIDATES if c.cause == "stribeck")
+    y = probe.target()
+    best = (math.inf, v99 * 1e-3)
+    for v_eps in v99 * np.geomspace(2e-4, 2e-2, 13):
+        probe.set_smoothing_velocity(float(v_eps))
+        Xb = probe.baseline_design()
+        rss = min(rss_only(y, np.hstack([Xb, stribeck.design(probe, vs).X])) for vs in stribeck.grid(probe))
+        best = min(best, (rss, float(v_eps)))
+    return best[1]
 
 
 def build_channels(rec: Recording, inputs: Inputs) -> dict[str, Channel]:

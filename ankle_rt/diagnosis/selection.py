@@ -72,6 +72,11 @@ def score_channel(name: str, ch: Channel, candidates: tuple[Candidate, ...],
             y, X = design_matrix(ch, Xb, cand, nl)
             profile.append((nl, rss_only(y, X)))
         nl, rss = min(profile, key=lambda p: p[1])
+        for extra in getattr(cand, "local_grid", lambda _c, _b: [])(ch, nl):
+            y, X = design_matrix(ch, Xb, cand, extra)
+            profile.append((extra, rss_only(y, X)))
+        profile.sort()
+        nl, rss = min(profile, key=lambda p: p[1])
         d = cand.design(ch, nl)
         if d.X.shape[1]:
             best_blocks.append(d.X)

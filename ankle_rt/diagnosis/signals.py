@@ -99,7 +99,7 @@ class Geometry:
 class MotorChannel:
     """Motor-side signals of all motors in a recording (columns = motors)."""
 
-    def __init__(self, rec: Recording, kt: float | None, geometry: Geometry | None, v_eps: float | None):
+    def __init__(self, rec: Recording, kt: float | None, geometry: Geometry | None, v_eps: float):
         self.source = rec.source
         self.dt = rec.dt
         self.sm = sm = Smoother.for_period(self.dt)
@@ -118,13 +118,18 @@ class MotorChannel:
             tau_j = np.column_stack([rec["sg_torque_dp"], rec["sg_torque_ie"]])
             self.tc = tau_j @ geometry.R_inv_T.T
         self.vel = sm.fast_derivative(self.pos)
-        self.v_eps = v_eps if v_eps else 1e-3 * float(np.percentile(np.abs(self.vel), 99) or 1.0)
+        self.v_eps = v_eps
         self.rows = sm.rows(n)
         self.L_acc = sm.smooth(self.pos, 2)
         self.L_vel = sm.smooth(self.pos, 1)
         self.L_tau = sm.smooth(self.tau)
         self.L_tc = sm.smooth(self.tc)
         self.sign = np.tanh(self.vel / self.v_eps)
+
+    def set_smoothing_velocity(self, v_eps: float) -> None:
+        """Change v_eps of the Coulomb regressor tanh(v / v_eps) (position unit/s)."""
+        self.v_eps = v_eps
+        self.sign = np.tanh(self.vel / v_eps)
 
     @property
     def n_rows(self) -> int:
