@@ -222,6 +222,8 @@ ESCON_AMPLIFIER = Section({
     "sign": Field(int, "+1/-1: motor turns the model's positive way for positive amplifier current (wiring)",
                   choices=(-1, 1)),
     "offset": Field(float, "A driven at the nominal zero set value (measured), compensated"),
+    "scale": positive("measured current / current of the ESCON Studio map (gain error), compensated; "
+                      "1.0: as mapped", default=1.0),
     "enable_active_high": Field(bool, "ESCON Studio digital input: Enable, high active", default=True),
     "ready_active_high": Field(bool, "ESCON Studio digital output: Ready, high active", default=True),
 })

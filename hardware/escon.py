@@ -10,6 +10,8 @@ same two points, so the daemon computes exactly the voltage or duty ESCON Studio
   direction (motor wiring, mounting). ``ankle-rt calibrate`` checks it.
 - ``offset`` (A): the current the amplifier drives at the nominal zero set value (DAC and input
   offset, measured); it is compensated.
+- ``scale``: the measured current over the current the map promises (DAC reference and amplifier gain
+  error, measured); it is compensated. The motor current is ``sign * (scale * map(value) + offset)``.
 - enable and ready polarity (ESCON Studio: "Enable, high active", "Ready, high active").
 
 The set value leaves the bridge or I/O module as an integer code: :class:`SetValueCode` is that
@@ -72,7 +74,7 @@ class EsconAmplifier:
     """
 
     def __init__(self, *, mode: str, current_at_min: float, current_at_max: float, sign: int,
-                 offset: float, limit: float, codec: SetValueCode, enable_active_high: bool = True,
+                 offset: float, limit: float, codec: SetValueCode, scale: float = 1.0, enable_active_high: bool = True,
                  ready_active_high: bool = True, key: str = "escon.amplifiers", source: str | None = None):
         if mode not in ("analog", "pwm"):
             raise ConfigError(f"expected 'analog' or 'pwm', got {mode!r}", source, f"{key}.mode")
@@ -90,13 +92,16 @@ class EsconAmplifier:
             raise ConfigError(f"the set-value map reaches only +/-{reach:g} A but amplifier.current_limit_peak "
                               f"is {limit:g} A: widen the map in ESCON Studio and here, or lower the limit",
                               source, f"{key}.current_at_max")
+        if not scale > 0.0:
+            raise ConfigError(f"must be > 0, got {scale!r}", source, f"{key}.scale")
         self.sign = sign
         self.offset = offset
+        self.scale = scale
         self.limit = limit
         self.codec = codec
         self.enable_active_high = enable_active_high
         self.ready_active_high = ready_active_high
-        self.current_lsb = abs(self.slope) * codec.lsb     # A per code
+        self.current_lsb = abs(self.slope) * scale * codec.lsb     # A per code
         self.zero_code = self.code(0.0)
 
     # -- the linear map ESCON Studio is set to ---------------------------------------------------
@@ -108,7 +113,7 @@ class EsconAmplifier:
         """V or duty fraction for the motor current ``current`` (A), clamped to +/-limit and the input range."""
         lim = self.limit
         i = lim if current > lim else (-lim if current < -lim else current)
-        value = self.value_min + (self.sign * i - self.offset - self.current_at_min) / self.slope
+        value = self.value_min + ((self.sign * i - self.offset) / self.scale - self.current_at_min) / self.slope
         return self.value_min if value < self.value_min else (self.value_max if value > self.value_max else value)
 
     def code(self, current: float) -> int:
@@ -121,7 +126,7 @@ class EsconAmplifier:
         code = c.code_min if code < c.code_min else (c.code_max if code > c.code_max else code)
         value = c.value(code)
         value = self.value_min if value < self.value_min else (self.value_max if value > self.value_max else value)
-        return self.sign * (self._amp_current(value) + self.offset)
+        return self.sign * (self.scale * self._amp_current(value) + self.offset)
 
     # -- digital lines ---------------------------------------------------------------------------
     def enable_level(self, enabled: bool) -> bool:
@@ -156,7 +161,7 @@ def escon_amplifiers(cfg: dict, codec: SetValueCode | None = None) -> tuple[Esco
                       else SetValueCode.pwm(esc["pwm_counts"]))
         out.append(EsconAmplifier(mode=a["mode"], current_at_min=a["current_at_min"],
                                   current_at_max=a["current_at_max"], sign=a["sign"], offset=a["offset"],
-                                  limit=limit, codec=c, enable_active_high=a["enable_active_high"],
+                                  scale=a["scale"], limit=limit, codec=c, enable_active_high=a["enable_active_high"],
                                   ready_active_high=a["ready_active_high"], key=f"escon.amplifiers.{i}",
                                   source=getattr(cfg, "source", None)))
     return out[0], out[1]

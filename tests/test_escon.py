@@ -32,9 +32,9 @@ def test_pwm_map_is_10_to_90_percent():
 
 
 @given(i=st.floats(-15.0, 15.0), mode=st.sampled_from(["analog", "pwm"]), sign=st.sampled_from([-1, 1]),
-       offset=st.floats(-0.3, 0.3))
-def test_round_trip_within_half_a_code(i, mode, sign, offset):
-    a = amp(mode, sign=sign, offset=offset, lo=-16.0, hi=16.0)
+       offset=st.floats(-0.3, 0.3), scale=st.floats(0.97, 1.03))
+def test_round_trip_within_half_a_code(i, mode, sign, offset, scale):
+    a = amp(mode, sign=sign, offset=offset, scale=scale, lo=-16.5, hi=16.5)
     assert abs(a.current(a.code(i)) - i) <= a.current_lsb / 2 + 1e-12
 
 
@@ -57,6 +57,13 @@ def test_sign_and_offset_calibration():
     a = amp(offset=0.2)                                        # the amplifier drives +0.2 A at 0 V
     assert a.current(a.code(0.0)) == pytest.approx(0.0, abs=a.current_lsb / 2)
     assert a.code(0.0) == amp().code(-0.2)
+
+
+def test_scale_calibration():
+    a = amp(scale=0.95)                                        # the amplifier drives 5 % less than mapped
+    assert a.set_value(7.125) == pytest.approx(5.0)            # so 7.125 A needs the 7.5 A voltage
+    assert a.current(a.code(7.125)) == pytest.approx(7.125, abs=a.current_lsb / 2)
+    assert a.current_lsb == pytest.approx(0.95 * 30.0 / 4096)
 
 
 def test_enable_and_ready_polarity():

@@ -416,7 +416,6 @@ def test_line_noise_never_crashes_the_backend_nor_yields_a_sample_that_was_not_s
     backend = SerialBackend(cfg, SimClock(), port=LockstepLink(emu))
     frame = SensorFrame()
     backend.activate()
-    fresh = 0
     for k in range(300):
         backend.read(frame)
         if backend.latest is not None:
@@ -424,12 +423,13 @@ def test_line_noise_never_crashes_the_backend_nor_yields_a_sample_that_was_not_s
         backend.write(0.4 * math.sin(k / 20), -0.3)
         backend.clock.advance(backend.period_ns)
     c = backend.counters()
+    corrupted = emu.samples_corrupted                    # before close(): its command would tick again
     backend.close()
-    assert emu.samples_corrupted > 0 and c["bytes_discarded"] > 0
-    assert c["crc_errors"] <= emu.samples_corrupted      # a flip in the header is garbage, not a CRC error
+    assert corrupted > 0 and c["bytes_discarded"] > 0
+    assert c["crc_errors"] <= corrupted                  # a flip in the header is garbage, not a CRC error
     assert c["samples"] + c["cycles_without_sample"] == 300
     lost = 300 - c["samples"]                            # only the corrupted ones (the 301st is unread)
-    assert emu.samples_corrupted - 1 <= lost <= emu.samples_corrupted
+    assert corrupted - 1 <= lost <= corrupted
 
 
 def test_a_scheduled_fault_is_in_the_run_log_with_its_reason(bench_cfg, tmp_path):
