@@ -52,7 +52,9 @@ class BridgeEmulator:
     """The bridge firmware with :class:`SimulatedPlant` behind it. ``cfg`` is the device's truth:
     plant parameters and the ESCON Studio settings, encoder and strain-gauge wiring it emulates."""
 
-    def __init__(self, cfg: Config, *, lockstep: bool = True):
+    def __init__(self, cfg: Config, *, lockstep: bool = True, enable_delay_s: float = 0.0):
+        """``enable_delay_s``: how long an ESCON takes to follow its enable input (up to 8 ms on the
+        ESCON 50/5's digital inputs; 0: at once). The set value acts at once either way."""
         self.plant = SimulatedPlant(cfg, getattr(cfg, "source", "config"))
         self.amps = escon_amplifiers(cfg)
         self.encoders = MotorEncoders.from_config(cfg)
@@ -71,6 +73,9 @@ class BridgeEmulator:
         self.codes = [self.amps[0].zero_code, self.amps[1].zero_code]
         self.safe_codes = list(self.codes)
         self.enable_levels = [self.amps[0].enable_level(False), self.amps[1].enable_level(False)]
+        self.enable_delay_ticks = round(enable_delay_s * self.rate_hz)
+        self.amp_enabled = [False, False]     # what the ESCONs follow, enable_delay_ticks behind the lines
+        self._enable_countdown = [self.enable_delay_ticks, self.enable_delay_ticks]
         self.watchdog_ticks = 1
         self.config_tick = 0
         self.since_command = 0
@@ -202,9 +207,22 @@ class BridgeEmulator:
         """A: what the two ESCONs drive now (zero when disabled or in fault)."""
         out = []
         for k, amp in enumerate(self.amps):
-            on = amp.is_enabled(self.enable_levels[k]) and f"not_ready_{k + 1}" not in self.active
+            enabled = amp.is_enabled(self.enable_levels[k]) if self.enable_delay_ticks == 0 else self.amp_enabled[k]
+            on = enabled and f"not_ready_{k + 1}" not in self.active
             out.append(amp.current(self.codes[k]) if on else 0.0)
         return out[0], out[1]
+
+    def _follow_enables(self) -> None:
+        """The ESCONs take enable_delay_ticks to follow a change of their enable lines."""
+        for k, amp in enumerate(self.amps):
+            wanted = amp.is_enabled(self.enable_levels[k])
+            if wanted == self.amp_enabled[k]:
+                self._enable_countdown[k] = self.enable_delay_ticks
+            else:
+                self._enable_countdown[k] -= 1
+                if self._enable_countdown[k] <= 0:
+                    self.amp_enabled[k] = wanted
+                    self._enable_countdown[k] = self.enable_delay_ticks
 
     def tick(self) -> None:
         """One period of the bridge's clock: watchdog, plant step, sample.
@@ -218,6 +236,7 @@ class BridgeEmulator:
         self.since_command += 1
         if self.since_command > self.watchdog_ticks and self.outputs_enabled():
             self.trip_watchdog()
+        self._follow_enables()
         self.plant.step(*self.amplifier_currents())
         if "frozen" not in self.active:
             self._sample()

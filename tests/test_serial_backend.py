@@ -485,3 +485,35 @@ def test_bridge_numbering_that_jumps_back_is_taken_up_again(bench_cfg):
                                     BackendFault.NONE]
     assert [s for s, _ in seen] == [6, 7, 8, 9] and backend.counters()["seq_resyncs"] == 1
     backend.close()
+
+
+def test_a_slow_enable_input_is_why_the_set_value_is_zeroed_too(bench_cfg):
+    """An ESCON may take 8 ms to follow its enable input. Dropping only the enable would leave the
+    current on for 8 ticks; deactivate() zeroes the set value as well, so it is off at the next tick."""
+    def currents_after(deactivate: bool) -> list[float]:
+        emu = BridgeEmulator(bench_cfg, enable_delay_s=0.008)
+        backend = SerialBackend(bench_cfg, SimClock(), port=LockstepLink(emu))
+        frame = SensorFrame()
+        backend.activate()
+        on = []
+        for _ in range(15):                                   # enabled after the 8 ms, then driving 3 A
+            backend.read(frame)
+            backend.write(3.0, 3.0)
+            on.append(emu.plant.current[0])
+        assert on[:7] == [0.0] * 7 and on[8:] == pytest.approx([3.0] * 7, abs=0.01)
+        if deactivate:
+            backend.deactivate()
+        out = []
+        for _ in range(10):
+            backend.read(frame)
+            if deactivate:
+                backend.write(3.0, 3.0)                       # ignored: zero sent while not active
+            else:                                             # what a bridge dropping only the enables does
+                backend._command(emu.amps[0].code(3.0), emu.amps[1].code(3.0), backend.disabled)
+            out.append(emu.plant.current[0])
+        backend.close()
+        return out
+
+    assert currents_after(deactivate=True) == [0.0] * 10
+    only_enable = currents_after(deactivate=False)
+    assert only_enable[:7] == pytest.approx([3.0] * 7, abs=0.01) and only_enable[8:] == [0.0, 0.0]
