@@ -114,4 +114,6 @@ class Estimator:
         a = est.ankle_vel
         a[0] = r0 * v1 + r1 * v2
         a[1] = r2 * v1 + r3 * v2
-        est.joint_pos[:] = frame.ankle_pos
+        a, j = est.joint_pos, frame.ankle_pos
+        a[0] = j[0]
+        a[1] = j[1]
