@@ -97,12 +97,12 @@ class Cogging(Candidate):
     integer = True
 
     def grid(self, ch):
-        # up to where the ripple n |v| / 2 pi leaves the filter's pass band for slow-to-medium motion; in
+        # up to where the ripple n |v| / 2 pi leaves the filter's pass band for slow-to-medium motion, in
         # steps small enough that the ripple's phase drifts < pi/2 over the travel (every integer on a
-        # rotary axis), at most MAX_COGGING_POINTS of them (a linear axis in metres has large n)
+        # rotary axis; a linear axis in metres has large n and coarser steps), at most MAX_COGGING_POINTS
         v_slow = float(np.percentile(np.abs(ch.vel), 25)) or 1.0
-        n_max = max(8, int(2.0 * np.pi * 25.0 / v_slow))
-        step = max(1, min(int(0.5 * np.pi / max(float(np.ptp(ch.pos)), 1e-12)), -(-n_max // MAX_COGGING_POINTS)))
+        step = max(1, int(0.5 * np.pi / max(float(np.ptp(ch.pos)), 1e-12)))
+        n_max = min(max(8, int(2.0 * np.pi * 25.0 / v_slow)), step * MAX_COGGING_POINTS)
         return [float(n) for n in range(step, n_max + 1, step)]
 
     def local_grid(self, ch, best: float) -> list[float]:
@@ -113,7 +113,8 @@ class Cogging(Candidate):
 
     def design(self, ch, nl):
         ang = nl * ch.pos
-        return Design(np.column_stack([ch.filt(np.sin(ang)), ch.filt(np.cos(ang))]))
+        both = ch.sm.smooth(np.hstack([np.sin(ang), np.cos(ang)]))[ch.rows]   # one filter pass for both
+        return Design(np.column_stack([both[:, :ch.m].T.ravel(), both[:, ch.m:].T.ravel()]))
 
     def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
         s, c = float(coef[0]), float(coef[1])
@@ -182,7 +183,7 @@ MOTOR_CANDIDATES: tuple[Candidate, ...] = (Stribeck(), AsymmetricFriction(), Loa
                                            Cogging(), Delay())
 CABLE_CANDIDATES: tuple[Candidate, ...] = (Backlash(), HardeningStiffness())
 
-MAX_COGGING_POINTS = 400
+MAX_COGGING_POINTS = 300
 DELAY_LAGS_S = (0.001, 0.002, 0.004, 0.007, 0.011, 0.016, 0.022)
 
 

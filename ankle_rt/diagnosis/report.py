@@ -26,10 +26,10 @@ def _pyplot():
     return plt
 
 
-def _scatter(plt, path: Path, x: np.ndarray, r: np.ndarray, xlabel: str, title: str, m: int) -> str:
+def _scatter(plt, path: Path, x: np.ndarray, r: np.ndarray, xlabel: str, title: str, labels: list[str]) -> str:
     fig, ax = plt.subplots(figsize=(6.4, 3.6))
-    for i, (xs, rs) in enumerate(zip(np.split(x, m), np.split(r, m))):
-        ax.plot(xs, rs, ".", ms=2, alpha=0.5, label=f"{'motor' if 'motor' in title else 'axis'} {i + 1}")
+    for label, xs, rs in zip(labels, np.split(x, len(labels)), np.split(r, len(labels))):
+        ax.plot(xs, rs, ".", ms=2, alpha=0.5, label=label)
     ax.set_xlabel(xlabel)
     ax.set_ylabel("baseline residual (N m)")
     ax.set_title(title)
@@ -128,22 +128,23 @@ def write_report(directory: str | Path, diag: Diagnosis, closed=None) -> Path:
     verdict = diag.detail["verdict"]
     for cs in diag.detail["channels"]:
         ch, r = cs.channel, cs.baseline.residual
+        motors = [f"motor {i + 1}" for i in range(ch.m)]
         if cs.name == "motor":
             images.append(("Residual against motor velocity",
                            _scatter(plt, out / "residual_vs_velocity.png", ch.pick(ch.vel), r,
-                                    "motor velocity (rad/s)", "motor residual vs velocity", ch.m)))
+                                    "motor velocity (rad/s)", "motor residual vs velocity", motors)))
             if np.any(ch.tc):
                 images.append(("Residual against cable torque",
                                _scatter(plt, out / "residual_vs_cable_torque.png", ch.pick(ch.tc), r,
                                         "cable torque felt by the motor (N m)", "motor residual vs cable tension",
-                                        ch.m)))
+                                        motors)))
             images.append(("Residual against motor angle",
                            _scatter(plt, out / "residual_vs_motor_angle.png", ch.pick(ch.pos), r,
-                                    "motor angle (rad)", "motor residual vs motor angle", ch.m)))
+                                    "motor angle (rad)", "motor residual vs motor angle", motors)))
         else:
             images.append(("Cable residual against stretch",
                            _scatter(plt, out / "cable_residual_vs_stretch.png", ch.pick(ch.phi), r,
-                                    "cable stretch phi (rad, ankle coordinates)", "cable residual vs stretch", 2)))
+                                    "cable stretch phi (rad, ankle coordinates)", "cable residual vs stretch", ["DP", "IE"])))
         chosen = verdict.score if verdict.channel is cs else None
         ext = _extended_residual(cs, chosen.candidate, diag.detail["extended"].nl) \
             if chosen is not None and "extended" in diag.detail else None
