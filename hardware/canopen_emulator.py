@@ -23,7 +23,6 @@ an amplifier dropping ready, a frozen node (no heartbeat, no PDOs, no answers) a
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 import time
 from dataclasses import dataclass
@@ -37,6 +36,7 @@ from hardware.canopen_pdo import (COUNTER_1, COUNTER_2, DIGITAL_IN, DIGITAL_OUT,
                                   ANALOG_CODE_SHIFT, PdoLayout, analog_codec, compile_pdo, counter_bits)
 from hardware.config_values import required
 from hardware.escon import escon_amplifiers
+from hardware.fault_schedule import ScheduledFault, parse_schedule
 from hardware.sensors import MotorEncoders, StrainGauges
 from sim_backend.plant import SimulatedPlant
 
@@ -87,21 +87,6 @@ FAULTS = ("drop", "stuck_encoder_1", "stuck_encoder_2", "sg_rail_1", "sg_rail_2"
 DROP_ALL = 1 << 62            # "drop" switched on: every TPDO until switched off
 
 
-def parse_schedule(spec: str) -> tuple[str, float, float]:
-    """``NAME@START[:STOP]`` (s of plant time; no STOP: until the end) -> (name, start, stop)."""
-    name, _, times = spec.partition("@")
-    try:
-        start_s, _, stop_s = times.partition(":")
-        start, stop = float(start_s), float(stop_s) if stop_s else math.inf
-    except ValueError:
-        raise ValueError(f"--inject {spec!r}: expected NAME@START[:STOP] in seconds") from None
-    if name not in FAULTS:
-        raise ValueError(f"--inject {spec!r}: unknown fault {name!r} (expected one of: {', '.join(FAULTS)})")
-    if stop <= start:
-        raise ValueError(f"--inject {spec!r}: STOP must be after START")
-    return name, start, stop
-
-
 class CanopenEmulator:
     """The ankle I/O node on ``bus`` with a :class:`SimulatedPlant` behind it (see module docstring)."""
 
@@ -127,7 +112,7 @@ class CanopenEmulator:
         self.node.add_write_callback(self._on_write)
         self.network.subscribe(0, self._after_nmt)    # after the NmtSlave's own handler
         self.faults = InjectedFaults()
-        self.schedule: list[tuple[str, float, float]] = []   # (fault, start, stop) in s of plant time
+        self.schedule: list[ScheduledFault] = []
         self.counts = {"sync": 0, "rpdo": 0, "rpdo_bad_length": 0, "tpdo_sent": 0, "tpdo_dropped": 0,
                        "heartbeats": 0, "rpdo_timeouts": 0}
         self.outputs = {SET_VALUE_1: self.amps[0].zero_code << ANALOG_CODE_SHIFT,
@@ -397,7 +382,7 @@ def run_standalone(cfg: Config, args: argparse.Namespace) -> int:
               "--interface socketcan --channel can0|vcan0", file=sys.stderr)
         return 2
     try:
-        schedule = [parse_schedule(spec) for spec in args.inject]
+        schedule = [parse_schedule(spec, FAULTS) for spec in args.inject]
     except ValueError as exc:
         print(f"ankle-rt emulate: {exc}", file=sys.stderr)
         return 2

@@ -34,6 +34,7 @@ import tty
 
 from ankle_rt.config import Config, ConfigError
 from hardware.escon import escon_amplifiers
+from hardware.fault_schedule import ScheduledFault, parse_schedule
 from hardware.sensors import JointEncoders, MotorEncoders, StrainGauges
 from hardware.serial_protocol import (FAULT_BAD_CONFIG, IN_JOINT_VALID, IN_READY_1, IN_READY_2, OUT_ENABLE_1,
                                       OUT_ENABLE_2, PAYLOADS, ST_CONFIGURED, ST_WATCHDOG, FrameWriter, MsgType,
@@ -83,7 +84,7 @@ class BridgeEmulator:
         self.last_command_seq = 0
         self.awaiting_command = False
         self.active: set[str] = set()
-        self.schedule: list[tuple[str, float, float]] = []
+        self.schedule: list[ScheduledFault] = []
         self._stuck_counts: list[int | None] = [None, None]
         self._last_sample: tuple | None = None
         self.commands = 0
@@ -110,17 +111,7 @@ class BridgeEmulator:
 
     def add_schedule(self, spec: str) -> None:
         """``NAME@START[:STOP]`` with times in s of plant time (no STOP: until the end)."""
-        name, _, times = spec.partition("@")
-        try:
-            start_s, _, stop_s = times.partition(":")
-            start, stop = float(start_s), float(stop_s) if stop_s else math.inf
-        except ValueError:
-            raise ValueError(f"--inject {spec!r}: expected NAME@START[:STOP] in seconds") from None
-        if name not in FAULTS:
-            raise ValueError(f"--inject {spec!r}: unknown fault {name!r} (expected one of: {', '.join(FAULTS)})")
-        if stop <= start:
-            raise ValueError(f"--inject {spec!r}: STOP must be after START")
-        self.schedule.append((name, start, stop))
+        self.schedule.append(parse_schedule(spec, FAULTS))
 
     def _apply_schedule(self) -> None:
         t = self.plant.t

@@ -19,9 +19,10 @@ from ankle_rt.daemon import Daemon, run_lockstep
 from ankle_rt.safety import Fault, State
 from hardware.canbus_load import MAX_BUS_LOAD, frame_bits
 from hardware.canopen_backend import CanopenBackend, configured_bus_load
-from hardware.canopen_emulator import lockstep_pair, parse_schedule
+from hardware.canopen_emulator import FAULTS as NODE_FAULTS, lockstep_pair
 from hardware.canopen_pdo import (COUNTER_1, COUNTER_2, DEFAULT_EDS, DIGITAL_IN, DIGITAL_OUT, SET_VALUE_1,
                                   SET_VALUE_2, STRAIN_1, STRAIN_2, EdsError, load_node)
+from hardware.fault_schedule import parse_schedule
 from sim_backend.backend import SimBackend
 from tests.conftest import ROOT
 
@@ -362,7 +363,7 @@ def test_emulate_refuses_the_in_process_virtual_bus_and_bad_schedules(capsys):
 def test_scheduled_injection_follows_plant_time(bench_cfg):
     clock = SimClock()
     backend = open_backend(bench_cfg, clock)
-    backend.emulator.schedule = [parse_schedule("sg_rail_1@0.010:0.020")]
+    backend.emulator.schedule = [parse_schedule("sg_rail_1@0.010:0.020", NODE_FAULTS)]
     frame = SensorFrame()
     rail = []
     for _ in range(30):
