@@ -3,8 +3,6 @@ bridge emulator, including configs whose amplifier or encoder sign is flipped.""
 
 from __future__ import annotations
 
-import copy
-
 import pytest
 import yaml
 
@@ -15,24 +13,15 @@ from ankle_rt.config import Config, load_config
 from hardware.serial_backend import SerialBackend
 from hardware.serial_emulator import BridgeEmulator, LockstepLink
 from tests.conftest import ROOT
+from tests.hw_helpers import bench_config, config_copy
 
 BENCH = ROOT / "config" / "bench-serial.yaml"
 
 
-def copy_cfg(cfg: Config) -> Config:
-    out = Config(copy.deepcopy(dict(cfg)))
-    out.source = cfg.source
-    return out
-
-
-@pytest.fixture(scope="module")
-def _bench() -> Config:
-    return load_config(BENCH)
-
-
 @pytest.fixture
-def bench_cfg(_bench) -> Config:
-    return copy_cfg(_bench)
+def bench_cfg() -> Config:
+    """A private copy of config/bench-serial.yaml."""
+    return bench_config(BENCH)
 
 
 def calibrate_against(device: Config, host: Config):
@@ -61,9 +50,9 @@ def test_tare_finds_the_simulated_offset_and_signs_pass(sim_cfg):
 
 
 def test_through_the_serial_emulator_the_tare_adds_to_the_configured_one(bench_cfg):
-    device = copy_cfg(bench_cfg)
+    device = config_copy(bench_cfg)
     device["sim"]["strain_gauge_offset"] = [0.25, 0.1]
-    host = copy_cfg(bench_cfg)
+    host = config_copy(bench_cfg)
     host["strain_gauges"]["tare"] = [0.05, 0.0]                    # an older tare
     report, backend = calibrate_against(device, host)
     assert report.ok, report.problems
@@ -75,7 +64,7 @@ def test_through_the_serial_emulator_the_tare_adds_to_the_configured_one(bench_c
 
 
 def test_a_flipped_amplifier_sign_is_caught_and_named(bench_cfg):
-    host = copy_cfg(bench_cfg)
+    host = config_copy(bench_cfg)
     host["escon"]["amplifiers"][1]["sign"] = -1                    # the config disagrees with the wiring
     report, _ = calibrate_against(bench_cfg, host)
     assert not report.ok and len(report.problems) == 1
@@ -83,7 +72,7 @@ def test_a_flipped_amplifier_sign_is_caught_and_named(bench_cfg):
 
 
 def test_a_flipped_encoder_sign_is_caught_and_named(bench_cfg):
-    host = copy_cfg(bench_cfg)
+    host = config_copy(bench_cfg)
     host["encoders"]["sign"] = [-1, 1]
     report, _ = calibrate_against(bench_cfg, host)
     assert [p.split(":")[1].strip() for p in report.problems] == [
@@ -92,9 +81,9 @@ def test_a_flipped_encoder_sign_is_caught_and_named(bench_cfg):
 
 
 def test_without_joint_encoders_both_candidate_keys_are_named(bench_cfg):
-    device = copy_cfg(bench_cfg)
+    device = config_copy(bench_cfg)
     device["joint_encoders"]["counts_per_rev"] = None
-    host = copy_cfg(device)
+    host = config_copy(device)
     host["escon"]["amplifiers"][0]["sign"] = -1
     report, _ = calibrate_against(device, host)
     assert len(report.problems) == 1
@@ -136,7 +125,7 @@ def test_calibrate_command(tmp_path, capsys):
 
 
 def test_a_wrong_enable_polarity_leaves_the_motors_still_and_is_named(bench_cfg):
-    host = copy_cfg(bench_cfg)
+    host = config_copy(bench_cfg)
     for amp in host["escon"]["amplifiers"]:
         amp["enable_active_high"] = False                          # ESCON Studio says high active
     report, _ = calibrate_against(bench_cfg, host)

@@ -3,7 +3,6 @@ the emulator in lockstep, fault injection through the daemon's safety, start-up 
 
 from __future__ import annotations
 
-import copy
 import itertools
 import math
 
@@ -14,8 +13,8 @@ import pytest
 
 from ankle_rt.backend import BackendError, BackendFault, SensorFrame, open_backend
 from ankle_rt.clock import SimClock
-from ankle_rt.config import Config, ConfigError, load_config
-from ankle_rt.daemon import Daemon, run_lockstep
+from ankle_rt.config import Config, ConfigError
+from ankle_rt.daemon import run_lockstep
 from ankle_rt.safety import Fault, State
 from hardware.canbus_load import MAX_BUS_LOAD, frame_bits
 from hardware.canopen_backend import CanopenBackend, configured_bus_load
@@ -23,33 +22,19 @@ from hardware.canopen_emulator import FAULTS as NODE_FAULTS, lockstep_pair
 from hardware.canopen_pdo import (COUNTER_1, COUNTER_2, DEFAULT_EDS, DIGITAL_IN, DIGITAL_OUT, SET_VALUE_1,
                                   SET_VALUE_2, STRAIN_1, STRAIN_2, EdsError, load_node)
 from hardware.fault_schedule import parse_schedule
-from sim_backend.backend import SimBackend
 from tests.conftest import ROOT
+from tests.hw_helpers import Bench, QuantisedSimBackend, bench_config, sim_copy
 
 BENCH = ROOT / "config" / "bench-canopen.yaml"
 _channels = itertools.count()
 
 
-@pytest.fixture(scope="module")
-def _bench_cfg() -> Config:
-    return load_config(BENCH)
-
-
 @pytest.fixture
-def bench_cfg(_bench_cfg: Config) -> Config:
+def bench_cfg() -> Config:
     """A private copy of config/bench-canopen.yaml on a channel of its own."""
-    cfg = Config(copy.deepcopy(dict(_bench_cfg)))
-    cfg.source = _bench_cfg.source
+    cfg = bench_config(BENCH)
     cfg["canopen"]["channel"] = f"test-canopen-{next(_channels)}"
     return cfg
-
-
-def sim_copy(cfg: Config) -> Config:
-    """The same config on the direct simulated backend."""
-    out = Config(copy.deepcopy(dict(cfg)))
-    out.source = cfg.source
-    out["backend"] = "sim"
-    return out
 
 
 # -- EDS, PDO mapping, bus load ------------------------------------------------------------------
@@ -147,18 +132,6 @@ def test_a_missing_or_wrong_node_is_refused_naming_it(bench_cfg):
 
 # -- the section 7 experiment: CANopen + emulator against the direct simulated backend ----------
 
-class QuantisedSimBackend(SimBackend):
-    """The direct simulated backend with the I/O module's 12-bit set-value quantisation."""
-
-    def __init__(self, cfg, clock, amps):
-        super().__init__(cfg, clock)
-        self.amps = amps
-
-    def write(self, current_1: float, current_2: float) -> None:
-        a1, a2 = self.amps
-        super().write(a1.current(a1.code(current_1)), a2.current(a2.code(current_2)))
-
-
 def test_section7_through_canopen_matches_the_direct_simulation(bench_cfg):
     """Tolerance: the 12-bit set value (±15 A over 4096 codes: 7.3 mA, 12 mN m of motor torque per
     code) differs from the exact one by at most half a code; under kp = 90 N m/rad that moves a motor
@@ -203,35 +176,6 @@ def test_section7_through_canopen_matches_the_direct_simulation(bench_cfg):
 
 
 # -- fault injection through the daemon's safety ---------------------------------------------------
-
-class Bench:
-    """The daemon, the CANopen backend and the emulator in lockstep, stepped cycle by cycle."""
-
-    def __init__(self, cfg: Config):
-        self.clock = SimClock()
-        self.backend = CanopenBackend(cfg, self.clock)
-        self.emu = self.backend.emulator
-        self.daemon = Daemon(cfg, self.clock, backend=self.backend)
-        self.period = self.backend.period_ns
-
-    def cycles(self, n: int, until=None) -> int:
-        """Run up to ``n`` cycles (stop early once ``until()`` is true); return how many ran."""
-        for k in range(1, n + 1):
-            t = self.clock.now_ns()
-            self.daemon.cycle(t)
-            self.clock.sleep_until(t + self.period)
-            if until is not None and until():
-                return k
-        return n
-
-    @property
-    def state(self) -> State:
-        return State(self.daemon.safety.state)
-
-    def close(self) -> None:
-        self.daemon.close()
-        self.backend.close()
-
 
 def _stuck(emu):
     emu.faults.stuck_encoder = 1

@@ -5,7 +5,6 @@ link budget and configuration errors."""
 
 from __future__ import annotations
 
-import copy
 import math
 import os
 
@@ -15,27 +14,21 @@ from hypothesis import given, settings, strategies as st
 
 from ankle_rt.backend import BackendError, BackendFault, SensorFrame, open_backend
 from ankle_rt.clock import SimClock
-from ankle_rt.config import Config, ConfigError, load_config
-from ankle_rt.daemon import Daemon, run_lockstep
+from ankle_rt.config import Config, ConfigError
+from ankle_rt.daemon import run_lockstep
 from ankle_rt.safety import Fault, State
 from hardware.serial_backend import SerialBackend
 from hardware.serial_emulator import BridgeEmulator, LockstepLink
 from tests.conftest import ROOT
-from tests.test_canopen import QuantisedSimBackend, sim_copy
+from tests.hw_helpers import Bench, QuantisedSimBackend, bench_config, config_copy, sim_copy
 
 BENCH = ROOT / "config" / "bench-serial.yaml"
 
 
-@pytest.fixture(scope="module")
-def _bench_cfg() -> Config:
-    return load_config(BENCH)
-
-
 @pytest.fixture
-def bench_cfg(_bench_cfg: Config) -> Config:
-    cfg = Config(copy.deepcopy(dict(_bench_cfg)))
-    cfg.source = _bench_cfg.source
-    return cfg
+def bench_cfg() -> Config:
+    """A private copy of config/bench-serial.yaml."""
+    return bench_config(BENCH)
 
 
 def test_section7_through_the_serial_bridge_matches_the_direct_simulation(bench_cfg):
@@ -71,35 +64,6 @@ def test_section7_through_the_serial_bridge_matches_the_direct_simulation(bench_
 
 
 # -- fault injection through the daemon's safety ---------------------------------------------------
-
-class Bench:
-    """The daemon and a hardware backend with its in-process emulator, stepped cycle by cycle."""
-
-    def __init__(self, cfg: Config):
-        self.clock = SimClock()
-        self.backend = open_backend(cfg, self.clock)
-        self.emu = self.backend.emulator
-        self.daemon = Daemon(cfg, self.clock, backend=self.backend)
-        self.period = self.backend.period_ns
-
-    def cycles(self, n: int, until=None) -> int:
-        """Run up to ``n`` cycles (stop early once ``until()`` is true); return how many ran."""
-        for k in range(1, n + 1):
-            t = self.clock.now_ns()
-            self.daemon.cycle(t)
-            self.clock.sleep_until(t + self.period)
-            if until is not None and until():
-                return k
-        return n
-
-    @property
-    def state(self) -> State:
-        return State(self.daemon.safety.state)
-
-    def close(self) -> None:
-        self.daemon.close()
-        self.backend.close()
-
 
 # (fault, expected reason, stated detection time in cycles: 1 = safe in the cycle whose sample shows
 # the fault). Lockstep: the bridge takes the sample a cycle reads when it gets the previous cycle's
@@ -213,7 +177,7 @@ def test_link_lost_when_the_port_fails(bench_cfg):
 
 
 def test_configuration_errors_name_the_key(bench_cfg, tmp_path):
-    cfg = Config(copy.deepcopy(dict(bench_cfg)))
+    cfg = config_copy(bench_cfg)
     cfg.source = "bench.yaml"
     cfg["serial"]["baudrate"] = 460800
     with pytest.raises(ConfigError, match=r"bench.yaml: serial.baudrate: 460800 bit/s is too slow.*102%"):
@@ -229,7 +193,7 @@ def test_configuration_errors_name_the_key(bench_cfg, tmp_path):
 
 
 def test_a_bridge_that_cannot_do_the_configuration_is_refused(bench_cfg):
-    device = Config(copy.deepcopy(dict(bench_cfg)))
+    device = config_copy(bench_cfg)
     device["encoders"]["counter_bits"] = 32            # the bridge has 32-bit counters, the host says 16
     link = LockstepLink(BridgeEmulator(device))
     with pytest.raises(BackendError, match=r"refused its configuration.*encoders.counter_bits"):
@@ -399,10 +363,10 @@ def test_emulate_refuses_a_bad_injection(capsys):
 
 @settings(max_examples=12, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1))
-def test_line_noise_never_crashes_the_backend_nor_yields_a_sample_that_was_not_sent(_bench_cfg, seed):
+def test_line_noise_never_crashes_the_backend_nor_yields_a_sample_that_was_not_sent(seed):
     """Random bytes between the frames and random bit flips, through the real pty: every sample the
     backend hands out is bit for bit one the bridge sent, and every intact sample arrives."""
-    cfg = Config(copy.deepcopy(dict(_bench_cfg)))
+    cfg = bench_config(BENCH)
     cfg["sim"]["seed"] = seed % 2**31
     emu = BridgeEmulator(cfg)
     sent = {}

@@ -1,0 +1,85 @@
+"""Helpers for the hardware tests (serial bridge and CANopen node, each with its in-process emulator):
+bench configs as private copies, the same config on the direct simulator, the simulator with the
+set-value quantisation of the I/O hardware, and the daemon stepped cycle by cycle over a backend."""
+
+from __future__ import annotations
+
+import copy
+import functools
+from pathlib import Path
+from typing import Callable, Sequence
+
+from ankle_rt.backend import open_backend
+from ankle_rt.clock import SimClock
+from ankle_rt.config import Config, load_config
+from ankle_rt.daemon import Daemon
+from ankle_rt.safety import State
+from hardware.escon import EsconAmplifier
+from sim_backend.backend import SimBackend
+
+
+def config_copy(cfg: Config) -> Config:
+    """A deep copy of ``cfg`` that a test may edit, naming the same source file in its errors."""
+    out = Config(copy.deepcopy(dict(cfg)))
+    out.source = cfg.source
+    return out
+
+
+@functools.cache
+def _loaded(path: Path) -> Config:
+    return load_config(path)
+
+
+def bench_config(path: Path) -> Config:
+    """A private copy of the config at ``path``, which is loaded and validated once per test session."""
+    return config_copy(_loaded(Path(path)))
+
+
+def sim_copy(cfg: Config) -> Config:
+    """The same config on the direct simulated backend."""
+    out = config_copy(cfg)
+    out["backend"] = "sim"
+    return out
+
+
+class QuantisedSimBackend(SimBackend):
+    """The direct simulated backend with the I/O hardware's set-value quantisation (``amps``: the
+    hardware backend's two ESCON maps), so that it differs from a transport by nothing else."""
+
+    def __init__(self, cfg: Config, clock: SimClock, amps: Sequence[EsconAmplifier]):
+        super().__init__(cfg, clock)
+        self.amps = amps
+
+    def write(self, current_1: float, current_2: float) -> None:
+        a1, a2 = self.amps
+        super().write(a1.current(a1.code(current_1)), a2.current(a2.code(current_2)))
+
+
+class Bench:
+    """The daemon and the config's hardware backend with its in-process emulator in lockstep,
+    stepped cycle by cycle."""
+
+    def __init__(self, cfg: Config):
+        self.clock = SimClock()
+        self.backend = open_backend(cfg, self.clock)
+        self.emu = self.backend.emulator
+        self.daemon = Daemon(cfg, self.clock, backend=self.backend)
+        self.period = self.backend.period_ns
+
+    def cycles(self, n: int, until: Callable[[], bool] | None = None) -> int:
+        """Run up to ``n`` cycles (stop early once ``until()`` is true); return how many ran."""
+        for k in range(1, n + 1):
+            t = self.clock.now_ns()
+            self.daemon.cycle(t)
+            self.clock.sleep_until(t + self.period)
+            if until is not None and until():
+                return k
+        return n
+
+    @property
+    def state(self) -> State:
+        return State(self.daemon.safety.state)
+
+    def close(self) -> None:
+        self.daemon.close()
+        self.backend.close()
