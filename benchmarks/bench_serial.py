@@ -16,49 +16,15 @@ from __future__ import annotations
 
 import argparse
 import os
-import statistics
 import time
 from pathlib import Path
 
-from ankle_rt.backend import SensorFrame
-from ankle_rt.clock import SimClock
-from ankle_rt.config import Config, load_config
+from ankle_rt.config import load_config
 from hardware.serial_backend import SerialBackend, link_load
 from hardware.serial_protocol import MsgType, StreamParser, encode_frame, frame_size
+from transport_timing import print_table, timed_repeats
 
 ROOT = Path(__file__).resolve().parent.parent
-
-
-def run_once(cfg: Config, cycles: int) -> tuple[list[float], float]:
-    """Per-cycle round trips (s) and the total time spent inside the emulator (s)."""
-    clock = SimClock()
-    backend = SerialBackend(cfg, clock)
-    emulator = backend.emulator
-    inside = [0.0]
-    receive = emulator.receive
-
-    def timed_receive(data: bytes) -> None:
-        t0 = time.perf_counter()
-        receive(data)
-        inside[0] += time.perf_counter() - t0
-
-    emulator.receive = timed_receive
-    frame = SensorFrame()
-    backend.activate()
-    rtt = []
-    for k in range(cycles):
-        t0 = time.perf_counter()
-        backend.read(frame)
-        backend.write(0.5 if (k // 200) % 2 else -0.5, 0.3)
-        rtt.append(time.perf_counter() - t0)
-        clock.advance(backend.period_ns)
-    backend.close()
-    return rtt, inside[0]
-
-
-def pct(values: list[float], q: float) -> float:
-    s = sorted(values)
-    return s[min(len(s) - 1, int(q * len(s)))]
 
 
 def parser_throughput(noisy: bool) -> float:
@@ -81,16 +47,10 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3)
     args = parser.parse_args()
     cfg = load_config(ROOT / "config" / "bench-serial.yaml")
-    rows = []
-    for _ in range(args.repeats):
-        rtt, inside = run_once(cfg, args.cycles)
-        rows.append((statistics.median(rtt), pct(rtt, 0.99), max(rtt), inside / args.cycles))
+    rows = timed_repeats(lambda _, clock: SerialBackend(cfg, clock), "receive", args.cycles, args.repeats)
     print(f"\nserial bridge over the emulator on a pty in lockstep, {args.cycles} cycles x {args.repeats} repeats "
           f"(µs per cycle):")
-    print(f"{'':>8}{'p50':>9}{'p99':>9}{'max':>9}{'emulator':>10}{'backend+pty':>13}")
-    for name, pick in (("best", min), ("median", statistics.median)):
-        p50, p99, mx, emu = (pick(r[i] for r in rows) for i in range(4))
-        print(f"{name:>8}{p50 * 1e6:>9.0f}{p99 * 1e6:>9.0f}{mx * 1e6:>9.0f}{emu * 1e6:>10.0f}{(p50 - emu) * 1e6:>13.0f}")
+    print_table(rows, "backend+pty")
     hw = load_config(ROOT / "config" / "hw-serial.yaml")
     rate = hw["controller"]["rate_hz"]
     print(f"\nframes: SAMPLE {frame_size(MsgType.SAMPLE)} B, COMMAND {frame_size(MsgType.COMMAND)} B; "
