@@ -44,7 +44,8 @@ def _format(diag, closed) -> str:
                      f"{closed.nrmse_baseline:.4f}, extended {closed.nrmse_extended:.4f}, gain {closed.gain:.2f}x")
     lines.append("candidates (score = information-criterion gain over the baseline):")
     for c in diag.candidates:
-        lines.append(f"  {c['cause']:<24} {c['channel'] or '-':<6} score {c['score']:>10.1f}  "
+        name = "unknown (catch-all)" if c.get("catch_all") else c["cause"]
+        lines.append(f"  {name:<24} {c['channel'] or '-':<6} score {c['score']:>10.1f}  "
                      f"residual removed {100 * c['rss_reduction']:5.1f} %")
     lines += [f"note: {n}" for n in diag.notes]
     return "\n".join(lines)

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -26,7 +27,7 @@ class ClosedLoopGain:
     nrmse_extended: float
     columns: tuple[str, ...]
     duration_s: float
-    traces: dict[str, dict[str, np.ndarray]]   # "measured" / "baseline" / "extended" -> column -> samples
+    traces: dict[str, Any]   # "t" -> s; "measured" / "baseline" / "extended" -> column -> samples at those t
 
     @property
     def gain(self) -> float:
@@ -60,7 +61,7 @@ def closed_loop_gain(rec: Recording, config_path: str | Path, diag: Diagnosis) -
     refit = {"actuator": dict(diag.actuator_refit)} if diag.actuator_refit else {}
     duration = float(rec["t"][-1] + rec.dt)
     cols = tuple(c for c in POSITION_COLUMNS if c in rec)
-    traces: dict[str, dict[str, np.ndarray]] = {"measured": {c: rec[c] for c in cols}}
+    traces: dict[str, Any] = {"t": rec["t"], "measured": {c: rec[c] for c in cols}}
     out = {}
     for name, effects in (("baseline", []), ("extended", [diag.effect] if diag.effect else [])):
         cfg = load_config(config_path, overrides={**refit, "sim": {"effects": effects}})
