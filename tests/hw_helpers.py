@@ -9,11 +9,11 @@ import functools
 from pathlib import Path
 from typing import Callable, Sequence
 
-from ankle_rt.backend import open_backend
+from ankle_rt.backend import Backend, SensorFrame, open_backend
 from ankle_rt.clock import SimClock
 from ankle_rt.config import Config, load_config
 from ankle_rt.daemon import Daemon
-from ankle_rt.safety import State
+from ankle_rt.safety import Fault, State
 from hardware.escon import EsconAmplifier
 from sim_backend.backend import SimBackend
 
@@ -40,6 +40,14 @@ def sim_copy(cfg: Config) -> Config:
     out = config_copy(cfg)
     out["backend"] = "sim"
     return out
+
+
+def read_cycles(backend: Backend, frame: SensorFrame, n: int) -> None:
+    """``n`` cycles of ``read`` alone (no set values sent), the backend's SimClock advanced by a
+    period after each."""
+    for _ in range(n):
+        backend.read(frame)
+        backend.clock.advance(backend.period_ns)
 
 
 class QuantisedSimBackend(SimBackend):
@@ -79,6 +87,31 @@ class Bench:
     @property
     def state(self) -> State:
         return State(self.daemon.safety.state)
+
+    def run_into_the_step(self) -> None:
+        """Tare, activate and run 0.5 s into the section 7 step, until the motors work."""
+        self.cycles(505)
+        assert self.state == State.ACTIVE
+        assert max(abs(c) for c in self.emu.plant.current) > 1.0
+
+    def cycles_until_safe(self, limit: int) -> int:
+        """Run until the daemon leaves ACTIVE, at most ``limit`` cycles; return how many ran.
+        It must then be in FAULT or SAFE."""
+        took = self.cycles(limit, until=lambda: self.state != State.ACTIVE)
+        assert self.state in (State.FAULT, State.SAFE)
+        return took
+
+    def assert_latched(self, fault: Fault) -> None:
+        """20 more cycles: still not ACTIVE, still reporting ``fault``."""
+        self.cycles(20)
+        assert self.state in (State.FAULT, State.SAFE) and self.daemon.safety.fault == fault
+
+    def reset_and_resume(self) -> None:
+        """Reset the fault, activate and run 200 cycles: ACTIVE again, no fault."""
+        self.daemon.reset_fault()
+        self.daemon.activate()
+        self.cycles(200)
+        assert self.state == State.ACTIVE and self.daemon.safety.fault == Fault.NONE
 
     def close(self) -> None:
         self.daemon.close()

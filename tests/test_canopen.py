@@ -15,7 +15,7 @@ from ankle_rt.backend import BackendError, BackendFault, SensorFrame, open_backe
 from ankle_rt.clock import SimClock
 from ankle_rt.config import Config, ConfigError
 from ankle_rt.daemon import run_lockstep
-from ankle_rt.safety import Fault, State
+from ankle_rt.safety import Fault
 from hardware.canbus_load import MAX_BUS_LOAD, frame_bits
 from hardware.canopen_backend import CanopenBackend, configured_bus_load
 from hardware.canopen_emulator import FAULTS as NODE_FAULTS, lockstep_pair
@@ -23,7 +23,7 @@ from hardware.canopen_pdo import (COUNTER_1, COUNTER_2, DEFAULT_EDS, DIGITAL_IN,
                                   SET_VALUE_2, STRAIN_1, STRAIN_2, EdsError, load_node)
 from hardware.fault_schedule import parse_schedule
 from tests.conftest import ROOT
-from tests.hw_helpers import Bench, QuantisedSimBackend, bench_config, sim_copy
+from tests.hw_helpers import Bench, QuantisedSimBackend, bench_config, read_cycles, sim_copy
 
 BENCH = ROOT / "config" / "bench-canopen.yaml"
 _channels = itertools.count()
@@ -217,12 +217,9 @@ def test_injected_fault_goes_safe_in_time_and_resumes_after_reset(bench_cfg, inj
     bench = Bench(bench_cfg)
     emu = bench.emu
     try:
-        bench.cycles(505)                                    # tare, activate, the step starts at 0.5 s
-        assert bench.state == State.ACTIVE
-        assert max(abs(c) for c in emu.plant.current) > 1.0  # the motors work when the fault comes
+        bench.run_into_the_step()                            # the motors work when the fault comes
         inject(emu)
-        took = bench.cycles(within + 10, until=lambda: bench.state != State.ACTIVE)
-        assert bench.state in (State.FAULT, State.SAFE)
+        took = bench.cycles_until_safe(within + 10)
         assert took <= within
         assert bench.daemon.safety.fault == expected
         bench.cycles(1)
@@ -230,14 +227,10 @@ def test_injected_fault_goes_safe_in_time_and_resumes_after_reset(bench_cfg, inj
         assert rpdo[4] == 0 and int.from_bytes(rpdo[0:2], "little", signed=True) == 0
         if not emu.faults.frozen:                            # a hung node cannot apply anything
             assert emu.outputs[DIGITAL_OUT] == 0 and emu.amplifier_currents() == (0.0, 0.0)
-        bench.cycles(20)
-        assert bench.state in (State.FAULT, State.SAFE) and bench.daemon.safety.fault == expected  # latched
+        bench.assert_latched(expected)
         emu.faults.clear()
         bench.cycles(30)                                     # heartbeats and PDOs come back
-        bench.daemon.reset_fault()
-        bench.daemon.activate()
-        bench.cycles(200)
-        assert bench.state == State.ACTIVE and bench.daemon.safety.fault == Fault.NONE
+        bench.reset_and_resume()
         assert emu.outputs[DIGITAL_OUT] == 0b11 and emu.state == "OPERATIONAL"
     finally:
         bench.close()
@@ -247,9 +240,7 @@ def test_heartbeat_consumer_reports_a_frozen_node_within_its_timeout(bench_cfg):
     clock = SimClock()
     backend = open_backend(bench_cfg, clock)
     frame = SensorFrame()
-    for _ in range(50):
-        backend.read(frame)
-        clock.advance(backend.period_ns)
+    read_cycles(backend, frame, 50)
     assert frame.faults == BackendFault.NONE
     backend.emulator.faults.frozen = True
     cycles = 0
@@ -269,9 +260,7 @@ def test_a_single_lost_tpdo_holds_the_sample_and_is_counted(bench_cfg):
     clock = SimClock()
     backend = open_backend(bench_cfg, clock)
     frame = SensorFrame()
-    for _ in range(5):
-        backend.read(frame)
-        clock.advance(backend.period_ns)
+    read_cycles(backend, frame, 5)
     seq = frame.seq
     backend.emulator.faults.drop_tpdos = 1
     backend.read(frame)

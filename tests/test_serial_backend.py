@@ -84,25 +84,19 @@ def test_injected_fault_goes_safe_in_time_and_resumes_after_reset(bench_cfg, nam
     bench = Bench(bench_cfg)
     emu = bench.emu
     try:
-        bench.cycles(505)                                    # tare, activate, the step starts at 0.5 s
-        assert bench.state == State.ACTIVE
-        assert max(abs(c) for c in emu.plant.current) > 1.0  # the motors work when the fault comes
+        bench.run_into_the_step()                            # the motors work when the fault comes
         emu.inject(name)
-        took = bench.cycles(within + 10, until=lambda: bench.state != State.ACTIVE)
-        assert bench.state in (State.FAULT, State.SAFE) and took <= 1 + within
+        took = bench.cycles_until_safe(within + 10)
+        assert took <= 1 + within
         assert bench.daemon.safety.fault == expected
         bench.cycles(1)
         if name == "frozen":       # a hung bridge applies nothing: its (hardware) watchdog makes it safe
             bench.cycles(round(bench_cfg["serial"]["watchdog_s"] * bench_cfg["controller"]["rate_hz"]))
         assert emu.codes == [a.zero_code for a in emu.amps] and emu.amplifier_currents() == (0.0, 0.0)
-        bench.cycles(20)
-        assert bench.state in (State.FAULT, State.SAFE) and bench.daemon.safety.fault == expected  # latched
+        bench.assert_latched(expected)
         emu.inject(name, on=False)
         bench.cycles(10)
-        bench.daemon.reset_fault()
-        bench.daemon.activate()
-        bench.cycles(200)
-        assert bench.state == State.ACTIVE and bench.daemon.safety.fault == Fault.NONE
+        bench.reset_and_resume()
         assert max(abs(c) for c in emu.amplifier_currents()) > 0.0
     finally:
         bench.close()
