@@ -1,6 +1,7 @@
 """Helpers for the hardware tests (serial bridge and CANopen node, each with its in-process emulator):
 bench configs as private copies, the same config on the direct simulator, the simulator with the
-set-value quantisation of the I/O hardware, and the daemon stepped cycle by cycle over a backend."""
+set-value quantisation of the I/O hardware, read-only cycles of a backend, and the daemon stepped
+cycle by cycle over a backend with the steps of a fault-injection scenario."""
 
 from __future__ import annotations
 
