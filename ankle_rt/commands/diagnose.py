@@ -63,7 +63,7 @@ def run(args: argparse.Namespace) -> int:
     from ankle_rt.config import load_config
     from ankle_rt.diagnosis import DiagnosisError, diagnose
     from ankle_rt.diagnosis.closed_loop import applicable, closed_loop_gain
-    from ankle_rt.diagnosis.inputs import load_recording
+    from ankle_rt.identification.data import load_recording
     from ankle_rt.diagnosis.model_fragment import write_fragment
     from ankle_rt.interchange import InterchangeError
 
