@@ -41,7 +41,7 @@ def _format(diag, closed) -> str:
                  f"extended {diag.nrmse_extended:.4f}, gain {diag.gain:.2f}x")
     if closed is not None:
         lines.append(f"closed-loop position NRMSE ({closed.duration_s:.1f} s free run): baseline "
-                     f"{closed.nrmse_baseline:.4f}, extended {closed.nrmse_extended:.4f}, gain {closed.gain:.2f}x")
+                     f"{closed.nrmse_baseline:.3g}, extended {closed.nrmse_extended:.3g}, gain {closed.gain:.2f}x")
     lines.append("candidates (score = information-criterion gain over the baseline):")
     for c in diag.candidates:
         name = "unknown (catch-all)" if c.get("catch_all") else c["cause"]

@@ -4,7 +4,8 @@ Where the controller and the references are known (a daemon run: its config name
 holds ``ref_dp``/``ref_ie``), the run is simulated again through the daemon's own lockstep loop
 (``ankle_rt.daemon.run_lockstep``, which opens the backend by name: the core never imports the
 simulator) once with the re-fitted baseline and once with the extended model, and the simulated motor
-(and joint) angles are compared with the measured ones.
+(and joint) angles are compared with the measured ones (NRMSE = RMS error / measured range, averaged over
+the angles: the identification tools' ``compare``, as ``ankle-rt validate`` reports it).
 """
 
 from __future__ import annotations
@@ -43,20 +44,11 @@ def applicable(rec: Recording) -> bool:
     return "ref_dp" in rec and "ref_ie" in rec
 
 
-def _position_nrmse(sim: dict[str, np.ndarray], t_sim: np.ndarray, rec: Recording,
-                    cols: tuple[str, ...]) -> float:
-    errs = []
-    for c in cols:
-        s = np.interp(rec["t"], t_sim, sim[c])
-        scale = max(float(np.std(rec[c])), 1e-12)
-        errs.append(float(np.sqrt(np.mean((s - rec[c]) ** 2))) / scale)
-    return float(np.mean(errs))
-
-
 def closed_loop_gain(rec: Recording, config_path: str | Path, diag: Diagnosis) -> ClosedLoopGain:
     """Re-run the recorded experiment on the simulator, baseline and extended (see module docstring)."""
     from ankle_rt.config import load_config
     from ankle_rt.daemon import run_lockstep
+    from ankle_rt.identification.validation import compare
 
     refit = {"actuator": dict(diag.actuator_refit)} if diag.actuator_refit else {}
     duration = float(rec["t"][-1] + rec.dt)
@@ -66,7 +58,8 @@ def closed_loop_gain(rec: Recording, config_path: str | Path, diag: Diagnosis) -
     for name, effects in (("baseline", []), ("extended", [diag.effect] if diag.effect else [])):
         cfg = load_config(config_path, overrides={**refit, "sim": {"effects": effects}})
         run = run_lockstep(cfg, duration)
-        sim = {c: np.asarray(run[c], dtype=float) for c in cols}
-        out[name] = _position_nrmse(sim, np.asarray(run["t"], dtype=float), rec, cols)
-        traces[name] = {c: np.interp(rec["t"], run["t"], sim[c]) for c in cols}
+        sim = Recording(run.interchange(), f"{name} simulation")
+        errors, _ = compare(rec, sim, cols, relative=False)
+        out[name] = float(np.mean([e.nrmse for e in errors]))
+        traces[name] = {c: np.interp(rec["t"], sim["t"], sim[c]) for c in cols}
     return ClosedLoopGain(out["baseline"], out["extended"], cols, duration, traces)

@@ -113,8 +113,8 @@ def _closed_loop(plt, path: Path, closed) -> str:
         ax.set_ylabel(f"{c} error (rad)", fontsize=8)
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=8)
-    axes[0].set_title(f"closed-loop free run, simulated - measured: position NRMSE {closed.nrmse_baseline:.4f} "
-                      f"-> {closed.nrmse_extended:.4f}", fontsize=9)
+    axes[0].set_title(f"closed-loop free run, simulated - measured: position NRMSE {closed.nrmse_baseline:.3g} "
+                      f"-> {closed.nrmse_extended:.3g}", fontsize=9)
     axes[-1].set_xlabel("time (s)")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
@@ -167,8 +167,8 @@ def write_report(directory: str | Path, diag: Diagnosis, closed=None) -> Path:
     lines += [f"Inverse-model NRMSE on {diag.validation}: baseline {diag.nrmse_baseline:.4f}, extended "
               f"{diag.nrmse_extended:.4f} (gain {diag.gain:.2f}x).", ""]
     if closed is not None:
-        lines += [f"Closed-loop free-run position NRMSE: baseline {closed.nrmse_baseline:.4f}, extended "
-                  f"{closed.nrmse_extended:.4f} (gain {closed.gain:.2f}x).", ""]
+        lines += [f"Closed-loop free-run position NRMSE: baseline {closed.nrmse_baseline:.3g}, extended "
+                  f"{closed.nrmse_extended:.3g} (gain {closed.gain:.2f}x).", ""]
     lines += ["## Re-fitted baseline", ""]
     for name, params in diag.baseline.items():
         for k, p in params.items():
