@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import json
 
-import numpy as np
 import pytest
 
 from ankle_rt.cli import main
@@ -130,3 +129,15 @@ def test_linear_axis_in_newtons_and_metres_without_config():
     assert diag.parameters["periods_per_rev"]["value"] == case.effect["periods_per_rev"] / metre_per_rad
     mass = case.truth_cfg["actuator"]["inertia"] / metre_per_rad ** 2   # kg
     assert diag.baseline["motor"]["inertia"]["value"][0] == pytest.approx(mass, rel=0.05)
+
+
+def test_without_joint_encoders_a_cable_effect_gets_no_wrong_name():
+    case = make_case(11, "ankle", "backlash", ident_s=8.0, valid_s=4.0)
+    print(case.describe())
+
+    def no_encoders(rec: Recording) -> Recording:
+        return Recording({k: v for k, v in rec.columns.items() if k not in ("ankle_dp", "ankle_ie")}, rec.source)
+
+    diag = diagnose(no_encoders(case.ident), no_encoders(case.valid), plant="ankle", cfg=case.nominal_cfg)
+    assert diag.cause == "none", case.describe()      # the strain gauges carry the slack; no motor-side name
+    assert any("cable side" in n for n in diag.notes)

@@ -37,15 +37,11 @@ class ChannelScores:
     baseline: Fit
     scores: list[Score]
     catch_all_rss: float
-    catch_all_k: int
     n_eff: float
     catch_all_delta_ic: float = 0.0
     catch_all_reduction: float = 0.0
     catch_all_X: np.ndarray | None = field(default=None, repr=False)
     catch_all_size: float = 0.0
-
-    def best(self) -> Score | None:
-        return max(self.scores, key=lambda s: s.delta_ic) if self.scores else None
 
 
 def design_matrix(ch: Channel, Xb: np.ndarray, cand: Candidate, nl: float) -> tuple[np.ndarray, np.ndarray]:
@@ -97,7 +93,7 @@ def score_channel(name: str, ch: Channel, candidates: tuple[Candidate, ...],
         s.delta_ic = ic_base - s.ic
         s.reduction = 1.0 - s.rss / base.rss
         s.size = size(s.rss)
-    out = ChannelScores(name, ch, base, scores, full.rss, Xc.shape[1], n_eff, catch_all_X=Xc)
+    out = ChannelScores(name, ch, base, scores, full.rss, n_eff, catch_all_X=Xc)
     out.catch_all_delta_ic = ic_base - information_criterion(full.rss, n, Xc.shape[1], n_eff)
     out.catch_all_reduction = 1.0 - full.rss / base.rss
     out.catch_all_size = size(full.rss)
