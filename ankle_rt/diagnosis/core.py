@@ -36,9 +36,12 @@ IC_THRESHOLD = 20.0
 MIN_REDUCTION = 0.04
 #: the catch-all must remove this fraction before a discrepancy counts as real without a name
 MIN_UNKNOWN_REDUCTION = 0.10
-#: practical size: what a model explains must reach this NRMSE (RMS / std of the measured torque); smaller
-#: discrepancies (friction-transition noise of the velocity estimate: ~0.003) are not worth a model
-MIN_SIZE = 0.006
+#: practical size: what a named effect explains must reach this NRMSE (RMS / std of the measured torque);
+#: on effect-free data the best named candidate explains <= 0.001
+MIN_SIZE = 0.003
+#: ... and what the catch-all explains, this much: on effect-free data it fits <= 0.0035 of noise and
+#: friction-transition error of the velocity estimate with its many columns
+MIN_SIZE_UNKNOWN = 0.006
 #: a named candidate must explain at least this fraction of what the catch-all removes
 MIN_EXPLAINED = 0.6
 HOLDOUT_FRACTION = 0.25
@@ -197,7 +200,7 @@ def catch_all_cv_reduction(cs: ChannelScores) -> float:
 def unexplained(cs: ChannelScores) -> bool:
     """A discrepancy is real when the catch-all beats the baseline in the criterion and in held-out blocks."""
     return (cs.catch_all_delta_ic > IC_THRESHOLD and cs.catch_all_reduction > MIN_UNKNOWN_REDUCTION
-            and cs.catch_all_size > MIN_SIZE and catch_all_cv_reduction(cs) > MIN_UNKNOWN_REDUCTION)
+            and cs.catch_all_size > MIN_SIZE_UNKNOWN and catch_all_cv_reduction(cs) > MIN_UNKNOWN_REDUCTION)
 
 
 def decide(channels: list[ChannelScores]) -> Verdict:
@@ -224,9 +227,10 @@ def decide(channels: list[ChannelScores]) -> Verdict:
         return Verdict("unknown", min(1.0, cs.catch_all_reduction / 0.2), cs,
                        reason=f"catch-all removes {100 * cs.catch_all_reduction:.0f} % of the residual; "
                               "no named candidate is significant")
-    hint = max([min(s.reduction / MIN_REDUCTION, s.size / MIN_SIZE) for cs in channels for s in cs.scores] +
-               [min(cs.catch_all_reduction / MIN_UNKNOWN_REDUCTION, cs.catch_all_size / MIN_SIZE) for cs in channels]
-               + [0.0])
+    named_hint = [min(s.reduction / MIN_REDUCTION, s.size / MIN_SIZE) for cs in channels for s in cs.scores]
+    unknown_hint = [min(cs.catch_all_reduction / MIN_UNKNOWN_REDUCTION, cs.catch_all_size / MIN_SIZE_UNKNOWN)
+                    for cs in channels]
+    hint = max(named_hint + unknown_hint + [0.0])
     hint = min(1.0, hint)
     return Verdict("none", 1.0 - 0.5 * max(0.0, hint))
 

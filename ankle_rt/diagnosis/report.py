@@ -147,7 +147,8 @@ def write_report(directory: str | Path, diag: Diagnosis, closed=None) -> Path:
         else:
             images.append(("Cable residual against stretch",
                            _scatter(plt, out / "cable_residual_vs_stretch.png", ch.pick(ch.phi), r,
-                                    "cable stretch phi (rad, ankle coordinates)", "cable residual vs stretch", ["DP", "IE"])))
+                                    "cable stretch phi (rad, ankle coordinates)", "cable residual vs stretch",
+                                    ["DP", "IE"])))
         chosen = verdict.score if verdict.channel is cs else None
         ext = _extended_residual(cs, chosen.candidate, diag.detail["extended"].nl) \
             if chosen is not None and "extended" in diag.detail else None
