@@ -166,12 +166,13 @@ class HardeningStiffness(Candidate):
     channel = "cable"
 
     def design(self, ch, nl):
-        K = ch.K_fit if getattr(ch, "K_fit", None) is not None else ch.geometry.K
-        return Design(ch.filt(K * ch.geometry.levers ** 2 * ch.phi ** 3)[:, None])
+        # nominal K per axis: both axes scale with the one cable stiffness k, so one shared coefficient
+        # (k_true / k_nominal) / s_h^2 fits both, whatever k is
+        return Design(ch.filt(ch.geometry.K * ch.geometry.levers ** 2 * ch.phi ** 3)[:, None])
 
     def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
-        # the column was scaled by the baseline-only K; the extended fit's own K is the cable's
-        ratio = float(np.mean(ch.K_fit / base_coef[[0, 3]]))
+        # the extended fit's own K (coefficients of phi) gives k_true / k_nominal
+        ratio = float(np.mean(ch.geometry.K / base_coef[[0, 3]]))
         c, sd = float(coef[0]) * ratio, _sd(cov, 0) * ratio
         if c <= 0.0:
             return {"hardening_stretch": (float("inf"), float("inf"))}

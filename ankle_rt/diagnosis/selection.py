@@ -56,8 +56,6 @@ def score_channel(name: str, ch: Channel, candidates: tuple[Candidate, ...],
     y0 = ch.target()
     Xb = ch.baseline_design()
     base = fit(y0, Xb)
-    if name == "cable":
-        ch.K_fit = base.coef[[0, 3]]
     scores: list[Score] = []
     best_blocks = []
     for cand in candidates:
