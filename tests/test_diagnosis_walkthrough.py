@@ -16,9 +16,9 @@ RUN_YAML = f"""\
 include: [{SIM_CONFIG}]
 reference:
   profile: chirp
-  chirp: {{amplitude_dp: 0.09, amplitude_ie: 0.05, f0_hz: 0.2, f1_hz: 3.0, duration_s: 12.0, start_s: 0.3}}
+  chirp: {{amplitude_dp: 0.09, amplitude_ie: 0.05, f0_hz: 0.2, f1_hz: 3.0, duration_s: 20.0, start_s: 0.3}}
 loop:
-  duration_s: 12.0
+  duration_s: 20.0
 """
 TRUTH_YAML = """\
 include: [run.yaml]
