@@ -1,7 +1,8 @@
 """Benchmark of `ankle-rt diagnose` on N random seeded cases (tests/diagnosis_cases.py).
 
 Prints per case and in summary: top-1 accuracy, false-positive rate on effect-free data, wrong-name
-rate on the out-of-vocabulary effect (torque constant dropping at high current), primary-parameter error
+rate on the out-of-vocabulary effects (torque constant dropping at high current; a return spring),
+primary-parameter error
 (median, 90th percentile), validation NRMSE reduction, detection rate against effect magnitude, and the
 diagnose runtime on a 30 s, 1 kHz, two-motor file. Goals (issue 6): top-1 >= 95 %, FP <= 2 %, median
 parameter error <= 10 %, NRMSE reduced >= 30 % whenever an effect is present, runtime <= 20 s.

@@ -7,9 +7,10 @@ encoder quantisation, strain-gauge noise and amplifier current noise. ``--plant 
 motor PD loop tracking multisine ankle references against a multisine load on the foot;
 ``--plant actuator`` cases drive the motors off the cables with open-loop multisine currents.
 
-The out-of-vocabulary effect ``kt_saturation`` (the torque constant dropping at high current) is test
-material, registered here rather than in sim_backend: it is not a product effect, and keeping it out
-of the simulator's library keeps the library equal to the vocabulary the diagnosis can name.
+The out-of-vocabulary effects ``kt_saturation`` (the torque constant dropping at high current) and
+``return_spring`` (a spring from each motor to the frame) are test material, registered here rather
+than in sim_backend: they are not product effects, and keeping them out of the simulator's library
+keeps the library equal to the vocabulary the diagnosis can name.
 """
 
 from __future__ import annotations
@@ -51,6 +52,23 @@ if "kt_saturation" not in EFFECTS:
             return tau1 / math.sqrt(1.0 + a * a), tau2 / math.sqrt(1.0 + b * b)
 
 
+if "return_spring" not in EFFECTS:
+    @register_effect("return_spring")
+    class ReturnSpring(Effect):
+        """OUT-OF-VOCABULARY TEST EFFECT: a spring from each motor to the frame (a preloaded seal, a cable
+        guide), resisting torque stiffness * theta_m."""
+
+        PARAMS = Section({"stiffness": positive("N m/rad at the gearbox output")})
+        cause = "unknown"
+
+        def __init__(self, params, plant, dt):
+            super().__init__(params, plant, dt)
+            self.k = params["stiffness"]
+
+        def motor_torque(self, th1, th2, w1, w2, tc1, tc2):
+            return self.k * th1, self.k * th2
+
+
 # (effect, primary parameter, its range): the magnitude of a case is where its primary value lies
 MAGNITUDES = {
     "stribeck": ("static_excess", (0.08, 0.3)),
@@ -61,7 +79,9 @@ MAGNITUDES = {
     "backlash": ("half_width", (5e-5, 4e-4)),
     "stiffness_nonlinear": ("hardening_stretch", (1.2e-3, 3e-4)),   # smaller stretch = stronger effect
     "kt_saturation": ("saturation_torque", (6.0, 2.5)),            # smaller = stronger
+    "return_spring": ("stiffness", (0.2, 1.0)),
 }
+OUT_OF_VOCABULARY = ("kt_saturation", "return_spring")
 MOTOR_EFFECTS = ("stribeck", "asymmetric_friction", "cogging", "delay")
 ANKLE_EFFECTS = MOTOR_EFFECTS + ("load_dependent_friction", "backlash", "stiffness_nonlinear")
 
@@ -184,14 +204,19 @@ def simulate(cfg: Config, plant_kind: str, rng: np.random.Generator, duration_s:
 def make_case(seed: int, plant: str = "ankle", cause: str | None = None, ident_s: float = 12.0,
               valid_s: float = 6.0, p_none: float = 0.25, p_unknown: float = 0.1,
               strength: float | None = None) -> Case:
-    """Draw a case from ``seed``. ``cause``: force an effect name, "none" or "kt_saturation"; else random
-    (``p_none`` effect-free, ``p_unknown`` out of vocabulary, the rest uniform over the vocabulary).
+    """Draw a case from ``seed``. ``cause``: force an effect name, "none" or an out-of-vocabulary one; else
+    random (``p_none`` effect-free, ``p_unknown`` out of vocabulary, the rest uniform over the vocabulary).
     ``strength``: see :func:`draw_effect`."""
     rng = np.random.default_rng(seed)
     pool = ANKLE_EFFECTS if plant == "ankle" else MOTOR_EFFECTS
     if cause is None:
         u = rng.uniform()
-        cause = "none" if u < p_none else ("kt_saturation" if u < p_none + p_unknown else str(rng.choice(pool)))
+        if u < p_none:
+            cause = "none"
+        elif u < p_none + p_unknown:
+            cause = str(rng.choice(OUT_OF_VOCABULARY))
+        else:
+            cause = str(rng.choice(pool))
     nominal = _nominal()
     truth = perturbed(nominal, rng)
     truth["sim"]["seed"] = int(seed)
@@ -200,7 +225,7 @@ def make_case(seed: int, plant: str = "ankle", cause: str | None = None, ident_s
     truth["sim"]["effects"] = [effect] if effect else []
     ident = simulate(truth, plant, rng, ident_s)
     valid = simulate(truth, plant, rng, valid_s)
-    expected = "unknown" if cause == "kt_saturation" else cause
+    expected = "unknown" if cause in OUT_OF_VOCABULARY else cause
     return Case(seed, plant, expected, effect, mag, truth, nominal, ident, valid)
 
 

@@ -48,8 +48,9 @@ def test_no_false_alarm_on_effect_free_data(seed, plant):
     assert diag.effect is None and diag.gain == 1.0
 
 
-def test_torque_constant_drop_is_unknown_not_a_wrong_name():
-    case, diag = _run(301, "ankle", "kt_saturation")
+@pytest.mark.parametrize("seed,plant,effect", [(301, "ankle", "kt_saturation"), (302, "ankle", "return_spring")])
+def test_out_of_vocabulary_effect_is_unknown_not_a_wrong_name(seed, plant, effect):
+    case, diag = _run(seed, plant, effect)
     assert diag.cause == "unknown", f"{case.describe()} -> {diag.cause}: {diag.candidates[:3]}"
     assert diag.effect is None
 

@@ -8,6 +8,7 @@ coefficients into the simulator effect's parameters (DESIGN.md vocabulary = the 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -100,16 +101,20 @@ class Cogging(Candidate):
         # up to where the ripple n |v| / 2 pi leaves the filter's pass band for slow-to-medium motion, in
         # steps small enough that the ripple's phase drifts < pi/2 over the travel (every integer on a
         # rotary axis; a linear axis in metres has large n and coarser steps), at most MAX_COGGING_POINTS
+        # A ripple is told from a slow position dependence (a spring, a preload: not cogging) only when the
+        # travel spans at least MIN_COGGING_PERIODS of it.
         v_slow = float(np.percentile(np.abs(ch.vel), 25)) or 1.0
-        step = max(1, int(0.5 * np.pi / max(float(np.ptp(ch.pos)), 1e-12)))
-        n_max = min(max(8, int(2.0 * np.pi * 25.0 / v_slow)), step * MAX_COGGING_POINTS)
-        return [float(n) for n in range(step, n_max + 1, step)]
+        span = max(float(np.ptp(ch.pos)), 1e-12)
+        step = max(1, int(0.5 * np.pi / span))
+        n_min = step * max(1, math.ceil(2.0 * np.pi * MIN_COGGING_PERIODS / span / step))
+        n_max = min(max(n_min + 8 * step, int(2.0 * np.pi * 25.0 / v_slow)), n_min + step * MAX_COGGING_POINTS)
+        return [float(n) for n in range(n_min, n_max + 1, step)]
 
     def local_grid(self, ch, best: float) -> list[float]:
         """Every integer between the coarse grid's neighbours of ``best``."""
         grid = self.grid(ch)
         step = int(grid[1] - grid[0]) if len(grid) > 1 else 1
-        return [float(n) for n in range(max(1, int(best) - step + 1), int(best) + step)] if step > 1 else []
+        return [float(n) for n in range(max(int(grid[0]), int(best) - step + 1), int(best) + step)] if step > 1 else []
 
     def design(self, ch, nl):
         ang = nl * ch.pos
@@ -185,12 +190,14 @@ MOTOR_CANDIDATES: tuple[Candidate, ...] = (Stribeck(), AsymmetricFriction(), Loa
 CABLE_CANDIDATES: tuple[Candidate, ...] = (Backlash(), HardeningStiffness())
 
 MAX_COGGING_POINTS = 300
+MIN_COGGING_PERIODS = 2.0
 DELAY_LAGS_S = (0.001, 0.002, 0.004, 0.007, 0.011, 0.016, 0.022)
 
 
 def catch_all_motor(ch: MotorChannel) -> np.ndarray:
     """Generic columns for the motor channel: a torque FIR (latency, dynamics), a torque-constant
-    nonlinearity, velocity and cable-torque shapes, slow position dependence and an offset. No
+    nonlinearity, velocity and cable-torque shapes, slow position dependence (spring, preload, slow
+    harmonics) and an offset. No
     low-speed shapes beyond the named Stribeck block: near zero speed the residual carries the
     friction-transition error of any velocity estimate, which must not read as an unnamed effect."""
     now = ch.torque()
@@ -203,6 +210,8 @@ def catch_all_motor(ch: MotorChannel) -> np.ndarray:
         tcs = ch.tc / max(float(np.max(np.abs(ch.tc))), 1e-12)
         raw += [tcs, np.abs(tcs), tcs * np.abs(tcs), np.abs(tcs) * ch.sign]
     span = max(float(np.ptp(ch.pos)), 1e-12)
+    p = (ch.pos - ch.pos.mean(axis=0)) / span
+    raw += [p, p * np.abs(p)]
     for n in (1, 2, 3):
         raw += [np.sin(2 * np.pi * n * ch.pos / span), np.cos(2 * np.pi * n * ch.pos / span)]
     raw.append(np.ones_like(ch.pos))
