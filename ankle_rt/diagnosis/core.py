@@ -206,7 +206,8 @@ def unexplained(cs: ChannelScores) -> bool:
 def decide(channels: list[ChannelScores]) -> Verdict:
     named = [(cs, s) for cs in channels for s in cs.scores if significant(s)]
     if named:
-        # within a channel the information criterion ranks; across channels, the share of residual removed
+        # ranked by the share of its channel's residual removed (comparable across channels), then by the
+        # information criterion; the runner-up margin for the confidence is in the criterion
         best_cs, best = max(named, key=lambda p: (p[1].reduction, p[1].delta_ic))
         explained = best.reduction / max(best_cs.catch_all_reduction, 1e-12)
         if explained < MIN_EXPLAINED and unexplained(best_cs):
