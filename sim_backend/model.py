@@ -32,11 +32,11 @@ def baseline_friction(p: PlantParams, dt: float) -> CoulombFriction:
 class CompliantModel:
     """State x = [theta_DP, theta_IE, theta_1, theta_2, and their rates] (rad, rad/s)."""
 
-    def __init__(self, params: PlantParams, *, dt: float, substeps: int = 4, friction: bool = True,
+    def __init__(self, params: PlantParams, *, dt: float, substeps: int = 2, friction: bool = True,
                  cables: bool = True, gravity: bool = True, effects: list[Effect] | tuple = ()):
         self.params = params
         self.dt = dt
-        self.substeps = substeps
+        self.substeps = max([substeps] + [e.min_substeps for e in effects])
         self.cables = cables
         self.linear = LinearModel.from_params(params, cables=cables, gravity=gravity)
         self.effects: list[Effect] = ([baseline_friction(params, dt)] if friction else []) + list(effects)
@@ -54,7 +54,7 @@ class CompliantModel:
         self._motor_cable = self.linear.cable_Kq[2:4].ravel().tolist()  # motor-felt cable torque rows
         self._grav = params.foot.gravity_gain if gravity else 0.0
 
-        Ad, Bd = zoh(self.linear.A, self.linear.B, dt / substeps)
+        Ad, Bd = zoh(self.linear.A, self.linear.B, dt / self.substeps)
         self._phi = np.hstack([Ad, Bd])  # x[k+1] = phi @ [x[k]; f]
         self._z = np.zeros(N_X + 4)
         self._x_next = np.zeros(N_X)

@@ -115,8 +115,20 @@ def _compare_with_rk4(params, effects, ticks=1000, load=8.0):
     {"type": "load_dependent_friction", "coefficient": 0.3},
 ])
 def test_compliant_model_stays_accurate_with_transmission_effects(params, effect):
+    """At the configured default substeps, raised to the effect's declared minimum."""
     err, size = _compare_with_rk4(params, [effect])
     assert err < 0.005 * size
+
+
+def test_an_effect_raises_the_substeps_to_its_minimum_and_no_further(sim_cfg):
+    assert sim_cfg["sim"]["substeps"] < 4
+    sim_cfg["sim"]["effects"] = [{"type": "backlash", "half_width": 2e-4}]
+    assert SimulatedPlant(sim_cfg).model.substeps == 4
+    sim_cfg["sim"]["substeps"] = 6
+    assert SimulatedPlant(sim_cfg).model.substeps == 6
+    sim_cfg["sim"]["substeps"] = 2
+    sim_cfg["sim"]["effects"] = [{"type": "delay", "delay": 0.004}]
+    assert SimulatedPlant(sim_cfg).model.substeps == 2
 
 
 def test_effects_switch_on_from_the_config(sim_cfg):

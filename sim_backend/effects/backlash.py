@@ -17,6 +17,7 @@ class Backlash(Effect):
         "half_width": non_negative("m of cable length, dead zone +/- half_width"),
     })
     cause = "backlash"
+    min_substeps = 4  # within 0.5 % RMS joint torque of RK4 at dt/40 (tests/test_effects.py)
 
     def __init__(self, params, plant, dt):
         super().__init__(params, plant, dt)

@@ -43,6 +43,9 @@ class Effect:
     PARAMS: ClassVar[Section] = Section({})
     #: the vocabulary word of DESIGN.md this effect stands for (used by the diagnosis)
     cause: ClassVar[str] = "unknown"
+    #: integration substeps per control tick this effect needs to stay accurate; the model raises
+    #: its substeps to the largest minimum of its effects (cable-side laws act on the stiff cable modes)
+    min_substeps: ClassVar[int] = 1
 
     def __init__(self, params: dict[str, Any], plant: PlantParams, dt: float):
         """``params`` are validated already; ``dt`` is the control period (s)."""
