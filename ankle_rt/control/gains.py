@@ -8,7 +8,12 @@ over ``soft_start_s`` after each activation.
 
 from __future__ import annotations
 
-from typing import Mapping
+from typing import TYPE_CHECKING, Mapping
+
+from ankle_rt.control.friction import FrictionFeedForward
+
+if TYPE_CHECKING:
+    from ankle_rt.estimation import Estimate
 
 
 class GainRamp:
@@ -65,3 +70,20 @@ class GainRamp:
     def as_dict(self) -> dict[str, float]:
         """Current gains (for status replies; allocates, not for the cycle)."""
         return dict(zip(self.names, self.values))
+
+
+class RampedGainController:
+    """What the config's controllers share: gains that ramp (bumpless changes, soft start on each
+    activation) and an optional friction feed-forward (off when none is given)."""
+
+    def __init__(self, gains: Mapping[str, float], *, dt: float, ramp_s: float, soft_start_s: float,
+                 friction: FrictionFeedForward | None):
+        self.gains = GainRamp(gains, dt=dt, ramp_s=ramp_s, soft_start_s=soft_start_s)
+        self.friction = friction or FrictionFeedForward(0.0, 0.0, 1.0, enabled=False)
+
+    def reset(self, est: "Estimate") -> None:
+        self.gains.start()
+
+    def set_gains(self, **gains: float) -> None:
+        """Ramp to new gains (names as at construction) without a jump in the command."""
+        self.gains.set_targets(**gains)

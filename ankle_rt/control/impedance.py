@@ -14,27 +14,19 @@ from typing import Mapping
 import numpy as np
 
 from ankle_rt.control.friction import FrictionFeedForward
-from ankle_rt.control.gains import GainRamp
+from ankle_rt.control.gains import RampedGainController
 from ankle_rt.estimation import Estimate
 from ankle_rt.kinematics import Kinematics
 
 
-class ImpedanceController:
+class ImpedanceController(RampedGainController):
     def __init__(self, kin: Kinematics, ref: np.ndarray, gains: Mapping[str, float], *, dt: float,
                  ramp_s: float = 0.0, soft_start_s: float = 0.0, friction: FrictionFeedForward | None = None):
         """``gains``: stiffness_dp/ie (N m/rad), damping_dp/ie (N m s/rad). ``ref``: rad [DP, IE]."""
+        super().__init__({k: gains[k] for k in ("stiffness_dp", "stiffness_ie", "damping_dp", "damping_ie")},
+                         dt=dt, ramp_s=ramp_s, soft_start_s=soft_start_s, friction=friction)
         self.RiT = kin.R_inv_T.ravel().tolist()
         self.ref = ref
-        self.gains = GainRamp({k: gains[k] for k in ("stiffness_dp", "stiffness_ie", "damping_dp", "damping_ie")},
-                              dt=dt, ramp_s=ramp_s, soft_start_s=soft_start_s)
-        self.friction = friction or FrictionFeedForward(0.0, 0.0, 1.0, enabled=False)
-
-    def reset(self, est: Estimate) -> None:
-        self.gains.start()
-
-    def set_gains(self, **gains: float) -> None:
-        """Ramp to new stiffness/damping values without a jump in the command."""
-        self.gains.set_targets(**gains)
 
     def update(self, est: Estimate, out_torque: np.ndarray) -> None:
         g = self.gains

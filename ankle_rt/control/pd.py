@@ -10,26 +10,18 @@ from __future__ import annotations
 import numpy as np
 
 from ankle_rt.control.friction import FrictionFeedForward
-from ankle_rt.control.gains import GainRamp
+from ankle_rt.control.gains import RampedGainController
 from ankle_rt.estimation import Estimate
 from ankle_rt.kinematics import Kinematics
 
 
-class MotorPD:
+class MotorPD(RampedGainController):
     def __init__(self, kin: Kinematics, ref: np.ndarray, *, kp: float, kd: float, dt: float,
                  ramp_s: float = 0.0, soft_start_s: float = 0.0, friction: FrictionFeedForward | None = None):
         """``ref``: rad [DP, IE], read every update. ``kp`` N m/rad, ``kd`` N m s/rad, per motor."""
+        super().__init__({"kp": kp, "kd": kd}, dt=dt, ramp_s=ramp_s, soft_start_s=soft_start_s, friction=friction)
         self.R = kin.R.ravel().tolist()
         self.ref = ref
-        self.gains = GainRamp({"kp": kp, "kd": kd}, dt=dt, ramp_s=ramp_s, soft_start_s=soft_start_s)
-        self.friction = friction or FrictionFeedForward(0.0, 0.0, 1.0, enabled=False)
-
-    def reset(self, est: Estimate) -> None:
-        self.gains.start()
-
-    def set_gains(self, **gains: float) -> None:
-        """Ramp to new gains (``kp``, ``kd``) without a jump in the command."""
-        self.gains.set_targets(**gains)
 
     def update(self, est: Estimate, out_torque: np.ndarray) -> None:
         g = self.gains
