@@ -12,7 +12,7 @@ import csv
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterable, Mapping
+from typing import Callable, Iterable, Mapping
 
 import numpy as np
 
@@ -93,8 +93,14 @@ def _required_columns(header: list[str], path: str | Path) -> None:
                                "current_cmd_1", 0)
 
 
-def read_csv(path: str | Path, min_rows: int = 2) -> Recording:
-    """Read and check an interchange CSV. Raises :class:`InterchangeError` naming column and row."""
+def read_table(path: str | Path, columns: Iterable[str], check_header: Callable[[list[str]], None],
+               min_rows: int = 2) -> dict[str, np.ndarray]:
+    """Read the named ``columns`` of a CSV with a header row as float arrays, checking every cell.
+
+    ``check_header(header)`` raises for missing required columns; names in ``columns`` that the
+    header lacks are skipped. Raises :class:`InterchangeError` naming column and row for an unreadable
+    file, a non-numeric or non-finite cell, a short row, a file shorter than ``min_rows`` data rows,
+    or a ``t`` column that does not increase."""
     path = Path(path)
     try:
         handle = path.open(newline="")
@@ -106,11 +112,12 @@ def read_csv(path: str | Path, min_rows: int = 2) -> Recording:
             header = [h.strip() for h in next(reader)]
         except StopIteration:
             raise InterchangeError("empty file (expected a header row)", path) from None
-        _required_columns(header, path)
-        dupes = {h for h in header if header.count(h) > 1 and h in KNOWN_COLUMNS}
+        check_header(header)
+        wanted = set(columns)
+        dupes = {h for h in header if header.count(h) > 1 and h in wanted}
         if dupes:
             raise InterchangeError("column appears more than once", path, sorted(dupes)[0], 0)
-        keep = [(i, h) for i, h in enumerate(header) if h in KNOWN_COLUMNS]
+        keep = [(i, h) for i, h in enumerate(header) if h in wanted]
         data: dict[str, list[float]] = {h: [] for _, h in keep}
         for row_no, row in enumerate(reader, start=1):
             if not row or all(not c.strip() for c in row):
@@ -127,15 +134,21 @@ def read_csv(path: str | Path, min_rows: int = 2) -> Recording:
                 if not math.isfinite(value):
                     raise InterchangeError(f"not a finite number: {cell!r}", path, name, row_no)
                 data[name].append(value)
-    columns = {k: np.asarray(v, dtype=float) for k, v in data.items()}
-    n = len(columns["t"])
+    table = {k: np.asarray(v, dtype=float) for k, v in data.items()}
+    n = len(next(iter(table.values()))) if table else 0
     if n < min_rows:
         raise InterchangeError(f"too short: {n} data rows, need at least {min_rows}", path, "t", n)
-    steps = np.diff(columns["t"])
-    bad = np.flatnonzero(steps <= 0)
-    if bad.size:
-        raise InterchangeError("time does not increase", path, "t", int(bad[0]) + 2)
-    return Recording(columns, str(path))
+    if "t" in table:
+        bad = np.flatnonzero(np.diff(table["t"]) <= 0)
+        if bad.size:
+            raise InterchangeError("time does not increase", path, "t", int(bad[0]) + 2)
+    return table
+
+
+def read_csv(path: str | Path, min_rows: int = 2) -> Recording:
+    """Read and check an interchange CSV. Raises :class:`InterchangeError` naming column and row."""
+    return Recording(read_table(path, KNOWN_COLUMNS, lambda header: _required_columns(header, path), min_rows),
+                     str(path))
 
 
 def write_csv(path: str | Path, columns: Mapping[str, Iterable[float]]) -> None:

@@ -12,7 +12,6 @@ disturbances (``sim.disturbances``) use, so a configured experiment lines up wit
 from __future__ import annotations
 
 import bisect
-import csv
 import math
 from pathlib import Path
 from typing import Any, Callable, Mapping
@@ -20,7 +19,7 @@ from typing import Any, Callable, Mapping
 import numpy as np
 
 from ankle_rt.config import ConfigError, Field, Section, non_negative, positive, validate
-from ankle_rt.interchange import InterchangeError
+from ankle_rt.interchange import InterchangeError, read_table
 
 DEG = math.pi / 180.0
 
@@ -194,36 +193,15 @@ class CsvProfile(Profile):
 
     relative = False
 
+    COLUMNS = ("t", "ref_dp", "ref_ie")
+
     def __init__(self, path: str | Path):
-        path = Path(path)
-        try:
-            handle = path.open(newline="")
-        except OSError as exc:
-            raise InterchangeError(f"cannot read reference file: {exc.strerror}", path) from None
-        with handle:
-            reader = csv.reader(handle)
-            header = [h.strip() for h in next(reader, [])]
-            for name in ("t", "ref_dp", "ref_ie"):
+        def require(header: list[str]) -> None:
+            for name in self.COLUMNS:
                 if name not in header:
                     raise InterchangeError("required column missing", path, name, 0)
-            cols = {name: header.index(name) for name in ("t", "ref_dp", "ref_ie")}
-            data: dict[str, list[float]] = {name: [] for name in cols}
-            for row_no, row in enumerate(reader, start=1):
-                if not row or all(not c.strip() for c in row):
-                    continue
-                for name, i in cols.items():
-                    cell = row[i].strip() if i < len(row) else ""
-                    try:
-                        v = float(cell)
-                    except ValueError:
-                        raise InterchangeError(f"not a number: {cell!r}", path, name, row_no) from None
-                    if not math.isfinite(v):
-                        raise InterchangeError(f"not a finite number: {cell!r}", path, name, row_no)
-                    if name == "t" and data["t"] and v <= data["t"][-1]:
-                        raise InterchangeError("time does not increase", path, "t", row_no)
-                    data[name].append(v)
-        if not data["t"]:
-            raise InterchangeError("no data rows", path, "t", 1)
+
+        data = {k: v.tolist() for k, v in read_table(path, self.COLUMNS, require, min_rows=1).items()}
         self.t, self.dp, self.ie = data["t"], data["ref_dp"], data["ref_ie"]
 
     def value(self, tau: float) -> tuple[float, float]:

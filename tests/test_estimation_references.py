@@ -119,6 +119,10 @@ def test_csv_profile_interpolates_and_bad_files_name_column_and_row(sim_cfg, tmp
     (tmp_path / "nocol.csv").write_text("t,ref_dp\n0,0\n")
     with pytest.raises(InterchangeError, match="ref_ie"):
         make_profile("csv", {"path": str(tmp_path / "nocol.csv")})
+    (tmp_path / "back.csv").write_text("t,ref_dp,ref_ie\n0,0,0\n1,0,0\n0.5,0,0\n")
+    with pytest.raises(InterchangeError, match="time does not increase") as err:
+        make_profile("csv", {"path": str(tmp_path / "back.csv")})
+    assert err.value.column == "t" and err.value.row == 3
     with pytest.raises(ConfigError, match="reference.csv.path"):
         reference_from_config(variant(sim_cfg, reference={"profile": "csv"}))
     with pytest.raises(ConfigError, match=r"reference\.csv\.path.*'ref_dp'.*row 2"):
