@@ -21,11 +21,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     export.set_defaults(handler=export_cmd)
 
 
-def _read(path: str):
+def _read(path: str, last: int | None = None):
     from ankle_rt.log.reader import LogFormatError, read_log
 
     try:
-        return read_log(path)
+        return read_log(path, last)
     except LogFormatError as exc:
         print(f"ankle-rt log: {exc}", file=sys.stderr)
         return None
@@ -34,12 +34,12 @@ def _read(path: str):
 def info_cmd(args: argparse.Namespace) -> int:
     import json
 
-    from ankle_rt.log.summary import format_summary, summarize
+    from ankle_rt.log.summary import SUMMARY_MAX_RECORDS, format_summary, summarize_log
 
-    log = _read(args.path)
+    log = _read(args.path, SUMMARY_MAX_RECORDS)
     if log is None:
         return 1
-    summary = summarize(log.records, log.meta)
+    summary = summarize_log(log)
     summary["log"] = log.source
     summary["meta"] = log.meta
     summary["torn_bytes"] = log.torn_bytes

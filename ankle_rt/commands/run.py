@@ -42,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
     from ankle_rt.config import load_config
     from ankle_rt.daemon import Daemon
     from ankle_rt.log.reader import read_log
-    from ankle_rt.log.summary import format_summary, plot_run, summarize
+    from ankle_rt.log.summary import SUMMARY_MAX_RECORDS, format_summary, plot_run, summarize_log
     from ankle_rt.log.writer import LogWriter
     from ankle_rt.paths import default_config_path
     from ankle_rt.realtime import apply_realtime
@@ -109,9 +109,11 @@ def run(args: argparse.Namespace) -> int:
     if log_path is None:
         print(f"stopped after {daemon.loop.stats.cycles} cycles (no log written)")
         return 0
-    run_log = read_log(log_path)
+    # Only the most recent records: a run of days must not load gigabytes after the safe state
+    # (systemd's stop timeout, mlockall). The whole run's loop timing is in the live histograms.
+    run_log = read_log(log_path, last=SUMMARY_MAX_RECORDS)
     records = run_log.records
-    summary = summarize(records, run_log.meta)
+    summary = summarize_log(run_log)
     summary["log"] = str(log_path)
     summary["loop_stats"] = daemon.loop.stats.summary()
     if daemon.recorder.dropped:
@@ -127,7 +129,8 @@ def run(args: argparse.Namespace) -> int:
         print(format_summary(summary))
         if not args.fast:
             st = summary["loop_stats"]
-            print(f"loop (live histograms): period error p99 {st['period_error']['p99_us']:.0f} us, "
+            scope = "loop, whole run" if "window" in summary else "loop"
+            print(f"{scope} (live histograms): period error p99 {st['period_error']['p99_us']:.0f} us, "
                   f"compute p99 {st['compute']['p99_us']:.0f} us, max {st['compute']['max_us']:.0f} us")
         print(f"log: {log_path}  (ankle-rt log info / ankle-rt log export {log_path} --csv OUT.csv)")
         if plot_note:

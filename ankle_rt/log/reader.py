@@ -4,6 +4,8 @@ everything else (wrong magic, a layout this version does not know)."""
 from __future__ import annotations
 
 import json
+import math
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -21,36 +23,51 @@ class LogFormatError(ValueError):
 @dataclass
 class RunLog:
     meta: dict[str, Any]
-    records: np.ndarray       # structured array, RECORD_DTYPE
+    records: np.ndarray       # structured array, RECORD_DTYPE (all of them, or the last ``last`` asked for)
     torn_bytes: int           # bytes of an incomplete final record that were ignored
     source: str
+    total_records: int = 0    # complete records in the file (> len(records) when only the tail was read)
+    first_t: float = math.nan  # s, sample time of the file's first record (NaN when it has none)
 
     def __len__(self) -> int:
         return len(self.records)
 
+    @property
+    def is_tail(self) -> bool:
+        """True when only the most recent records were read (a long run, see ``read_log(last=...)``)."""
+        return self.total_records > len(self.records)
 
-def read_log(path: str | Path) -> RunLog:
+
+def read_log(path: str | Path, last: int | None = None) -> RunLog:
+    """Read a run log; ``last`` keeps memory and time bounded for long runs: only the most recent
+    ``last`` records are read (seek + ``np.fromfile``), never the whole file."""
     path = Path(path)
     try:
-        data = path.read_bytes()
+        with path.open("rb") as handle:
+            head = handle.read(HEADER_SIZE)
+            file_size = os.fstat(handle.fileno()).st_size
+            if not head.startswith(MAGIC):
+                raise LogFormatError(f"{path}: not an ankle-rt log (magic {head[:8]!r}, expected {MAGIC!r})")
+            if len(head) < HEADER_SIZE:
+                raise LogFormatError(f"{path}: header truncated ({len(head)} of {HEADER_SIZE} bytes)")
+            try:
+                meta = json.loads(head[len(MAGIC):].decode().strip())
+            except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+                raise LogFormatError(f"{path}: header is not valid JSON: {exc}") from None
+            fields = [(name, code) for name, code, _ in meta.get("fields", [])]
+            if fields != [(name, RECORD_DTYPE[name].str) for name in RECORD_DTYPE.names]:
+                raise LogFormatError(f"{path}: record layout differs from this version's (fields {fields[:3]}...)")
+            size = RECORD_DTYPE.itemsize
+            body = file_size - HEADER_SIZE
+            total = body // size
+            first_t = float(np.fromfile(handle, dtype=RECORD_DTYPE, count=1)["t"][0]) if total else math.nan
+            start = 0 if last is None else max(0, total - max(last, 0))
+            handle.seek(HEADER_SIZE + start * size)
+            records = np.fromfile(handle, dtype=RECORD_DTYPE, count=total - start)
     except OSError as exc:
         raise LogFormatError(f"{path}: cannot read: {exc.strerror}") from None
-    if not data.startswith(MAGIC):
-        raise LogFormatError(f"{path}: not an ankle-rt log (magic {data[:8]!r}, expected {MAGIC!r})")
-    if len(data) < HEADER_SIZE:
-        raise LogFormatError(f"{path}: header truncated ({len(data)} of {HEADER_SIZE} bytes)")
-    try:
-        meta = json.loads(data[len(MAGIC):HEADER_SIZE].decode().strip())
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise LogFormatError(f"{path}: header is not valid JSON: {exc}") from None
-    fields = [(name, code) for name, code, _ in meta.get("fields", [])]
-    if fields != [(name, RECORD_DTYPE[name].str) for name in RECORD_DTYPE.names]:
-        raise LogFormatError(f"{path}: record layout differs from this version's (fields {fields[:3]}...)")
-    size = RECORD_DTYPE.itemsize
-    body = len(data) - HEADER_SIZE
-    n = body // size
-    records = np.frombuffer(data, dtype=RECORD_DTYPE, count=n, offset=HEADER_SIZE).copy()
-    return RunLog(meta=meta, records=records, torn_bytes=body - n * size, source=str(path))
+    return RunLog(meta=meta, records=records, torn_bytes=body - total * size, source=str(path),
+                  total_records=total, first_t=first_t)
 
 
 # The log fields exported to the measured-data interchange CSV (DESIGN.md), in column order.

@@ -1,5 +1,7 @@
 """What a run did, from its records: tracking errors per axis, peak currents, loop timing, faults.
-Shared by ``ankle-rt run`` (printed at the end) and ``ankle-rt log info``."""
+Shared by ``ankle-rt run`` (printed at the end) and ``ankle-rt log info``. Both read at most
+SUMMARY_MAX_RECORDS of the most recent records, so a run of days is summarised in bounded memory and
+time (the summary then says which part of the run it covers)."""
 
 from __future__ import annotations
 
@@ -8,10 +10,12 @@ from typing import Any
 
 import numpy as np
 
+from ankle_rt.log.reader import RunLog
 from ankle_rt.safety import Fault, State
 
 STEADY_WINDOW_S = 0.5   # the "final error" is the mean |error| over the run's last 0.5 s of activity
 SETTLE_S = 0.5          # "settled": the reference has not changed for this long (step transients excluded)
+SUMMARY_MAX_RECORDS = 300_000   # records a summary reads (read_log(last=...)): 5 min at 1 kHz, ~50 MB
 
 
 def _pct(values: np.ndarray, q: float) -> float:
@@ -75,12 +79,26 @@ def summarize(records: np.ndarray, meta: dict[str, Any] | None = None) -> dict[s
     return out
 
 
+def summarize_log(log: RunLog) -> dict[str, Any]:
+    """:func:`summarize` of the records read; when they are only the tail of a longer run, ``window``
+    says what they cover (the records read, all records, the whole run's duration in s)."""
+    out = summarize(log.records, log.meta)
+    if log.is_tail and len(log.records):
+        out["window"] = {"records": len(log.records), "total_records": log.total_records,
+                         "run_s": float(log.records["t"][-1] - log.first_t)}
+    return out
+
+
 def format_summary(s: dict[str, Any]) -> str:
     """A few readable lines."""
     if s.get("cycles", 0) == 0:
         return "empty run (no records)"
     lines = [f"{s['cycles']} cycles, {s['duration_s']:.3f} s ({s['active_s']:.3f} s active), "
              f"final state {s['final_state']}"]
+    if "window" in s:
+        w = s["window"]
+        lines.append(f"(summary of the last {s['duration_s']:.1f} s of a {w['run_s']:.1f} s run: the last "
+                     f"{w['records']} of {w['total_records']} records; overruns count the whole run)")
     if "fault" in s:
         f = s["fault"]
         lines.append(f"FAULT {f['name']} at t = {f['t']:.3f} s: {f['description']}")
