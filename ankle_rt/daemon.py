@@ -294,10 +294,14 @@ class Daemon:
             self.service.close()
 
     def log_metadata(self) -> dict[str, Any]:
+        """The run log header's metadata. ``controller_config`` is the config's controller section the
+        run started with (type, gains, ramps; what ``validate --from`` replays), null when an
+        experiment plugged its own controller in."""
         return log_metadata(config=getattr(self.cfg, "source", "<memory>"), backend=self.cfg["backend"],
                             clock="simulated" if self.clock.simulated else "monotonic",
                             rate_hz=self.cfg["controller"]["rate_hz"], torque_constant=self.kt,
                             controller=type(self.controller).__name__,
+                            controller_config=self.cfg["controller"] if self.own_controller else None,
                             states={s.name: int(s) for s in State}, faults={f.name: int(f) for f in Fault})
 
 

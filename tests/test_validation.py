@@ -50,10 +50,14 @@ def test_wrong_inertia_is_a_clear_discrepancy(checks, _sim_cfg):
 def test_cli_validates_a_recorded_file_and_exits_1_on_discrepancy(checks, tmp_path, capsys):
     data = tmp_path / "sine.csv"
     write_csv(data, checks[1].measured.columns)
-    assert main(["validate", "--config", str(SIM_YAML), "--from", str(data), "--out", str(tmp_path / "ok")]) == 0
+    # a CSV carries no controller: the config names the one the Fig. 7 run used (the validation gains)
+    ran = {"controller": {"pd_gains": "validation"}}
+    config = tmp_path / "validation_gains.yaml"
+    config.write_text(yaml.safe_dump({"include": [str(SIM_YAML)], **ran}))
+    assert main(["validate", "--config", str(config), "--from", str(data), "--out", str(tmp_path / "ok")]) == 0
     assert "model agrees" in capsys.readouterr().out
     wrong = tmp_path / "wrong.yaml"
-    wrong.write_text(yaml.safe_dump({"include": [str(SIM_YAML)], "actuator": {"inertia": 0.0624}}))
+    wrong.write_text(yaml.safe_dump({"include": [str(SIM_YAML)], "actuator": {"inertia": 0.0624}, **ran}))
     assert main(["validate", "--config", str(wrong), "--from", str(data), "--out", str(tmp_path / "bad")]) == 1
     text = capsys.readouterr().out
     assert "DISCREPANCY" in text and "current_cmd_1" in text

@@ -14,7 +14,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         description="Run the paper's section 4 checks on the configured backend (Fig. 6 torque steps with "
                     "the motors off the cables, Fig. 7 IE sine tracking under PD kp=80, kd=0.3) or take "
                     "--from FILE.csv, drive the simulation the same way and report NRMSE and max error per "
-                    "channel. Exit 0: agrees; 1: discrepancy; 2: error.")
+                    "channel. With --from the closed-loop replay uses the controller the recording was made with: "
+                    "a run log's header records it; for a CSV it is --config's controller section. "
+                    "Exit 0: agrees; 1: discrepancy; 2: error.")
     p.add_argument("--config", required=True, help="config file: the backend to run on, and the model")
     p.add_argument("--model", help="model config for the simulation side (default: --config)")
     p.add_argument("--from", dest="source", metavar="FILE",
@@ -22,7 +24,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--check", choices=("sine", "step", "all"), default="all", help="which checks to run (default all)")
     p.add_argument("--frequencies", type=float, nargs="+", metavar="HZ", help="sine frequencies (default 0.5 1 2)")
     p.add_argument("--drive", choices=("reference", "input"),
-                   help="with --from: drive the simulation by the references (closed loop, PD) or by the "
+                   help="with --from: drive the simulation by the references (closed loop, the recording's "
+                        "controller) or by the "
                         "recorded inputs (open loop); default: references when the file has them")
     p.add_argument("--tolerance", type=float, default=None, help="NRMSE above which a channel disagrees (default 0.02)")
     p.add_argument("--out", default="validation", help="output directory for plots and recordings (default ./validation)")
@@ -30,11 +33,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ankle_rt.config import load_config
+    from ankle_rt.config import ConfigError, load_config
     from ankle_rt.identification.runner import actuator_config
     from ankle_rt.identification.signals import IdentificationError
     from ankle_rt.identification.validation import (DEFAULT_TOLERANCE, SINE_FREQUENCIES_HZ, model_config,
-                                                    run_checks, validate_recording, write_overlays)
+                                                    recorded_controller, run_checks, validate_recording,
+                                                    write_overlays)
     from ankle_rt.identification.data import load_recording
     from ankle_rt.interchange import InterchangeError, write_csv
 
@@ -42,24 +46,31 @@ def run(args: argparse.Namespace) -> int:
     model = load_config(args.model) if args.model else cfg
     tolerance = args.tolerance if args.tolerance is not None else DEFAULT_TOLERANCE
     out = Path(args.out)
+    notes = []
     try:
         if args.source:
             rec = load_recording(args.source)
             if not rec.two_motors:   # single-actuator data: the motors were off the cables
                 model = actuator_config(model_config(model))[0]
-            comparisons = [validate_recording(rec, model, args.drive, f"{args.source}")]
+            controller = recorded_controller(rec)   # the controller the run log says was running
+            origin = "the run log header"
+            if controller is None:   # an interchange CSV carries none: the user's --config names it
+                controller, origin = cfg["controller"], f"--config {args.config} (the file records no controller)"
+            comparisons = [validate_recording(rec, model, args.drive, f"{args.source}", controller)]
+            if comparisons[0].drive == "reference":
+                notes.append(f"  controller taken from {origin}")
         else:
             checks = ("sine", "step") if args.check == "all" else (args.check,)
             print(f"running {' and '.join(checks)} check(s) on backend {cfg['backend']!r}; model: "
                   f"{args.model or args.config} on the simulator (noise-free) ...", flush=True)
             comparisons = run_checks(cfg, model, checks, tuple(args.frequencies or SINE_FREQUENCIES_HZ))
-    except (InterchangeError, IdentificationError) as exc:
+    except (InterchangeError, IdentificationError, ConfigError) as exc:
         print(f"ankle-rt validate: {exc}", file=sys.stderr)
         return 2
     out.mkdir(parents=True, exist_ok=True)
     lines = []
     for k, c in enumerate(comparisons, start=1):
-        lines += c.lines(tolerance)
+        lines += c.lines(tolerance) + notes
         if not args.source:
             write_csv(out / f"validate_{k}.csv", c.measured.columns)
     lines += write_overlays(comparisons, out)

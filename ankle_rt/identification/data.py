@@ -12,7 +12,8 @@ from ankle_rt.interchange import InterchangeError, Recording, read_csv
 
 def load_recording(path: str | Path, min_rows: int = 2) -> Recording:
     """Read ``path`` as a run log (by its magic bytes) or else as an interchange CSV; either way a file
-    with fewer than ``min_rows`` rows is an error naming column 't' and the row count."""
+    with fewer than ``min_rows`` rows is an error naming column 't' and the row count. A run log's
+    header metadata is kept in ``extra["log_meta"]``."""
     from ankle_rt.log.reader import LogFormatError, interchange_columns, read_log
     from ankle_rt.log.writer import MAGIC
 
@@ -32,4 +33,4 @@ def load_recording(path: str | Path, min_rows: int = 2) -> Recording:
     n = len(columns["t"])
     if n < min_rows:
         raise InterchangeError(f"too short: {n} records, need at least {min_rows}", path, "t", n)
-    return Recording(columns, str(path))
+    return Recording(columns, str(path), extra={"log_meta": log.meta})

@@ -10,7 +10,8 @@ Checks:
 The simulation side is the model config (``backend: sim``, opened through the backend registry) with
 quantisation and strain-gauge noise off: the model's noise-free prediction. It is driven either
 - by the references (the recording has ``ref_dp``/``ref_ie``): the daemon loop replays them from a CSV
-  reference through the same PD, closed loop; or
+  reference, closed loop, through the controller the recording was made with (a run log's header
+  records it; for an interchange CSV the caller names it; the Fig. 7 check uses the validation PD); or
 - by the inputs: the recorded set values (or torques) are applied row by row, open loop, exactly as the
   interchange timing says (each row's input held until the next row).
 
@@ -28,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ankle_rt.config import Config
+from ankle_rt.config import Config, validate
 from ankle_rt.identification.inertia import TorqueStepExperiment
 from ankle_rt.identification.runner import actuator_config, recording_of, run_lockstep_recording, with_overrides
 from ankle_rt.identification.signals import IdentificationError, centred_velocity
@@ -76,6 +77,8 @@ class Comparison:
         verdict = "agrees" if self.passed(tolerance) else "DISCREPANCY"
         out = [f"{self.label} (simulation driven by the {self.drive}s): {verdict} "
                f"(worst NRMSE {100 * self.worst().nrmse:.2f} % on {self.worst().name}, tolerance {100 * tolerance:g} %)"]
+        if "controller_config" in self.simulated.extra:
+            out.append(f"  replayed under controller: {describe_controller(self.simulated.extra['controller_config'])}")
         out += [f"  {c.name:<15} NRMSE {100 * c.nrmse:7.3f} %   max error {c.max_error:.4g}" for c in self.channels]
         if self.flat:
             out.append(f"  not compared (measured range below its floor): {', '.join(self.flat)}")
@@ -131,17 +134,49 @@ def pd_validation_overrides(cfg: Config) -> dict:
             "sim": {"disturbances": [], "cables": True}}
 
 
-def simulate_references(rec: Recording, model_cfg: Config) -> Recording:
-    """Closed loop: the daemon on the model config replays ``rec``'s references through the PD."""
+def recorded_controller(rec: Recording) -> dict | None:
+    """The controller section a run log's header records (validated, defaults filled in), or None for
+    an interchange CSV or a log written before the header carried it."""
+    section = rec.extra.get("log_meta", {}).get("controller_config")
+    if section is None:
+        return None
+    from ankle_rt.config_schema import CONTROLLER
+
+    def given(data: object) -> object:   # JSON null marks a default (e.g. friction_ff.coulomb): refill it
+        return {k: given(v) for k, v in data.items() if v is not None} if isinstance(data, dict) else data
+    return validate(given(section), CONTROLLER, lambda _path: f"{rec.source} (log header)", ("controller",))
+
+
+def describe_controller(section: dict) -> str:
+    """One line naming a controller section's type and gains, for reports."""
+    if section["type"] == "impedance":
+        imp = section["impedance"]
+        text = (f"impedance (stiffness DP/IE {imp['stiffness_dp']:g}/{imp['stiffness_ie']:g} N m/rad, "
+                f"damping DP/IE {imp['damping_dp']:g}/{imp['damping_ie']:g} N m s/rad)")
+    else:
+        gains = section[section["pd_gains"] + "_gains"]
+        text = f"pd ({section['pd_gains']}_gains kp {gains['kp']:g} N m/rad, kd {gains['kd']:g} N m s/rad)"
+    return text + (" + friction feed-forward" if section["friction_ff"]["enabled"] else "")
+
+
+def simulate_references(rec: Recording, model_cfg: Config, controller: dict | None = None) -> Recording:
+    """Closed loop: the daemon on the model config replays ``rec``'s references through ``controller``
+    (a controller config section: the one the recording was made with; default the paper's validation
+    PD). The result's ``extra["controller_config"]`` is the controller section used."""
     _check_rate(rec, model_cfg)
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "references.csv"
         write_csv(path, {"t": rec["t"], "ref_dp": rec["ref_dp"], "ref_ie": rec["ref_ie"]})
+        overrides = pd_validation_overrides(model_cfg)
+        if controller is not None:
+            overrides["controller"] = controller
         cfg = with_overrides(model_config(model_cfg), reference={"profile": "csv", "csv": {"path": str(path)}},
-                             **pd_validation_overrides(model_cfg))
+                             **overrides)
         from ankle_rt.daemon import run_lockstep
         duration = float(rec["t"][-1] - rec["t"][0]) + rec.dt
-        return recording_of(run_lockstep(cfg, duration), "simulation (references replayed)")
+        sim = recording_of(run_lockstep(cfg, duration), "simulation (references replayed)")
+    sim.extra["controller_config"] = cfg["controller"]
+    return sim
 
 
 def simulate_inputs(rec: Recording, model_cfg: Config) -> Recording:
@@ -173,16 +208,18 @@ def simulate_inputs(rec: Recording, model_cfg: Config) -> Recording:
     return Recording(cols, "simulation (inputs replayed)")
 
 
-def validate_recording(rec: Recording, model_cfg: Config, drive: str | None = None, label: str = "") -> Comparison:
+def validate_recording(rec: Recording, model_cfg: Config, drive: str | None = None, label: str = "",
+                       controller: dict | None = None) -> Comparison:
     """Compare ``rec`` with the model driven the same way (``drive``: "reference", "input", or None =
-    by the references when the recording has them)."""
+    by the references when the recording has them). ``controller``: the controller section the
+    recording was made with, for the closed-loop replay (default: the paper's validation PD)."""
     if drive is None:
         drive = "reference" if "ref_dp" in rec and "ref_ie" in rec and np.isfinite(rec["ref_ie"]).all() else "input"
     if drive == "reference":
         for col in ("ref_dp", "ref_ie"):
             if col not in rec:
                 raise IdentificationError(f"{rec.source}: column {col!r} missing: needed to drive the simulation by the references")
-        sim = simulate_references(rec, model_cfg)
+        sim = simulate_references(rec, model_cfg, controller)
         channels, flat = compare(rec, sim, REFERENCE_CHANNELS, relative=False)
     else:
         sim = simulate_inputs(rec, model_cfg)
