@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from ankle_rt.config import Section, non_negative
+from ankle_rt.kinematics import Kinematics
 from sim_backend.effects.base import Effect, register_effect
 
 
@@ -22,9 +23,8 @@ class Backlash(Effect):
     def __init__(self, params, plant, dt):
         super().__init__(params, plant, dt)
         tr = plant.transmission
-        k = tr.cable_stiffness
-        self.k_dp = 2.0 * k * tr.lever_dp ** 2
-        self.k_ie = k * tr.lever_ie ** 2
+        K = Kinematics.from_params(tr).K
+        self.k_dp, self.k_ie = float(K[0, 0]), float(K[1, 1])
         self.b_dp = params["half_width"] / tr.lever_dp
         self.b_ie = params["half_width"] / tr.lever_ie
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from ankle_rt.config import Section, positive
+from ankle_rt.kinematics import Kinematics
 from sim_backend.effects.base import Effect, register_effect
 
 
@@ -21,9 +22,9 @@ class HardeningStiffness(Effect):
     def __init__(self, params, plant, dt):
         super().__init__(params, plant, dt)
         tr = plant.transmission
-        k, s2 = tr.cable_stiffness, params["hardening_stretch"] ** 2
-        self.c_dp = 2.0 * k * tr.lever_dp ** 4 / s2
-        self.c_ie = k * tr.lever_ie ** 4 / s2
+        K, s2 = Kinematics.from_params(tr).K, params["hardening_stretch"] ** 2
+        self.c_dp = float(K[0, 0]) * tr.lever_dp ** 2 / s2
+        self.c_ie = float(K[1, 1]) * tr.lever_ie ** 2 / s2
 
     def cable_torque(self, phi_dp, phi_ie, dphi_dp, dphi_ie):
         return self.c_dp * phi_dp ** 3, self.c_ie * phi_ie ** 3
