@@ -24,8 +24,7 @@ class SimBackend(Backend):
         super().__init__(cfg, clock)
         self.plant = SimulatedPlant(cfg, getattr(cfg, "source", "config"))
         self.period_ns = round(1e9 / cfg["controller"]["rate_hz"])
-        self.start_ns = clock.now_ns()
-        self._anchored = False
+        self.start_ns: int | None = None  # ns, the tick grid's origin, set at the first read
         self.active = False
         self.set_values = [0.0, 0.0]
         self.injected = BackendFault.NONE  # faults a test or tool injects into the samples
@@ -46,12 +45,11 @@ class SimBackend(Backend):
     def read(self, frame: SensorFrame) -> None:
         plant = self.plant
         now = self.clock.now_ns()
-        if not self._anchored:
+        if self.start_ns is None:
             # Put the tick grid half a period before the first read: a loop reading on its own
             # period then always lands mid-tick, so wake-up jitter (< period / 2) never repeats or
             # skips a sample. The plant's time starts at this first read.
             self.start_ns = now - self.period_ns // 2
-            self._anchored = True
         due = (now - self.start_ns) // self.period_ns
         todo = min(due - plant.ticks, MAX_CATCH_UP_TICKS)
         for _ in range(todo):
