@@ -18,7 +18,7 @@ import numpy as np
 
 from ankle_rt.estimation import Estimate
 from ankle_rt.identification.runner import LEAD_S
-from ankle_rt.identification.signals import IdentificationError, motor_channel
+from ankle_rt.identification.signals import IdentificationError, input_column, motor_channel
 from ankle_rt.identification.stats import Measured, measured
 from ankle_rt.interchange import Recording
 
@@ -139,7 +139,7 @@ def estimate_inertia(rec: Recording, motor: int = 1, kt: float | None = None, *,
     t, pos, tau = motor_channel(rec, motor, kt)
     dt = rec.dt
     speed = np.diff(pos) / np.diff(t)
-    col = ("current_cmd_" if rec.input_kind == "current" else "motor_torque_") + str(motor)
+    col = input_column(rec, motor)
     threshold = 0.2 * float(np.max(np.abs(tau))) if len(tau) else 0.0
     fits = []
     for a, b in _steps(tau, threshold):

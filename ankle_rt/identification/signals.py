@@ -22,6 +22,11 @@ def motor_channel(rec: Recording, motor: int, kt: float | None) -> tuple[np.ndar
     return rec["t"], rec[name], torque[:, motor - 1]
 
 
+def input_column(rec: Recording, motor: int) -> str:
+    """Name of motor 1's or 2's input column in ``rec`` (current set value or torque), for messages."""
+    return ("current_cmd_" if rec.input_kind == "current" else "motor_torque_") + str(motor)
+
+
 def centred_velocity(t: np.ndarray, pos: np.ndarray, half_window_s: float) -> np.ndarray:
     """rad/s: (pos[k+w] - pos[k-w]) / (t[k+w] - t[k-w]), w samples = half_window_s; one-sided at the ends.
     Averaging over the window turns encoder quantisation into a small, unbiased error."""

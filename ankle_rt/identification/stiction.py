@@ -19,7 +19,8 @@ import numpy as np
 
 from ankle_rt.estimation import Estimate
 from ankle_rt.identification.runner import LEAD_S
-from ankle_rt.identification.signals import IdentificationError, centred_velocity, motor_channel, runs
+from ankle_rt.identification.signals import (IdentificationError, centred_velocity, input_column,
+                                            motor_channel, runs)
 from ankle_rt.identification.stats import Measured, measured
 from ankle_rt.interchange import Recording
 
@@ -88,7 +89,7 @@ def estimate_stiction(rec: Recording, motor: int = 1, kt: float | None = None, *
     the rotor's acceleration (module docstring); ``onset_speed`` rad/s."""
     t, pos, tau = motor_channel(rec, motor, kt)
     vel = centred_velocity(t, pos, half_window_s)
-    col = ("current_cmd_" if rec.input_kind == "current" else "motor_torque_") + str(motor)
+    col = input_column(rec, motor)
     w = max(2, int(round(fit_half_window_s / rec.dt)))
     events, skipped = [], []
     floor = 0.01 * float(np.max(np.abs(tau))) if len(tau) else 0.0   # set-value noise is not a ramp
