@@ -23,6 +23,7 @@ class ConfigError(ValueError):
     """A configuration value is missing, unknown, of the wrong type or out of range."""
 
     def __init__(self, message: str, source: str | None = None, key: str | None = None):
+        self.message = message   # without the "source: key: " prefix, for callers that re-key the error
         self.source = source
         self.key = key
         where = ": ".join(part for part in (source, key) if part)
@@ -45,10 +46,6 @@ class Field:
     low_open: bool = False
     choices: tuple[Any, ...] | None = None
     check: Callable[[Any], None] | None = None
-
-    @property
-    def required(self) -> bool:
-        return self.default is ...
 
 
 @dataclass(frozen=True)
@@ -220,15 +217,6 @@ class Config(dict):
     """A validated configuration: a plain nested dict plus where it was loaded from."""
 
     source: str = "<memory>"
-
-
-def config_from_dict(data: dict, source: str = "<memory>", schema: Section | None = None) -> Config:
-    """Validate an in-memory mapping (used by tests and tools that build configs programmatically)."""
-    from ankle_rt.config_schema import SCHEMA
-
-    cfg = Config(validate(data, schema or SCHEMA, lambda _p: source))
-    cfg.source = source
-    return cfg
 
 
 def load_config(path: str | Path, overrides: dict | None = None) -> Config:

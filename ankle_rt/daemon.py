@@ -226,9 +226,8 @@ class Daemon:
                 raise proto.CommandError("cmd", f"not supported: {type(command).__name__}")
         except RuntimeError as exc:
             raise proto.CommandError("cmd", str(exc)) from None
-        except ConfigError as exc:  # a profile parameter: "<source>: params.<key>: <message>"
-            where = ": ".join(part for part in (exc.source, exc.key) if part)
-            raise proto.CommandError(exc.key or "params", str(exc)[len(where) + 2:] if where else str(exc)) from None
+        except ConfigError as exc:  # a profile parameter, keyed params.<key>
+            raise proto.CommandError(exc.key or "params", exc.message) from None
         except InterchangeError as exc:  # the csv profile's file
             raise proto.CommandError("params.path", str(exc)) from None
         except ValueError as exc:

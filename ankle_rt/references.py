@@ -312,7 +312,7 @@ def reference_from_config(cfg: Mapping[str, Any]) -> ReferenceGenerator:
     try:
         profile = make_profile(name, params, source)
     except ConfigError as exc:
-        raise ConfigError(str(exc).split(": ")[-1], source, f"reference.{name}.{exc.key.split('.')[-1]}") from None
+        raise ConfigError(exc.message, source, f"reference.{name}.{exc.key.split('.')[-1]}") from None
     except InterchangeError as exc:      # the CSV file itself is bad: say which file, column and row
         raise ConfigError(str(exc), source, "reference.csv.path") from None
     return ReferenceGenerator(profile)

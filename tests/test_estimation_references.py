@@ -127,3 +127,11 @@ def test_csv_profile_interpolates_and_bad_files_name_column_and_row(sim_cfg, tmp
         reference_from_config(variant(sim_cfg, reference={"profile": "csv"}))
     with pytest.raises(ConfigError, match=r"reference\.csv\.path.*'ref_dp'.*row 2"):
         reference_from_config(variant(sim_cfg, reference={"profile": "csv", "csv": {"path": str(bad)}}))
+
+
+def test_a_config_profile_error_keeps_its_whole_message(sim_cfg):
+    """Re-keyed to reference.<profile>.<key> without cutting the message at its own ': '."""
+    with pytest.raises(ConfigError) as err:
+        reference_from_config(variant(sim_cfg, reference={"profile": "sine", "sine": {"bogus": 1.0}}))
+    assert err.value.key == "reference.sine.bogus"
+    assert err.value.message.startswith("unknown key (expected one of: amplitude_dp")
