@@ -115,19 +115,14 @@ class Backend(ABC):
         self.close()
 
 
-def backend_class(name: str) -> type[Backend]:
-    """Import and return the backend class registered under ``name``."""
+def backend_class(name: str, source: str | None = None) -> type[Backend]:
+    """Import and return the backend class registered under ``name`` (``source``: the config file, for errors)."""
     if name not in BACKENDS:
-        raise ConfigError(f"unknown backend {name!r} (expected one of: {', '.join(BACKENDS)})", key="backend")
+        raise ConfigError(f"unknown backend {name!r} (expected one of: {', '.join(BACKENDS)})", source, "backend")
     module_name, _, cls_name = BACKENDS[name].partition(":")
     return getattr(importlib.import_module(module_name), cls_name)
 
 
 def open_backend(cfg: "Config", clock: "Clock") -> Backend:
     """Build and configure the backend the config names (``backend:`` key)."""
-    try:
-        cls = backend_class(cfg["backend"])
-    except ConfigError as exc:
-        raise ConfigError(str(exc).split(": ", 1)[-1], cfg.source if hasattr(cfg, "source") else None,
-                          "backend") from None
-    return cls(cfg, clock)
+    return backend_class(cfg["backend"], getattr(cfg, "source", None))(cfg, clock)
