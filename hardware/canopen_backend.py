@@ -41,7 +41,7 @@ from hardware.canopen_pdo import (COUNTER_1, COUNTER_2, DIGITAL_IN, DIGITAL_OUT,
                                   SYNC_COB_ID, ANALOG_CODE_SHIFT, EdsError, NodeLayout, analog_codec,
                                   counter_bits, eds_path, load_node)
 from hardware.config_values import required
-from hardware.escon import escon_amplifiers
+from hardware.escon import enable_outputs, escon_amplifiers
 from hardware.sensors import MotorEncoders, StrainGauges, StuckEncoderDetector
 
 MAX_FRAMES_PER_READ = 64         # frames handled per read(); the rest wait for the next cycle
@@ -87,6 +87,8 @@ class CanopenBackend(Backend):
         print(f"canopen: bus load at {cfg['controller']['rate_hz']} Hz\n{self.bus_load.table()}")
         check_bus_load(self.bus_load, source)
         self.amps = escon_amplifiers(cfg, analog_codec())
+        self._enabled = enable_outputs(self.amps, ENABLE_BITS, True)
+        self._disabled = enable_outputs(self.amps, ENABLE_BITS, False)
         self.encoders = MotorEncoders(cfg["actuator"]["encoder_counts_per_rev"],
                                       counter_bits(self.node.object_dictionary),
                                       tuple(required(cfg, "encoders.sign", "+1/-1 per motor encoder")))
@@ -299,13 +301,11 @@ class CanopenBackend(Backend):
             code_1, code_2 = amps[0].code(current_1), amps[1].code(current_2)
             self._acting[0] = amps[0].current(code_1)
             self._acting[1] = amps[1].current(code_2)
-            enables = ((ENABLE_BITS[0] if amps[0].enable_level(True) else 0)
-                       | (ENABLE_BITS[1] if amps[1].enable_level(True) else 0))
+            enables = self._enabled
         else:
             code_1, code_2 = amps[0].zero_code, amps[1].zero_code
             self._acting[0] = self._acting[1] = 0.0
-            enables = ((ENABLE_BITS[0] if amps[0].enable_level(False) else 0)
-                       | (ENABLE_BITS[1] if amps[1].enable_level(False) else 0))
+            enables = self._disabled
         slots = self._out_slots
         values = self._rpdo_values
         p, k = slots[SET_VALUE_1]

@@ -146,6 +146,13 @@ class EsconAmplifier:
         return ready == self.ready_active_high
 
 
+def enable_outputs(amps: tuple[EsconAmplifier, EsconAmplifier], bits: tuple[int, int], enabled: bool) -> int:
+    """The digital-output word (``bits[k]``: amplifier k's enable line) that sets both enable lines
+    to the electrical level for ``enabled``. Backends compute both words once, at configure."""
+    return ((bits[0] if amps[0].enable_level(enabled) else 0)
+            | (bits[1] if amps[1].enable_level(enabled) else 0))
+
+
 def escon_amplifiers(cfg: dict, codec: SetValueCode | None = None) -> tuple[EsconAmplifier, EsconAmplifier]:
     """Both amplifiers from ``escon:`` and ``amplifier:`` of a validated config.
 

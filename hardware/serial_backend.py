@@ -34,7 +34,7 @@ from ankle_rt.backend import Backend, BackendError, BackendFault, SensorFrame
 from ankle_rt.clock import Clock
 from ankle_rt.config import Config
 from hardware.config_values import config_error, required
-from hardware.escon import escon_amplifiers
+from hardware.escon import enable_outputs, escon_amplifiers
 from hardware.sensors import JointEncoders, MotorEncoders, StrainGauges, StuckEncoderDetector
 from hardware.serial_protocol import (IN_JOINT_VALID, IN_READY_1, IN_READY_2, OUT_ENABLE_1, OUT_ENABLE_2,
                                       PAYLOADS, SEQ_MODULUS, ST_ADC_STALE, ST_QUADRATURE, ST_WATCHDOG,
@@ -107,10 +107,8 @@ class SerialBackend(Backend):
         self.commanded = True        # the CONFIG exchange stands for the first cycle's command
         self.sent = [0.0, 0.0]       # A, the quantised currents of the last command
         self.zero_codes = (self.amps[0].zero_code, self.amps[1].zero_code)
-        self.disabled = ((OUT_ENABLE_1 if self.amps[0].enable_level(False) else 0)
-                         | (OUT_ENABLE_2 if self.amps[1].enable_level(False) else 0))
-        self.enabled = ((OUT_ENABLE_1 if self.amps[0].enable_level(True) else 0)
-                        | (OUT_ENABLE_2 if self.amps[1].enable_level(True) else 0))
+        self.disabled = enable_outputs(self.amps, (OUT_ENABLE_1, OUT_ENABLE_2), False)
+        self.enabled = enable_outputs(self.amps, (OUT_ENABLE_1, OUT_ENABLE_2), True)
         self.latest: tuple | None = None     # fields of the newest sample, not yet converted
         self.have_sample = False
         self.last_frame_seq = -1             # bridge frame numbering (all types)
