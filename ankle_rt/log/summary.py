@@ -18,8 +18,12 @@ SETTLE_S = 0.5          # "settled": the reference has not changed for this long
 SUMMARY_MAX_RECORDS = 300_000   # records a summary reads (read_log(last=...)): 5 min at 1 kHz, ~50 MB
 
 
-def _pct(values: np.ndarray, q: float) -> float:
-    return float(np.percentile(values, q)) if len(values) else math.nan
+def _percentiles(values: np.ndarray) -> dict[str, float]:
+    """p50/p99/p99.9/max of ``values`` (NaN when empty)."""
+    if not len(values):
+        return {"p50": math.nan, "p99": math.nan, "p99.9": math.nan, "max": math.nan}
+    p50, p99, p999 = np.percentile(values, (50, 99, 99.9))
+    return {"p50": float(p50), "p99": float(p99), "p99.9": float(p999), "max": float(values.max())}
 
 
 def summarize(records: np.ndarray, meta: dict[str, Any] | None = None) -> dict[str, Any]:
@@ -70,9 +74,8 @@ def summarize(records: np.ndarray, meta: dict[str, Any] | None = None) -> dict[s
     lat = records["latency_us"].astype(float)
     out["loop"] = {
         "period_nominal_us": nominal,
-        "period_error_us": {"p50": _pct(err, 50), "p99": _pct(err, 99), "p99.9": _pct(err, 99.9),
-                            "max": float(err.max()) if len(err) else math.nan},
-        "latency_us": {"p50": _pct(lat, 50), "p99": _pct(lat, 99), "p99.9": _pct(lat, 99.9), "max": float(lat.max())},
+        "period_error_us": _percentiles(err),
+        "latency_us": _percentiles(lat),
         "overruns": int(records["overruns"][-1]),
         "late_cycles": int(np.sum(period > 2 * nominal)) if len(period) else 0,
     }
