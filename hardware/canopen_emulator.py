@@ -207,7 +207,7 @@ class CanopenEmulator:
         currents = [0.0, 0.0]
         for k, obj in enumerate((SET_VALUE_1, SET_VALUE_2)):
             amp = self.amps[k]
-            enabled = amp.enable_level(True) == bool(out & ENABLE_BITS[k])
+            enabled = amp.is_enabled(bool(out & ENABLE_BITS[k]))
             if enabled and self.faults.amp_not_ready != k + 1:
                 currents[k] = amp.current(self.outputs[obj] >> ANALOG_CODE_SHIFT)
         return currents[0], currents[1]
@@ -230,7 +230,7 @@ class CanopenEmulator:
             s2 = ADC_MAX
         ready = 0
         for i in (0, 1):
-            if self.amps[i].ready_active_high == (self.faults.amp_not_ready != i + 1):
+            if self.amps[i].ready_level(self.faults.amp_not_ready != i + 1):
                 ready |= READY_BITS[i]
         return {COUNTER_1: c1, COUNTER_2: c2, STRAIN_1: s1, STRAIN_2: s2, DIGITAL_IN: ready}
 
