@@ -96,14 +96,37 @@ class Geometry:
     levers: np.ndarray       # (2,) m, [R_DP, R_IE]
 
 
-class MotorChannel:
+class _StackedChannel:
+    """What both channels share: the recording's smoother, the rows kept for the regressions, and
+    stacking samples x columns (motors or axes) into one vector, column after column."""
+
+    def __init__(self, rec: Recording):
+        self.source = rec.source
+        self.dt = rec.dt
+        self.sm = Smoother.for_period(self.dt)
+        self.n_samples = len(rec)
+        self.rows = self.sm.rows(self.n_samples)
+
+    @property
+    def n_rows(self) -> int:
+        return len(range(*self.rows.indices(self.n_samples)))
+
+    def filt(self, x: np.ndarray) -> np.ndarray:
+        """L[x] at the kept rows, stacked column after column (x: samples x columns)."""
+        return self.sm.smooth(x)[self.rows].T.ravel()
+
+    def pick(self, filtered: np.ndarray) -> np.ndarray:
+        """Already-filtered samples x columns -> kept rows, stacked."""
+        return filtered[self.rows].T.ravel()
+
+
+class MotorChannel(_StackedChannel):
     """Motor-side signals of all motors in a recording (columns = motors)."""
 
     def __init__(self, rec: Recording, kt: float | None, geometry: Geometry | None, v_eps: float):
-        self.source = rec.source
-        self.dt = rec.dt
-        self.sm = sm = Smoother.for_period(self.dt)
-        n = len(rec)
+        super().__init__(rec)
+        sm = self.sm
+        n = self.n_samples
         if n < 2 * sm.margin + 20 * sm.step:
             raise InterchangeError(f"too short for the diagnosis: {n} rows, need at least "
                                    f"{2 * sm.margin + 20 * sm.step}", rec.source, "t", n)
@@ -119,7 +142,6 @@ class MotorChannel:
             self.tc = tau_j @ geometry.R_inv_T.T
         self.vel = sm.fast_derivative(self.pos)
         self.v_eps = v_eps
-        self.rows = sm.rows(n)
         self.L_acc = sm.smooth(self.pos, 2)
         self.L_vel = sm.smooth(self.pos, 1)
         self.L_tau = sm.smooth(self.tau)
@@ -130,18 +152,6 @@ class MotorChannel:
         """Change v_eps of the Coulomb regressor tanh(v / v_eps) (position unit/s)."""
         self.v_eps = v_eps
         self.sign = np.tanh(self.vel / v_eps)
-
-    @property
-    def n_rows(self) -> int:
-        return len(range(*self.rows.indices(self.pos.shape[0])))
-
-    def filt(self, x: np.ndarray) -> np.ndarray:
-        """L[x] at the kept rows, stacked motor after motor (x: samples x motors)."""
-        return self.sm.smooth(x)[self.rows].T.ravel()
-
-    def pick(self, filtered: np.ndarray) -> np.ndarray:
-        """Already-filtered samples x motors -> kept rows, stacked."""
-        return filtered[self.rows].T.ravel()
 
     def torque(self, delay_s: float = 0.0) -> np.ndarray:
         """L[tau] at the kept rows for an actuation delay (s), ZOH half sample included (stacked)."""
@@ -166,23 +176,20 @@ class MotorChannel:
         return X
 
 
-class CableChannel:
+class CableChannel(_StackedChannel):
     """Cable-side signals per ankle axis [DP, IE]; needs joint encoders and strain gauges."""
 
     AXES = ("dp", "ie")
 
     def __init__(self, rec: Recording, geometry: Geometry):
-        self.source = rec.source
-        self.dt = rec.dt
-        self.sm = sm = Smoother.for_period(self.dt)
+        super().__init__(rec)
+        sm = self.sm
         self.geometry = geometry
-        n = len(rec)
         pos_m = np.column_stack([rec["motor_pos_1"], rec["motor_pos_2"]])
         joint = np.column_stack([rec["ankle_dp"], rec["ankle_ie"]])
         self.phi = pos_m @ geometry.R_inv.T - joint
         self.tau_j = np.column_stack([rec["sg_torque_dp"], rec["sg_torque_ie"]])
         self.m = 2
-        self.rows = sm.rows(n)
         self.L_tau_j = sm.smooth(self.tau_j)
         self.L_phi = sm.smooth(self.phi)
         self.L_dphi = sm.smooth(self.phi, 1)
@@ -190,16 +197,6 @@ class CableChannel:
     @staticmethod
     def available(rec: Recording) -> bool:
         return all(c in rec for c in ("ankle_dp", "ankle_ie", "sg_torque_dp", "sg_torque_ie", "motor_pos_2"))
-
-    @property
-    def n_rows(self) -> int:
-        return len(range(*self.rows.indices(self.phi.shape[0])))
-
-    def filt(self, x: np.ndarray) -> np.ndarray:
-        return self.sm.smooth(x)[self.rows].T.ravel()
-
-    def pick(self, filtered: np.ndarray) -> np.ndarray:
-        return filtered[self.rows].T.ravel()
 
     def target(self, delay_s: float = 0.0) -> np.ndarray:
         return self.pick(self.L_tau_j)
