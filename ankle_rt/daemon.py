@@ -28,7 +28,7 @@ from ankle_rt.interchange import InterchangeError
 from ankle_rt.kinematics import Kinematics
 from ankle_rt.log.memory import MemoryRecorder
 from ankle_rt.log.reader import interchange_columns
-from ankle_rt.log.writer import log_metadata
+from ankle_rt.log.writer import LogWriter, log_metadata
 from ankle_rt.loop import FixedRateLoop
 from ankle_rt.params import TransmissionParams
 from ankle_rt.references import Hold, Profile, RampTo, ReferenceGenerator, make_profile, reference_from_config
@@ -291,6 +291,12 @@ class Daemon:
             self.recorder.close()
         if self.service is not None:
             self.service.close()
+
+    def open_log(self, path: str | Path) -> None:
+        """Record every cycle into a run log file at ``path`` (``logging.ring_records`` and
+        ``logging.flush_interval_s`` of the config). Raises OSError when it cannot be created."""
+        log = self.cfg["logging"]
+        self.recorder = LogWriter(path, self.log_metadata(), log["ring_records"], log["flush_interval_s"])
 
     def log_metadata(self) -> dict[str, Any]:
         """The run log header's metadata. ``controller_config`` is the config's controller section the

@@ -35,20 +35,18 @@ def realtime_run(cfg, duration_s: float, log_dir: Path) -> tuple[dict, list[str]
     """Run the configured daemon in real time; return its loop statistics and the OS-setting notes."""
     from ankle_rt.clock import MonotonicClock
     from ankle_rt.daemon import Daemon
-    from ankle_rt.log.writer import LogWriter
     from ankle_rt.realtime import apply_realtime
 
     rt = cfg["loop"]["realtime"]
     notes = apply_realtime(rt)
     daemon = Daemon(cfg, MonotonicClock(spin_ns=rt["spin_us"] * 1000))
-    daemon.recorder = LogWriter(log_dir / "bench.arlog", daemon.log_metadata(), cfg["logging"]["ring_records"],
-                                cfg["logging"]["flush_interval_s"])
+    daemon.open_log(log_dir / "bench.arlog")
     try:
         daemon.run(duration_s)
     finally:
         daemon.close()
     stats = daemon.loop.stats
-    if getattr(daemon.recorder, "dropped", 0):
+    if daemon.recorder.dropped:
         notes.append(f"log records dropped: {daemon.recorder.dropped}")
     return stats.summary(), notes
 

@@ -43,7 +43,6 @@ def run(args: argparse.Namespace) -> int:
     from ankle_rt.daemon import Daemon
     from ankle_rt.log.reader import read_log
     from ankle_rt.log.summary import SUMMARY_MAX_RECORDS, format_summary, plot_run, summarize_log
-    from ankle_rt.log.writer import LogWriter
     from ankle_rt.paths import default_config_path
     from ankle_rt.realtime import apply_realtime
 
@@ -68,8 +67,7 @@ def run(args: argparse.Namespace) -> int:
     if cfg["logging"]["enabled"] and not args.no_log:
         log_path = Path(args.log) if args.log else default_log_path(cfg["logging"]["directory"])
         try:
-            daemon.recorder = LogWriter(log_path, daemon.log_metadata(), cfg["logging"]["ring_records"],
-                                        cfg["logging"]["flush_interval_s"])
+            daemon.open_log(log_path)
         except OSError as exc:
             daemon.close()
             print(f"ankle-rt run: cannot write the log {log_path}: {exc.strerror or exc}", file=sys.stderr)
