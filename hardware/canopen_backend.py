@@ -40,7 +40,6 @@ from hardware.canopen_pdo import (COUNTER_1, COUNTER_2, DIGITAL_IN, DIGITAL_OUT,
                                   HEARTBEAT_BASE, READY_BITS, SET_VALUE_1, SET_VALUE_2, STRAIN_1, STRAIN_2,
                                   SYNC_COB_ID, ANALOG_CODE_SHIFT, EdsError, NodeLayout, analog_codec,
                                   counter_bits, eds_path, load_node)
-from hardware.config_values import required
 from hardware.escon import enable_outputs, escon_amplifiers
 from hardware.sensors import MotorEncoders, StrainGauges, StuckEncoderDetector
 
@@ -89,9 +88,7 @@ class CanopenBackend(Backend):
         self.amps = escon_amplifiers(cfg, analog_codec())
         self._enabled = enable_outputs(self.amps, ENABLE_BITS, True)
         self._disabled = enable_outputs(self.amps, ENABLE_BITS, False)
-        self.encoders = MotorEncoders(cfg["actuator"]["encoder_counts_per_rev"],
-                                      counter_bits(self.node.object_dictionary),
-                                      tuple(required(cfg, "encoders.sign", "+1/-1 per motor encoder")))
+        self.encoders = MotorEncoders.from_config(cfg, counter_bits(self.node.object_dictionary))
         self.strain = StrainGauges.from_config(cfg)
         self.stuck = StuckEncoderDetector.from_config(cfg, self.period_ns * 1e-9)
         self.node_id = co["io_node_id"]

@@ -34,7 +34,6 @@ from ankle_rt.config import Config
 from hardware.canopen_pdo import (COUNTER_1, COUNTER_2, DIGITAL_IN, DIGITAL_OUT, ENABLE_BITS, HEARTBEAT_BASE,
                                   READY_BITS, SET_VALUE_1, SET_VALUE_2, STRAIN_1, STRAIN_2, SYNC_COB_ID,
                                   ANALOG_CODE_SHIFT, PdoLayout, analog_codec, compile_pdo, counter_bits)
-from hardware.config_values import required
 from hardware.escon import escon_amplifiers
 from hardware.fault_schedule import ScheduledFault, parse_schedule
 from hardware.sensors import MotorEncoders, StrainGauges
@@ -104,8 +103,7 @@ class CanopenEmulator:
         self.node = canopen.LocalNode(self.node_id, canopen.import_od(eds, self.node_id))
         self.network.add_node(self.node)
         self.counter_bits = counter_bits(self.node.object_dictionary)
-        self.encoders = MotorEncoders(cfg["actuator"]["encoder_counts_per_rev"], self.counter_bits,
-                                      tuple(required(cfg, "encoders.sign", "+1/-1 per motor encoder")))
+        self.encoders = MotorEncoders.from_config(cfg, self.counter_bits)
         self._heartbeat_ms = 0
         # heartbeats are sent by service() (no timer thread): catch writes of 0x1017 instead
         self.node._write_callbacks.remove(self.node.nmt.on_write)

@@ -64,9 +64,12 @@ class MotorEncoders:
         self.moved = [False, False]    # whether each counter changed at the last update
 
     @classmethod
-    def from_config(cls, cfg: dict) -> "MotorEncoders":
-        return cls(cfg["actuator"]["encoder_counts_per_rev"],
-                   required(cfg, "encoders.counter_bits", "the bridge's counter width, 16 or 32"),
+    def from_config(cls, cfg: dict, counter_bits: int | None = None) -> "MotorEncoders":
+        """``counter_bits``: the counter width when the device states it (a CANopen node's EDS);
+        default ``encoders.counter_bits`` (the serial bridge)."""
+        if counter_bits is None:
+            counter_bits = required(cfg, "encoders.counter_bits", "the bridge's counter width, 16 or 32")
+        return cls(cfg["actuator"]["encoder_counts_per_rev"], counter_bits,
                    tuple(required(cfg, "encoders.sign", "+1/-1 per motor encoder")))
 
     def reset(self, raw_1: int, raw_2: int, out: np.ndarray) -> None:
