@@ -43,7 +43,8 @@ class CompliantModel:
         self._motor_fx = [e.motor_torque for e in self.effects if e.uses("motor_torque")]
         self._cable_fx = [e.cable_torque for e in self.effects if e.uses("cable_torque")] if cables else []
         self._command_fx = [e.command for e in self.effects if e.uses("command")]
-        self._needs_cable = bool(self._cable_fx) or any(
+        # the motor-felt cable torque tc is only worked out when a motor effect reads it
+        self._needs_tc = cables and any(
             e.uses("motor_torque") and getattr(e, "needs_cable_torque", False) for e in self.effects)
 
         kin = self.linear.kin
@@ -100,21 +101,23 @@ class CompliantModel:
         f0 = td_dp - self._grav * (math.sin(s[0]) - s[0])
         f1 = td_ie
         f2, f3 = tau1, tau2
-        tc1 = tc2 = 0.0
-        if self._needs_cable:
+        d2 = d3 = tc1 = tc2 = 0.0
+        if self._cable_fx:
             p0, p1, d0, d1 = self.cable_state(s)
             dt0 = dt1 = 0.0
             for fx in self._cable_fx:
                 c0, c1 = fx(p0, p1, d0, d1)
                 dt0 += c0
                 dt1 += c1
-            RiT, mc, b = self._RiT, self._motor_cable, self._beta
+            RiT = self._RiT
             f0 += dt0
             f1 += dt1
-            d2 = RiT[0] * dt0 + RiT[1] * dt1
+            d2 = RiT[0] * dt0 + RiT[1] * dt1   # the motors feel the correction's R^-T image
             d3 = RiT[2] * dt0 + RiT[3] * dt1
             f2 -= d2
             f3 -= d3
+        if self._needs_tc:
+            mc, b = self._motor_cable, self._beta
             tc1 = mc[0] * s[0] + mc[1] * s[1] + mc[2] * s[2] + mc[3] * s[3] \
                 + b * (mc[0] * s[4] + mc[1] * s[5] + mc[2] * s[6] + mc[3] * s[7]) + d2
             tc2 = mc[4] * s[0] + mc[5] * s[1] + mc[6] * s[2] + mc[7] * s[3] \

@@ -5,7 +5,8 @@ An effect changes the plant through up to three hooks, all in SI units at the ge
 - ``motor_torque(th1, th2, w1, w2, tc1, tc2)``: torques (N m) that *resist* each motor, like friction.
   ``th`` are motor angles (rad), ``w`` motor rates (rad/s) and ``tc`` the cable torques each motor
   feels (N m, the motor-side image R^-T tau_j of the joint torque; its size is the cable tension
-  times the pulley radius). Evaluated at every integration substep.
+  times the pulley radius); it is worked out only for an effect that sets ``needs_cable_torque = True``
+  and is zero otherwise. Evaluated at every integration substep.
 - ``cable_torque(phi_dp, phi_ie, dphi_dp, dphi_ie)``: a correction (N m) added to the linear joint
   torque K (phi + beta phi') from the cable stretch phi (rad, ankle coordinates). The strain gauges
   measure it and the motors feel its R^-T image. Evaluated at every substep.
