@@ -356,9 +356,8 @@ def run_lockstep(cfg: Config, duration_s: float, *, controller: CycleController 
     clock = backend.clock if backend is not None else SimClock()
     if not getattr(clock, "simulated", False):
         raise ValueError("run_lockstep needs a backend on a SimClock")
-    period_ns = round(1e9 / cfg["controller"]["rate_hz"])
-    recorder = MemoryRecorder(-(-round(duration_s * 1e9) // period_ns) + 1)
-    daemon = Daemon(cfg, clock, backend=backend, controller=controller, recorder=recorder)
+    daemon = Daemon(cfg, clock, backend=backend, controller=controller)
+    recorder = daemon.recorder = MemoryRecorder(-(-round(duration_s * 1e9) // daemon.period_ns) + 1)
     try:
         daemon.run(duration_s)
     finally:
