@@ -321,18 +321,9 @@ class LockstepLink:
         self._service(n)
         return n
 
-    def reset_input_buffer(self) -> None:
-        self._settle()
-        self.port.reset_input_buffer()
-        self.pending = 0
-
     def close(self) -> None:
         self.port.close()
         os.close(self.master)
-
-    @property
-    def is_open(self) -> bool:
-        return self.port.is_open
 
     # the emulator's side
     def _service(self, expected: int) -> None:
