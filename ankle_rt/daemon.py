@@ -236,7 +236,7 @@ class Daemon:
 
     def _check_reach(self, profile: Profile) -> None:
         """Refuse (before it starts) a profile that would take the reference beyond the ankle range."""
-        limit = proto.CommandLimits.from_config(self.cfg).reference_limit_rad
+        limit = self.safety.ankle_limit
         for axis, name, (low, high) in zip((0, 1), ("DP", "IE"), profile.bounds()):
             start = float(self.reference.ref[axis]) if profile.relative else 0.0
             worst = low + start if abs(low + start) > abs(high + start) else high + start
