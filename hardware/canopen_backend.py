@@ -35,7 +35,7 @@ import canopen
 from ankle_rt.backend import Backend, BackendError, BackendFault, SensorFrame
 from ankle_rt.clock import Clock
 from ankle_rt.config import Config, ConfigError
-from hardware.canbus_load import check_bus_load, loop_bus_load
+from hardware.canbus_load import BusLoad, check_bus_load, loop_bus_load
 from hardware.canopen_pdo import (COUNTER_1, COUNTER_2, DIGITAL_IN, DIGITAL_OUT, ENABLE_BITS,
                                   HEARTBEAT_BASE, READY_BITS, SET_VALUE_1, SET_VALUE_2, STRAIN_1, STRAIN_2,
                                   SYNC_COB_ID, ANALOG_CODE_SHIFT, EdsError, NodeLayout, analog_codec,
@@ -60,10 +60,12 @@ def node_layout(cfg: Config, network: canopen.Network | None = None) -> tuple[ca
         raise ConfigError(str(exc), getattr(cfg, "source", None), "canopen.eds") from None
 
 
-def configured_bus_load(cfg: Config):
-    """The bus load of the config's rate, bit rate, PDO mapping and heartbeat (not yet checked)."""
+def configured_bus_load(cfg: Config, layout: NodeLayout | None = None) -> BusLoad:
+    """The bus load of the config's rate, bit rate, PDO mapping and heartbeat (not yet checked).
+    ``layout``: the node's PDO layout when already loaded (default: from the config's EDS)."""
     co = cfg["canopen"]
-    _, layout = node_layout(cfg)
+    if layout is None:
+        _, layout = node_layout(cfg)
     return loop_bus_load(layout, cfg["controller"]["rate_hz"], co["bitrate"], co["heartbeat_producer_ms"])
 
 
@@ -81,8 +83,7 @@ class CanopenBackend(Backend):
         self.period_ns = round(1e9 / cfg["controller"]["rate_hz"])
         self.network = canopen.Network()
         self.node, self.layout = node_layout(cfg, self.network)
-        self.bus_load = loop_bus_load(self.layout, cfg["controller"]["rate_hz"], co["bitrate"],
-                                      co["heartbeat_producer_ms"])
+        self.bus_load = configured_bus_load(cfg, self.layout)
         print(f"canopen: bus load at {cfg['controller']['rate_hz']} Hz\n{self.bus_load.table()}")
         check_bus_load(self.bus_load, source)
         self.amps = escon_amplifiers(cfg, analog_codec())
