@@ -41,12 +41,9 @@ def info_cmd(args: argparse.Namespace) -> int:
         return 1
     summary = summarize_log(log)
     summary["log"] = log.source
-    summary["meta"] = log.meta
+    summary["meta"] = {key: value for key, value in log.meta.items() if key != "fields"}  # minus the record layout
     summary["torn_bytes"] = log.torn_bytes
     if args.json:
-        meta = dict(log.meta)
-        meta.pop("fields", None)
-        summary["meta"] = meta
         print(json.dumps(summary, indent=2, default=float))
         return 0
     m = log.meta
