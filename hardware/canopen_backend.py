@@ -187,7 +187,6 @@ class CanopenBackend(Backend):
         self._emcy_pending = False
         self._fresh = 0
         self._seq = 0
-        self._counting = False          # encoders start counting from the first fresh sample
         self._acting = [0.0, 0.0]       # A, the set values that act until the next SYNC
         self.write(0.0, 0.0)
 
@@ -260,11 +259,7 @@ class CanopenBackend(Backend):
             self._seq += 1
             if not self._bus_off_now:           # frames flow again: the controller recovered
                 self._bus_off = False
-            if self._counting:
-                self.encoders.update(raw[0], raw[1], frame.motor_pos)
-            else:
-                self.encoders.reset(raw[0], raw[1], frame.motor_pos)
-                self._counting = True
+            self.encoders.convert(raw[0], raw[1], frame.motor_pos)
             if self.strain.convert(raw[2], raw[3], frame.sg_torque):
                 faults |= BackendFault.STRAIN_GAUGE_RAIL
             if self.stuck.update(self.encoders.moved, self._acting[0], self._acting[1],

@@ -62,6 +62,7 @@ class MotorEncoders:
         self.signs = (int(signs[0]), int(signs[1]))
         self.counters = (CounterUnwrap(counter_bits), CounterUnwrap(counter_bits))
         self.moved = [False, False]    # whether each counter changed at the last update
+        self.started = False           # counting since a first reading (reset)
 
     @classmethod
     def from_config(cls, cfg: dict, counter_bits: int | None = None) -> "MotorEncoders":
@@ -77,6 +78,7 @@ class MotorEncoders:
         c1, c2 = self.counters
         c1.reset(raw_1)
         c2.reset(raw_2)
+        self.started = True
         self.moved[0] = self.moved[1] = False
         out[0] = self.signs[0] * c1.count * self.rad_per_count
         out[1] = self.signs[1] * c2.count * self.rad_per_count
@@ -88,6 +90,14 @@ class MotorEncoders:
         self.moved[1] = c2.update(raw_2) != 0
         out[0] = self.signs[0] * c1.count * self.rad_per_count
         out[1] = self.signs[1] * c2.count * self.rad_per_count
+
+    def convert(self, raw_1: int, raw_2: int, out: np.ndarray) -> None:
+        """A sample's raw values into angles (rad) in ``out[0:2]``: the first one starts the count
+        (:meth:`reset`), later ones :meth:`update` it."""
+        if self.started:
+            self.update(raw_1, raw_2, out)
+        else:
+            self.reset(raw_1, raw_2, out)
 
     def raw_from_counts(self, count_1: int, count_2: int) -> tuple[int, int]:
         """The counter values (wrapped to the counter width) an encoder pair shows at these positions

@@ -110,7 +110,6 @@ class SerialBackend(Backend):
         self.disabled = enable_outputs(self.amps, (OUT_ENABLE_1, OUT_ENABLE_2), False)
         self.enabled = enable_outputs(self.amps, (OUT_ENABLE_1, OUT_ENABLE_2), True)
         self.latest: tuple | None = None     # fields of the newest sample, not yet converted
-        self.have_sample = False
         self.last_frame_seq = -1             # bridge frame numbering (all types)
         self.sample_count = 0                # unwrapped frame number of the newest sample
         self.last_time_us = -1
@@ -289,11 +288,7 @@ class SerialBackend(Backend):
         frame.t = time_us * 1e-6
         frame.seq = self.sample_count
         self.count["samples"] += 1
-        if self.have_sample:
-            self.encoders.update(e1, e2, frame.motor_pos)
-        else:
-            self.encoders.reset(e1, e2, frame.motor_pos)
-            self.have_sample = True
+        self.encoders.convert(e1, e2, frame.motor_pos)
         if self.gauges.convert(s1, s2, frame.sg_torque):
             self.count["strain_gauge_rail"] += 1
             faults |= BackendFault.STRAIN_GAUGE_RAIL
