@@ -30,11 +30,16 @@ class Fit:
         return self.xtx_inv * sigma2 * (self.n / max(n_eff, 1.0))
 
 
-def fit(y: np.ndarray, X: np.ndarray) -> Fit:
-    """Least squares y ~ X (columns scaled internally for conditioning)."""
+def _unit_columns(X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(X with every nonzero column scaled to unit norm, the scales): conditioning for the solvers."""
     scale = np.sqrt(np.einsum("ij,ij->j", X, X))
     scale[scale == 0.0] = 1.0
-    Xs = X / scale
+    return X / scale, scale
+
+
+def fit(y: np.ndarray, X: np.ndarray) -> Fit:
+    """Least squares y ~ X (columns scaled internally for conditioning)."""
+    Xs, scale = _unit_columns(X)
     coef_s, *_ = np.linalg.lstsq(Xs, y, rcond=None)
     coef = coef_s / scale
     residual = y - X @ coef
@@ -44,10 +49,9 @@ def fit(y: np.ndarray, X: np.ndarray) -> Fit:
 
 def rss_only(y: np.ndarray, X: np.ndarray) -> float:
     """Residual sum of squares of y ~ X (cheaper than :func:`fit`; used on grids)."""
-    scale = np.sqrt(np.einsum("ij,ij->j", X, X))
-    scale[scale == 0.0] = 1.0
-    coef, *_ = np.linalg.lstsq(X / scale, y, rcond=None)
-    r = y - (X / scale) @ coef
+    Xs, _ = _unit_columns(X)
+    coef, *_ = np.linalg.lstsq(Xs, y, rcond=None)
+    r = y - Xs @ coef
     return float(r @ r)
 
 
