@@ -224,6 +224,8 @@ class Daemon:
                 self.reference_commanded = True
             else:
                 raise proto.CommandError("cmd", f"not supported: {type(command).__name__}")
+        except proto.CommandError:   # already names its field (a ValueError: keep it from the catch-all below)
+            raise
         except RuntimeError as exc:
             raise proto.CommandError("cmd", str(exc)) from None
         except ConfigError as exc:  # a profile parameter, keyed params.<key>

@@ -66,6 +66,7 @@ def test_profiles_beyond_the_ankle_range_are_refused_before_they_start(daemon, t
             daemon.handle(command)
         assert err.value.field == "params"
         assert "would take DP to" in err.value.message and "(from 30.0 deg), beyond the ankle range +/-40 deg" in err.value.message
+        assert err.value.message.startswith("the profile would take DP")   # not "field 'params': " twice
     csv = tmp_path / "refs.csv"
     csv.write_text("t,ref_dp,ref_ie\n0,0,0\n1,0,0.75\n")
     with pytest.raises(CommandError, match="would take IE to 43.0 deg, beyond"):
