@@ -23,6 +23,7 @@ from ankle_rt.backend import Backend, SensorFrame, open_backend
 from ankle_rt.clock import Clock, SimClock
 from ankle_rt.config import Config, ConfigError
 from ankle_rt.control import CycleController, build_controller
+from ankle_rt.control.gains import GainError
 from ankle_rt.estimation import Estimate, Estimator
 from ankle_rt.interchange import InterchangeError
 from ankle_rt.kinematics import Kinematics
@@ -232,8 +233,10 @@ class Daemon:
             raise proto.CommandError(exc.key or "params", exc.message) from None
         except InterchangeError as exc:  # the csv profile's file
             raise proto.CommandError("params.path", str(exc)) from None
-        except ValueError as exc:
-            raise proto.CommandError(_gain_field(str(exc)), str(exc)) from None
+        except GainError as exc:
+            raise proto.CommandError(exc.gain, str(exc)) from None
+        except ValueError as exc:  # set_gains on a controller without run-time gains
+            raise proto.CommandError("cmd", str(exc)) from None
         return {"state": State(self.safety.state).name.lower()}
 
     def _check_reach(self, profile: Profile) -> None:
@@ -310,13 +313,6 @@ class Daemon:
                             controller=type(self.controller).__name__,
                             controller_config=self.cfg["controller"] if self.own_controller else None,
                             states={s.name: int(s) for s in State}, faults={f.name: int(f) for f in Fault})
-
-
-def _gain_field(message: str) -> str:
-    """The gain a ValueError from GainRamp names (``unknown gain 'x'`` / ``gain 'x' must be``)."""
-    start = message.find("'")
-    end = message.find("'", start + 1)
-    return message[start + 1:end] if 0 <= start < end else "cmd"
 
 
 @dataclass

@@ -16,6 +16,14 @@ if TYPE_CHECKING:
     from ankle_rt.estimation import Estimate
 
 
+class GainError(ValueError):
+    """A gain change was refused; ``gain`` names the gain (the command reply's field)."""
+
+    def __init__(self, gain: str, message: str):
+        self.gain = gain
+        super().__init__(message)
+
+
 class GainRamp:
     """Named non-negative gains with linear ramps to new targets, plus the soft-start scale."""
 
@@ -30,12 +38,12 @@ class GainRamp:
         self.ramping = False
 
     def set_targets(self, **gains: float) -> None:
-        """Ramp the named gains to new values. Raises ValueError naming an unknown or bad gain."""
+        """Ramp the named gains to new values. Raises GainError naming an unknown or bad gain."""
         for name, value in gains.items():
             if name not in self.names:
-                raise ValueError(f"unknown gain {name!r} (expected one of: {', '.join(self.names)})")
+                raise GainError(name, f"unknown gain {name!r} (expected one of: {', '.join(self.names)})")
             if not (isinstance(value, (int, float)) and value >= 0.0 and value < float("inf")):
-                raise ValueError(f"gain {name!r} must be a finite number >= 0, got {value!r}")
+                raise GainError(name, f"gain {name!r} must be a finite number >= 0, got {value!r}")
         for name, value in gains.items():
             i = self.names.index(name)
             self.targets[i] = float(value)
