@@ -155,12 +155,7 @@ class Backlash(Candidate):
     def design(self, ch, nl):
         b = nl / ch.geometry.levers
         clipped = np.clip(ch.phi, -b, b)
-        k = ch.n_rows
-        X = np.zeros((2 * k, 2))
-        L = ch.sm.smooth(clipped)[ch.rows]
-        X[:k, 0] = L[:, 0]
-        X[k:, 1] = L[:, 1]
-        return Design(X)
+        return Design(ch.per_column(ch.sm.smooth(clipped)))
 
     def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
         return {"half_width": (nl, nl_sd)}
@@ -222,17 +217,9 @@ def catch_all_motor(ch: MotorChannel) -> np.ndarray:
 def catch_all_cable(ch: CableChannel) -> np.ndarray:
     """Generic columns for the cable channel: even and odd stretch shapes, rate-dependent terms, and
     soft dead zones (per axis)."""
-    k = ch.n_rows
     scale = np.maximum(np.percentile(np.abs(ch.phi), 99, axis=0), 1e-12)
     p = ch.phi / scale
     d = ch.L_dphi / np.maximum(np.percentile(np.abs(ch.L_dphi), 99, axis=0), 1e-12)
     raw = [p * np.abs(p), p ** 3, p ** 5, np.tanh(4 * p), np.tanh(d / 0.05), d * np.abs(d), p * np.abs(d),
            np.clip(p, -0.1, 0.1), np.clip(p, -0.3, 0.3)]
-    cols = []
-    for r in raw:
-        L = ch.sm.smooth(r)[ch.rows]
-        for a in range(2):
-            c = np.zeros(2 * k)
-            c[a * k:(a + 1) * k] = L[:, a]
-            cols.append(c)
-    return np.column_stack(cols)
+    return np.hstack([ch.per_column(ch.sm.smooth(r)) for r in raw])

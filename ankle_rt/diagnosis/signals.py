@@ -119,6 +119,15 @@ class _StackedChannel:
         """Already-filtered samples x columns -> kept rows, stacked."""
         return filtered[self.rows].T.ravel()
 
+    def per_column(self, filtered: np.ndarray) -> np.ndarray:
+        """Already-filtered samples x columns -> one regressor per column (motor or axis), each zero
+        outside its own part of the stack (block diagonal: a coefficient per motor or axis)."""
+        k = self.n_rows
+        X = np.zeros((k * filtered.shape[1], filtered.shape[1]))
+        for i in range(filtered.shape[1]):
+            X[i * k:(i + 1) * k, i] = filtered[self.rows, i]
+        return X
+
 
 class MotorChannel(_StackedChannel):
     """Motor-side signals of all motors in a recording (columns = motors)."""
