@@ -15,15 +15,9 @@ from ankle_rt.diagnosis.candidates import Candidate
 from ankle_rt.diagnosis.core import Diagnosis
 from ankle_rt.diagnosis.selection import ChannelScores, design_matrix
 from ankle_rt.diagnosis.signals import MotorChannel
+from ankle_rt.plotting import MISSING, pyplot
 
 OVERLAY_S = 3.0
-
-
-def _pyplot():
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    return plt
 
 
 def _scatter(plt, path: Path, x: np.ndarray, r: np.ndarray, xlabel: str, title: str, labels: list[str]) -> str:
@@ -124,7 +118,9 @@ def _closed_loop(plt, path: Path, closed) -> str:
 
 def write_report(directory: str | Path, diag: Diagnosis, closed=None) -> Path:
     """Write report.md and its PNGs into ``directory`` (created); returns the report's path."""
-    plt = _pyplot()
+    plt = pyplot()
+    if plt is None:
+        raise ImportError(MISSING)
     out = Path(directory)
     out.mkdir(parents=True, exist_ok=True)
     images: list[tuple[str, str]] = []

@@ -15,6 +15,7 @@ from ankle_rt.identification.paper import PAPER_TABLE1, paper_friction_analysis
 from ankle_rt.identification.signals import centred_velocity, motor_channel
 from ankle_rt.identification.stats import Measured
 from ankle_rt.interchange import Recording
+from ankle_rt.plotting import MISSING, pyplot
 
 
 def _row(name: str, unit: str, prior: float | None, m: Measured | None, paper: str) -> str:
@@ -89,12 +90,9 @@ def write_plots(res: ActuatorIdentification, recordings: dict[str, Recording], o
                 kt: float | None) -> list[str]:
     """PNG plots like the paper's Figs 2-4 into ``out_dir``; returns the lines to print (file names,
     or a plain message when matplotlib is missing)."""
-    try:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        return ["plots: matplotlib is not installed (pip install 'ankle-rt[analysis]'); text report only"]
+    plt = pyplot()
+    if plt is None:
+        return [f"plots: {MISSING}; text report only"]
     written = []
     if res.stiction is not None and "stiction" in recordings:
         t, pos, tau = motor_channel(recordings["stiction"], motor, kt)

@@ -34,6 +34,7 @@ from ankle_rt.identification.inertia import TorqueStepExperiment
 from ankle_rt.identification.runner import actuator_config, recording_of, run_lockstep_recording, with_overrides
 from ankle_rt.identification.signals import IdentificationError, centred_velocity
 from ankle_rt.interchange import Recording, write_csv
+from ankle_rt.plotting import MISSING, pyplot
 
 SINE_FREQUENCIES_HZ = (0.5, 1.0, 2.0)
 SINE_AMPLITUDE_IE = math.radians(10.0)   # rad, the paper's Fig. 7 moves IE
@@ -268,12 +269,9 @@ def run_checks(cfg: Config, model_cfg: Config, checks: tuple[str, ...],
 def write_overlays(comparisons: list[Comparison], out_dir: Path) -> list[str]:
     """One PNG per comparison: measured (solid) and simulated (dashed) for each compared channel.
     Returns lines to print (file names, or a plain message when matplotlib is missing)."""
-    try:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        return ["plots: matplotlib is not installed (pip install 'ankle-rt[analysis]'); text report only"]
+    plt = pyplot()
+    if plt is None:
+        return [f"plots: {MISSING}; text report only"]
     lines = []
     for k, c in enumerate(comparisons, start=1):
         relative = c.drive == "input"

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from ankle_rt.log.reader import RunLog
+from ankle_rt.plotting import MISSING, pyplot
 from ankle_rt.safety import Fault, State
 
 STEADY_WINDOW_S = 0.5   # the "final error" is the mean |error| over the run's last 0.5 s of activity
@@ -132,12 +133,9 @@ def format_summary(s: dict[str, Any]) -> str:
 def plot_run(records: np.ndarray, torque_constant: float, out_png: str) -> str:
     """A figure like the paper's Figs 13-15: (a) ankle and motor angles with the references,
     (b) motor torques. Returns a note; matplotlib is optional (the analysis extra)."""
-    try:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        return "plot skipped: matplotlib is not installed (pip install 'ankle-rt[analysis]')"
+    plt = pyplot()
+    if plt is None:
+        return f"plot skipped: {MISSING}"
     t = records["t"]
     has_joint = not np.isnan(records["ankle_dp"]).all()
     src = "ankle" if has_joint else "est_ankle"
