@@ -181,14 +181,18 @@ def _read_yaml(path: Path) -> dict:
     return data
 
 
-def _merge(into: dict, new: dict, origins: dict[KeyPath, str], source: str, path: KeyPath = ()) -> None:
+def merge(into: dict, new: dict, origins: dict[KeyPath, str] | None = None, source: str = "",
+          path: KeyPath = ()) -> None:
+    """Merge ``new`` into ``into`` key by key, recursively (new values are copied); record in
+    ``origins`` which ``source`` each replaced key came from, when given."""
     for key, value in new.items():
         sub = path + (key,)
         if isinstance(value, dict) and isinstance(into.get(key), dict):
-            _merge(into[key], value, origins, source, sub)
+            merge(into[key], value, origins, source, sub)
         else:
             into[key] = copy.deepcopy(value)
-            origins[sub] = source
+            if origins is not None:
+                origins[sub] = source
 
 
 def read_with_includes(path: Path, origins: dict[KeyPath, str], stack: tuple[Path, ...] = ()) -> dict:
@@ -208,8 +212,8 @@ def read_with_includes(path: Path, origins: dict[KeyPath, str], stack: tuple[Pat
         inc_path = (path.parent / inc)
         if not inc_path.exists():
             raise ConfigError(f"included file {inc!r} not found (looked in {path.parent})", str(path), "include")
-        _merge(merged, read_with_includes(inc_path, origins, stack + (path,)), origins, str(inc_path.resolve()))
-    _merge(merged, raw, origins, str(path))
+        merge(merged, read_with_includes(inc_path, origins, stack + (path,)), origins, str(inc_path.resolve()))
+    merge(merged, raw, origins, str(path))
     return merged
 
 
@@ -217,6 +221,12 @@ class Config(dict):
     """A validated configuration: a plain nested dict plus where it was loaded from."""
 
     source: str = "<memory>"
+
+    def deep_copy(self) -> "Config":
+        """A copy that may be edited freely, naming the same source file in its errors."""
+        out = Config(copy.deepcopy(dict(self)))
+        out.source = self.source
+        return out
 
 
 def load_config(path: str | Path, overrides: dict | None = None) -> Config:
@@ -227,7 +237,7 @@ def load_config(path: str | Path, overrides: dict | None = None) -> Config:
     origins: dict[KeyPath, str] = {}
     data = read_with_includes(path, origins)
     if overrides:
-        _merge(data, overrides, origins, "<command line>")
+        merge(data, overrides, origins, "<command line>")
 
     def origin(key_path: KeyPath) -> str:
         for n in range(len(key_path), 0, -1):

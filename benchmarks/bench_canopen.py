@@ -14,7 +14,6 @@ cycles, best and median of the repeats. Then the computed bus load at 1 kHz of c
 from __future__ import annotations
 
 import argparse
-import copy
 import functools
 from pathlib import Path
 
@@ -28,7 +27,7 @@ ROOT = Path(__file__).resolve().parent.parent
 
 def open_lockstep(cfg: Config, repeat: int, clock: SimClock) -> CanopenBackend:
     """The backend and its emulator on a virtual channel of this repeat's own."""
-    cfg = Config(copy.deepcopy(dict(cfg)))
+    cfg = cfg.deep_copy()
     cfg.source = str(ROOT / "config" / "bench-canopen.yaml")
     cfg["canopen"]["channel"] = f"bench-canopen-{repeat}"
     return CanopenBackend(cfg, clock)

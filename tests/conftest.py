@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import copy
 from pathlib import Path
 
 import pytest
@@ -21,6 +20,4 @@ def _sim_cfg() -> Config:
 @pytest.fixture
 def sim_cfg(_sim_cfg: Config) -> Config:
     """A private deep copy of config/sim.yaml that a test may edit."""
-    cfg = Config(copy.deepcopy(dict(_sim_cfg)))
-    cfg.source = _sim_cfg.source
-    return cfg
+    return _sim_cfg.deep_copy()

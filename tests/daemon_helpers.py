@@ -3,7 +3,6 @@ and running a Daemon cycle by cycle on a SimClock."""
 
 from __future__ import annotations
 
-import copy
 from typing import Callable
 
 from ankle_rt.backend import Backend, SensorFrame
@@ -16,8 +15,7 @@ from sim_backend.backend import SimBackend
 
 def variant(cfg: Config, **sections: dict) -> Config:
     """A deep copy of ``cfg`` with the given sections updated key by key."""
-    out = Config(copy.deepcopy(dict(cfg)))
-    out.source = cfg.source
+    out = cfg.deep_copy()
     for name, values in sections.items():
         out[name].update(values)
     return out

@@ -15,7 +15,6 @@ keeps the library equal to the vocabulary the diagnosis can name.
 
 from __future__ import annotations
 
-import copy
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -130,8 +129,7 @@ def _nominal() -> Config:
 
 
 def perturbed(cfg: Config, rng: np.random.Generator) -> Config:
-    out = Config(copy.deepcopy(dict(cfg)))
-    out.source = cfg.source
+    out = cfg.deep_copy()
     for key in ("inertia", "damping", "coulomb"):
         out["actuator"][key] *= 1.0 + rng.uniform(-PERTURBATION, PERTURBATION)
     out["transmission"]["cable_stiffness"] *= 1.0 + rng.uniform(-PERTURBATION, PERTURBATION)

@@ -5,7 +5,6 @@ cycle by cycle over a backend with the steps of a fault-injection scenario."""
 
 from __future__ import annotations
 
-import copy
 import functools
 from pathlib import Path
 from typing import Callable, Sequence
@@ -21,9 +20,7 @@ from sim_backend.backend import SimBackend
 
 def config_copy(cfg: Config) -> Config:
     """A deep copy of ``cfg`` that a test may edit, naming the same source file in its errors."""
-    out = Config(copy.deepcopy(dict(cfg)))
-    out.source = cfg.source
-    return out
+    return cfg.deep_copy()
 
 
 @functools.cache

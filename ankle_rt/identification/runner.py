@@ -3,12 +3,11 @@ loop, and the configuration the actuator experiments need (motors off the cables
 
 from __future__ import annotations
 
-import copy
 from typing import Callable, Protocol
 
 import numpy as np
 
-from ankle_rt.config import Config, ConfigError
+from ankle_rt.config import Config, ConfigError, merge
 from ankle_rt.estimation import Estimate
 from ankle_rt.identification.signals import IdentificationError
 from ankle_rt.interchange import Recording
@@ -56,15 +55,7 @@ def recording_of(result, source: str) -> Recording:
 def with_overrides(cfg: Config, **sections: object) -> Config:
     """A deep copy of ``cfg`` with ``sections`` merged key by key, recursively (e.g.
     ``sim={"cables": False}``). The values must already be valid (they are not re-checked)."""
-    def merge(into: dict, new: dict) -> None:
-        for key, value in new.items():
-            if isinstance(value, dict) and isinstance(into.get(key), dict):
-                merge(into[key], value)
-            else:
-                into[key] = copy.deepcopy(value)
-
-    out = Config(copy.deepcopy(dict(cfg)))
-    out.source = getattr(cfg, "source", "<memory>")
+    out = cfg.deep_copy()
     merge(out, sections)
     return out
 
