@@ -401,7 +401,7 @@ def run_standalone(cfg: Config, args: argparse.Namespace) -> int:
     bridge, commands only update the outputs, and the watchdog counts ticks.
     """
     free_run = bool(getattr(args, "free_run", False))
-    emulator = BridgeEmulator(cfg, lockstep=not free_run)
+    emulator = BridgeEmulator(cfg, lockstep=not free_run, core=getattr(args, "core", "python"))
     try:
         for spec in args.inject:
             emulator.add_schedule(spec)
@@ -429,7 +429,8 @@ def run_standalone(cfg: Config, args: argparse.Namespace) -> int:
         fd = port.fileno()
         where = port_name
     os.set_blocking(fd, False)
-    print(f"emulator: serial bridge on {where}, {'free-running' if free_run else 'lockstep'}", flush=True)
+    print(f"emulator: serial bridge on {where}, {'free-running' if free_run else 'lockstep'}, "
+          f"{emulator.core_name} core", flush=True)
     signal.signal(signal.SIGTERM, _interrupt)
     try:
         _serve(emulator, fd, cfg, args.duration, free_run)

@@ -292,14 +292,14 @@ def test_a_new_configuration_restarts_the_sample_time(core, bench_cfg):
     second.close()
 
 
-def test_emulate_standalone_on_a_pty_serves_a_daemon_in_another_process(bench_cfg, tmp_path):
-    """`ankle-rt emulate --transport serial --port pty` in a subprocess, the backend in this one.
-    No timing is asserted: only that every command stepped the emulator once and samples came back."""
+def test_emulate_standalone_on_a_pty_serves_a_daemon_in_another_process(core, bench_cfg, tmp_path):
+    """`ankle-rt emulate --transport serial --port pty --core ...` in a subprocess, the backend in this
+    one. No timing is asserted: only that every command stepped the emulator once and samples came back."""
     import subprocess
     import sys
 
     proc = subprocess.Popen([sys.executable, "-m", "ankle_rt.cli", "emulate", "--transport", "serial",
-                             "--config", str(BENCH), "--port", "pty", "--duration", "20"],
+                             "--config", str(BENCH), "--port", "pty", "--duration", "20", "--core", core],
                             stdout=subprocess.PIPE, text=True)
     try:
         line = proc.stdout.readline()
@@ -333,7 +333,7 @@ def test_emulate_free_running_like_the_real_bridge(bench_cfg):
                             stdout=subprocess.PIPE, text=True)
     try:
         line = proc.stdout.readline()
-        assert line.endswith("free-running\n"), line
+        assert line.endswith("free-running, python core\n"), line
         bench_cfg["serial"].update(emulator="none", port=line.split(" on ")[1].split(" ")[0], open_timeout_s=10.0)
         clock = MonotonicClock()
         backend = open_backend(bench_cfg, clock)

@@ -185,6 +185,7 @@ static void tick_start(void)
     TIM6->EGR = TIM_EGR_UG;
     TIM6->SR = 0;
     TIM6->DIER = TIM_DIER_UIE;
+    ADC1->CR2 |= ADC_CR2_JSWSTART;               /* the first tick's strain gauges */
     NVIC_IPR8[IRQ_TIM6_DAC] = 0x10;              /* high priority; nothing else is enabled */
     NVIC_ISER[IRQ_TIM6_DAC / 32] = 1u << (IRQ_TIM6_DAC % 32);
     TIM6->CR1 = TIM_CR1_CEN;
@@ -197,8 +198,11 @@ static void receive(void)
         uint16_t end = write > rx_read ? write : (uint16_t)RX_RING;
         size_t taken = bridge_receive(&core, rx_ring + rx_read, (size_t)(end - rx_read));
         rx_read = (uint16_t)((rx_read + taken) % RX_RING);
-        while (bridge_poll(&core)) {
-        }
+        bool acted = false;
+        while (bridge_poll(&core))
+            acted = true;
+        if (!taken && !acted)       /* cannot happen (the parser holds a whole frame); never spin */
+            break;
     }
 }
 
