@@ -18,7 +18,7 @@ from ankle_rt.config import Config, ConfigError
 from ankle_rt.daemon import run_lockstep
 from ankle_rt.safety import Fault, State
 from hardware.serial_backend import SerialBackend
-from hardware.serial_emulator import CORES, BridgeEmulator, LockstepLink, open_lockstep
+from hardware.emulators.serial_emulator import CORES, BridgeEmulator, LockstepLink, open_lockstep
 from hardware.serial_protocol import PAYLOADS, MsgType
 from tests.conftest import ROOT
 from tests.hw_helpers import Bench, QuantisedSimBackend, bench_config, config_copy, sim_copy

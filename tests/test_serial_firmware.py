@@ -11,8 +11,8 @@ import zlib
 
 import pytest
 
-from hardware.bridge_core import PythonCore
-from hardware.native_core import NativeCore, NativeParser, load_library
+from hardware.emulators.bridge_core import PythonCore
+from hardware.emulators.native_core import NativeCore, NativeParser, load_library
 from hardware.serial_protocol import PAYLOADS, MsgType, encode_frame
 
 FRAMES = 100_000            # random frames through the C parser
@@ -178,7 +178,7 @@ def test_c_core_does_what_the_python_core_does_on_the_same_bytes():
 
 def test_no_compiler_is_a_clear_error(monkeypatch, tmp_path):
     """Without a C compiler the core cannot be built: an error naming it, not a skip."""
-    from hardware import native_core
+    from hardware.emulators import native_core
 
     monkeypatch.setenv("ANKLE_RT_CORE_CACHE", str(tmp_path))        # nothing built here yet
     monkeypatch.setenv("PATH", str(tmp_path))

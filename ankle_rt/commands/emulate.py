@@ -22,8 +22,8 @@ import importlib
 
 # transport -> "module:function" taking (validated config, parsed arguments) and returning an exit code
 EMULATORS: dict[str, str] = {
-    "serial": "hardware.serial_emulator:run_standalone",
-    "canopen": "hardware.canopen_emulator:run_standalone",
+    "serial": "hardware.emulators.serial_emulator:run_standalone",
+    "canopen": "hardware.emulators.canopen_emulator:run_standalone",
 }
 
 

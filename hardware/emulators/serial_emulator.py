@@ -38,9 +38,9 @@ import time
 import tty
 
 from ankle_rt.config import Config, ConfigError
-from hardware.bridge_core import BridgeInputs, PythonCore
+from hardware.emulators.bridge_core import BridgeInputs, PythonCore
 from hardware.escon import escon_amplifiers
-from hardware.fault_schedule import ScheduledFault, parse_schedule
+from hardware.emulators.fault_schedule import ScheduledFault, parse_schedule
 from hardware.sensors import JointEncoders, MotorEncoders, StrainGauges
 from hardware.serial_protocol import (HEADER, CRC, IN_JOINT_VALID, IN_READY_1, IN_READY_2, OUT_ENABLE_1,
                                       OUT_ENABLE_2, MsgType, StreamParser, set_value_modes)
@@ -63,7 +63,7 @@ def make_core(name: str, cfg: Config, amps: tuple) -> "PythonCore":
     args = (cfg["controller"]["rate_hz"], cfg["encoders"]["counter_bits"], set_value_modes(amps[0].mode, amps[1].mode),
             enable_off, [(a.codec.code_min, a.codec.code_max) for a in amps], [a.zero_code for a in amps])
     if name == "c":
-        from hardware.native_core import NativeCore
+        from hardware.emulators.native_core import NativeCore
 
         return NativeCore(*args)
     return PythonCore(*args)

@@ -22,7 +22,7 @@ from typing import Sequence
 
 from hardware.serial_protocol import PAYLOADS, MsgType
 
-FIRMWARE_DIR = Path(__file__).resolve().parent / "firmware"
+FIRMWARE_DIR = Path(__file__).resolve().parent.parent / "firmware"
 SOURCES = ("core/frame.c", "core/bridge.c", "host/core_api.c")
 HEADERS = ("core/frame.h", "core/bridge.h")
 CFLAGS = ("-std=c11", "-O2", "-Wall", "-Wextra", "-Werror", "-fPIC", "-shared")
