@@ -6,6 +6,9 @@
    case a 2 Mbit/s link can deliver in a tick (200 bytes of frame headers that pass every check but
    the CRC). Nanoseconds on this machine, not scaled: the Cortex-M4 figure is the cycle estimate in
    docs/firmware.md.
+   Instructions per tick on the Cortex-M4: the same program cross-compiled (-Os, as the image) and
+   run in QEMU's STM32F405 (netduinoplus2) with -icount shift=0, timed with the SysTick; skipped
+   without qemu-system-arm. Cycles = instructions x CPI (1.2-1.5 on a Cortex-M4 for this code).
 2. Image size: ``make -C hardware/firmware`` and arm-none-eabi-size: flash = text + data, static
    RAM = data + bss (the core's state included), plus the linker script's 4 KiB stack reserve.
 3. Round trip: the serial backend against the lockstep emulator on a pty (read + write per cycle,
@@ -42,6 +45,18 @@ def native_tick_ns(ticks: int) -> dict[str, float]:
     return {name: float(value) for name, value in (line.split() for line in out.splitlines())}
 
 
+def m4_instructions() -> dict[str, float] | None:
+    """Instructions per tick of the core on the Cortex-M4 (QEMU), or None without the tools."""
+    if not (shutil.which("arm-none-eabi-gcc") and shutil.which("qemu-system-arm")):
+        return None
+    subprocess.run(["make", "-s", "-C", str(FIRMWARE), "build/bench_m4.elf"], check=True)
+    out = subprocess.run(["qemu-system-arm", "-M", "netduinoplus2", "-nographic", "-monitor", "none", "-serial",
+                          "null", "-semihosting", "-icount", "shift=0", "-kernel",
+                          str(FIRMWARE / "build" / "bench_m4.elf")], check=True, capture_output=True, text=True,
+                         timeout=120).stdout
+    return {name: float(value) for name, value in (line.split() for line in out.splitlines())}
+
+
 def image_size() -> tuple[int, int, int] | None:
     """(text, data, bss) of the cross-compiled image, or None without arm-none-eabi-gcc."""
     if not shutil.which("arm-none-eabi-gcc"):
@@ -63,6 +78,14 @@ def main() -> None:
     ns = native_tick_ns(args.ticks)
     print(f"core tick, native (gcc -O2, this machine): {ns['normal']:.0f} ns per tick with one command; "
           f"{ns['worst']:.0f} ns with a tick's worth of CRC-failing headers (200 bytes)")
+    m4 = m4_instructions()
+    if m4 is None:
+        print("core tick, Cortex-M4: needs arm-none-eabi-gcc and qemu-system-arm")
+    else:
+        print(f"core tick, Cortex-M4 (QEMU, instructions): {m4['normal']:.0f} per tick with one command, "
+              f"{m4['worst']:.0f} worst case; at CPI 1.2-1.5 and 168 MHz: {m4['normal'] * 1.2 / 168:.0f}-"
+              f"{m4['normal'] * 1.5 / 168:.0f} µs and {m4['worst'] * 1.2 / 168:.0f}-{m4['worst'] * 1.5 / 168:.0f} µs "
+              f"of the 1000 µs period")
     size = image_size()
     if size is None:
         print("image: arm-none-eabi-gcc not installed (apt-get install gcc-arm-none-eabi libnewlib-arm-none-eabi)")
