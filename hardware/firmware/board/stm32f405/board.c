@@ -92,7 +92,7 @@ static void clocks_init(void)
         }
     }
     /* VCO input 1 MHz, x336 = 336 MHz; /2 = 168 MHz system, /7 = 48 MHz */
-    RCC->PLLCFGR = pllm | (336u << 6) | (0u << 16) | source | (7u << 24);
+    RCC->PLLCFGR = (RCC->PLLCFGR & RCC_PLLCFGR_RESERVED) | pllm | (336u << 6) | (0u << 16) | source | (7u << 24);
     RCC->CR |= RCC_CR_PLLON;
     while (!(RCC->CR & RCC_CR_PLLRDY)) {
     }
@@ -107,7 +107,7 @@ static void encoder_init(tim_regs *tim)
     tim->SMCR = TIM_SMCR_ENCODER_MODE_3;
     /* inputs TI1/TI2, filter: 8 samples at 84 MHz (95 ns) against cable noise */
     tim->CCMR1 = TIM_CCMR1_CC1S_TI1 | TIM_CCMR1_IC1F(3) | TIM_CCMR1_CC2S_TI2 | TIM_CCMR1_IC2F(3);
-    tim->CCER = 0;
+    tim->CCER = TIM_CCER_CC1E | TIM_CCER_CC2E;             /* rising-edge polarity on both */
     tim->ARR = 0xFFFFFFFFu;
     tim->CR1 = TIM_CR1_CEN;
 }

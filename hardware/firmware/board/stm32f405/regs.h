@@ -30,6 +30,7 @@ typedef struct {
 #define RCC_CR_PLLON (1u << 24)
 #define RCC_CR_PLLRDY (1u << 25)
 #define RCC_PLLCFGR_SRC_HSE (1u << 22)
+#define RCC_PLLCFGR_RESERVED 0xF0BC8000u      /* bits to keep at their reset value */
 #define RCC_CFGR_SW_PLL 2u
 #define RCC_CFGR_SWS_MASK (3u << 2)
 #define RCC_CFGR_SWS_PLL (2u << 2)
@@ -94,6 +95,8 @@ typedef struct {
 #define TIM_SR_UIF (1u << 0)
 #define TIM_EGR_UG (1u << 0)
 #define TIM_SMCR_ENCODER_MODE_3 3u             /* count on both edges of both inputs */
+#define TIM_CCER_CC1E (1u << 0)
+#define TIM_CCER_CC2E (1u << 4)
 #define TIM_CCMR1_CC1S_TI1 (1u << 0)
 #define TIM_CCMR1_CC2S_TI2 (1u << 8)
 #define TIM_CCMR1_IC1F(n) ((uint32_t)(n) << 4)
