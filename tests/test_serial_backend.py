@@ -320,7 +320,7 @@ def test_emulate_standalone_on_a_pty_serves_a_daemon_in_another_process(core, be
     assert counters["samples"] - 1 <= ticks <= commands <= 301
 
 
-def test_emulate_free_running_like_the_real_bridge(bench_cfg):
+def test_emulate_free_running_like_the_real_bridge(core, bench_cfg):
     """`--free-run`: the emulator owns the clock; a real-time host loop reads whatever arrived. Only
     what does not depend on timing is asserted: samples arrive intact and the sample time advances."""
     import subprocess
@@ -329,11 +329,11 @@ def test_emulate_free_running_like_the_real_bridge(bench_cfg):
     from ankle_rt.clock import MonotonicClock
 
     proc = subprocess.Popen([sys.executable, "-m", "ankle_rt.cli", "emulate", "--transport", "serial",
-                             "--config", str(BENCH), "--port", "pty", "--free-run", "--duration", "20"],
-                            stdout=subprocess.PIPE, text=True)
+                             "--config", str(BENCH), "--port", "pty", "--free-run", "--duration", "20",
+                             "--core", core], stdout=subprocess.PIPE, text=True)
     try:
         line = proc.stdout.readline()
-        assert line.endswith("free-running, python core\n"), line
+        assert line.endswith(f"free-running, {core} core\n"), line
         bench_cfg["serial"].update(emulator="none", port=line.split(" on ")[1].split(" ")[0], open_timeout_s=10.0)
         clock = MonotonicClock()
         backend = open_backend(bench_cfg, clock)

@@ -56,11 +56,23 @@ def mangle(rng: random.Random, frame: bytes) -> bytes:
     return frame[:at]
 
 
+def missed(found: list, intact: list) -> int:
+    """How many of ``intact`` are not in ``found`` in order (``found`` may hold others in between)."""
+    at, lost = 0, 0
+    for want in intact:
+        try:
+            at = found.index(want, at) + 1
+        except ValueError:
+            lost += 1
+    return lost
+
+
 def test_c_parser_on_garbage_finds_every_intact_frame_and_nothing_else():
     """10^5 random frames of every type; a quarter mangled (bit flip, byte dropped, byte inserted, cut
     short), random bytes (sync bytes favoured) between a third of them; fed in random pieces of 1 to
-    300 bytes. The parser returns every intact frame, in order, and nothing that was not sent (a cut
-    frame whose missing bytes the stream happens to repeat is found too: it is the frame as sent)."""
+    300 bytes. The parser returns nothing that was not sent, and every intact frame in order, except
+    where a frame whose last byte was dropped is completed again by the next frame's first byte: the
+    bytes then are that frame as sent, and the next one lost its first byte (no parser can tell)."""
     rng = random.Random(13)
     stream = bytearray()
     intact = []
@@ -89,10 +101,10 @@ def test_c_parser_on_garbage_finds_every_intact_frame_and_nothing_else():
                 found.append(frame)
     assert all(f in sent for f in found)
     expected = [(f[4], f[5] | f[6] << 8, f[7:-4]) for f in intact]
-    wanted = set(expected)
-    assert [f for f in found if f in wanted] == expected
+    lost = missed(found, expected)
+    assert lost <= len(found) - (len(expected) - lost) < 20       # each loss is paid for by a completed frame
     frames, crc_errors, discarded = parser.counts()
-    assert frames == len(found) and len(found) - len(intact) < 20 and crc_errors > 1000 and discarded > 100_000
+    assert frames == len(found) and crc_errors > 1000 and discarded > 100_000
 
 
 def test_c_core_on_random_bytes_applies_nothing_and_answers_nothing():
@@ -107,6 +119,44 @@ def test_c_core_on_random_bytes_applies_nothing_and_answers_nothing():
         core.tick()
     assert not core.configured and core.commands == 0 and core.take_tx() == b""
     assert core.codes == [0, 0] and not core.outputs_enabled()
+
+
+def test_c_core_applies_only_commands_that_were_sent():
+    """10^5 COMMAND frames with random codes and enables, a quarter mangled, random bytes between a
+    third, into the configured core in random pieces: every command it applies is one that was sent
+    (its codes clamped to the DAC's range), and every intact one is applied, in order (with the
+    exception explained in the parser test above)."""
+    rng = random.Random(21)
+    core = NativeCore(1000, 16, 0, 0, ANALOG, [0, 0])
+    core.receive(encode_frame(MsgType.CONFIG, 0, 1000, 5000, 16, 0, 0, 0))
+    while core.poll():
+        pass
+    stream = bytearray()
+    sent, intact = set(), []
+    for seq in range(1, FRAMES + 1):
+        code_1, code_2, outputs = rng.randint(-5000, 5000), rng.randint(-5000, 5000), rng.randrange(4)
+        frame = encode_frame(MsgType.COMMAND, seq & 0xFFFF, code_1, code_2, outputs, rng.randrange(65536))
+        applied_as = (max(-2048, min(2047, code_1)), max(-2048, min(2047, code_2)), outputs)
+        sent.add(applied_as)
+        if rng.random() < 0.33:
+            stream += rng.randbytes(rng.randrange(1, 40)).replace(b"\x00", b"\xa5\x5a", 2)
+        if rng.random() < 0.25:
+            stream += mangle(rng, frame)
+        else:
+            stream += frame
+            intact.append(applied_as)
+    applied = []
+    at = 0
+    while at < len(stream):
+        piece = bytes(stream[at:at + rng.randrange(1, 301)])
+        at += len(piece)
+        while piece:
+            piece = piece[core.receive(piece):]
+            while core.poll():
+                applied.append((*core.codes, core.enables))
+    assert all(a in sent for a in applied)
+    lost = missed(applied, intact)
+    assert lost <= len(applied) - (len(intact) - lost) < 20 and core.commands == len(applied)
 
 
 def host_stream(rng: random.Random, seq: int) -> tuple[bytes, int]:
