@@ -459,6 +459,7 @@ def test_a_frozen_bridge_holds_its_outputs_until_its_watchdog_and_resumes(core, 
     assert held[:5] == pytest.approx([2.0] * 5, abs=0.01) and held[5:] == [0.0] * 5   # watchdog: 5 ms
     assert times[21:] == list(range(21, 30))                                 # resumed in plant time
     assert log[21][1] == BackendFault.DEVICE_FAULT and log[22][1] == BackendFault.NONE
+    assert emu.watchdog_resets == 1                                          # the hardware watchdog, once
     assert log[22][2] == pytest.approx(2.0, abs=0.01)
     backend.close()
 

@@ -36,6 +36,7 @@ import signal
 import sys
 import time
 import tty
+from typing import TYPE_CHECKING
 
 from ankle_rt.config import Config, ConfigError
 from hardware.emulators.bridge_core import BridgeInputs, PythonCore
@@ -46,6 +47,9 @@ from hardware.serial_protocol import (HEADER, CRC, IN_JOINT_VALID, IN_READY_1, I
                                       OUT_ENABLE_2, MsgType, StreamParser, set_value_modes)
 from sim_backend.plant import SimulatedPlant
 
+if TYPE_CHECKING:
+    from hardware.emulators.native_core import NativeCore
+
 FAULTS = ("drop", "corrupt", "noise", "stuck_encoder_1", "stuck_encoder_2", "sg_rail_1", "sg_rail_2",
           "not_ready_1", "not_ready_2", "frozen", "stale")
 CORES = ("python", "c")
@@ -54,7 +58,7 @@ NOISE_FLIP_EVERY = 8      # ... and one random bit flipped in one sample in this
 SETTLE_TIMEOUT_S = 5.0   # LockstepLink: longest wait for bytes to cross the pty (a safety net only)
 
 
-def make_core(name: str, cfg: Config, amps: tuple) -> "PythonCore":
+def make_core(name: str, cfg: Config, amps: tuple) -> PythonCore | NativeCore:
     """The firmware core ``name`` (one of :data:`CORES`) for a board wired as ``cfg`` says."""
     if name not in CORES:
         raise ValueError(f"unknown bridge core {name!r} (expected one of: {', '.join(CORES)})")
