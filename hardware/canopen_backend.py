@@ -41,8 +41,12 @@ from hardware.canopen_pdo import (COUNTER_1, COUNTER_2, DIGITAL_IN, DIGITAL_OUT,
                                   SYNC_COB_ID, ANALOG_CODE_SHIFT, EdsError, NodeLayout, analog_codec,
                                   counter_bits, eds_path, load_node)
 from hardware.escon import enable_outputs, escon_amplifiers
+from hardware.registry import load_by_name
 from hardware.sensors import MotorEncoders, StrainGauges, StuckEncoderDetector
 
+# canopen.emulator: lockstep: the bench's in-process node, named here and imported only then (the
+# driver never imports the emulators).
+LOCKSTEP_EMULATOR = "hardware.emulators.canopen_emulator:lockstep_pair"
 MAX_FRAMES_PER_READ = 64         # frames handled per read(); the rest wait for the next cycle
 STATE_BOOT_UP, STATE_OPERATIONAL, STATE_PRE_OPERATIONAL = 0x00, 0x05, 0x7F   # heartbeat states
 CMD_START, CMD_ENTER_PRE_OPERATIONAL = 0x01, 0x80                               # NMT commands
@@ -101,8 +105,7 @@ class CanopenBackend(Backend):
             if co["interface"] != "virtual":
                 raise ConfigError("a lockstep emulator runs on the in-process virtual bus: set canopen.interface "
                                   "to virtual", source, "canopen.emulator")
-            from hardware.canopen_emulator import lockstep_pair
-            bus, self.emulator = lockstep_pair(cfg, str(eds_path(cfg)), co["channel"])
+            bus, self.emulator = load_by_name(LOCKSTEP_EMULATOR)(cfg, str(eds_path(cfg)), co["channel"])
         elif bus is None:
             bus = self._open_bus(co)
         self.bus = bus

@@ -35,11 +35,16 @@ from ankle_rt.clock import Clock
 from ankle_rt.config import Config
 from hardware.config_values import config_error, required
 from hardware.escon import enable_outputs, escon_amplifiers
+from hardware.registry import load_by_name
 from hardware.sensors import JointEncoders, MotorEncoders, StrainGauges, StuckEncoderDetector
 from hardware.serial_protocol import (IN_JOINT_VALID, IN_READY_1, IN_READY_2, OUT_ENABLE_1, OUT_ENABLE_2,
                                       PAYLOADS, SEQ_MODULUS, ST_ADC_STALE, ST_QUADRATURE, ST_WATCHDOG,
                                       FrameWriter, MsgType, StreamParser, frame_size, set_value_modes)
 
+# serial.emulator: lockstep opens the bench's in-process emulator, named here and imported only then:
+# the driver never imports the emulators (they need the simulator, which a prosthesis install
+# does not use).
+LOCKSTEP_EMULATOR = "hardware.emulators.serial_emulator:open_lockstep"
 MAX_LINK_LOAD = 0.70          # share of the baud rate the 1 kHz sample stream may use
 BITS_PER_BYTE = 10            # UART: start + 8 data + stop
 SAMPLE = PAYLOADS[MsgType.SAMPLE]
@@ -93,9 +98,7 @@ class SerialBackend(Backend):
         self.link_timeout_ns = round(s["link_timeout_s"] * 1e9)
         if port is None:
             if s["emulator"] == "lockstep":
-                from hardware.serial_emulator import open_lockstep
-
-                port = open_lockstep(cfg)
+                port = load_by_name(LOCKSTEP_EMULATOR)(cfg)
             else:
                 port = self._open(required(cfg, "serial.port", "the bridge's serial device"), s)
         self.port = port

@@ -65,9 +65,10 @@ class Bench:
     """The daemon and the config's hardware backend with its in-process emulator in lockstep,
     stepped cycle by cycle."""
 
-    def __init__(self, cfg: Config):
+    def __init__(self, cfg: Config, open_: Callable[[Config, SimClock], Backend] = open_backend):
+        """``open_``: how to open the backend (default: as the config says)."""
         self.clock = SimClock()
-        self.backend = open_backend(cfg, self.clock)
+        self.backend = open_(cfg, self.clock)
         self.emu = self.backend.emulator
         self.daemon = Daemon(cfg, self.clock, backend=self.backend)
         self.period = self.backend.period_ns

@@ -11,7 +11,7 @@ from ankle_rt.calibration import CalibrationAborted, calibrate
 from ankle_rt.clock import SimClock
 from ankle_rt.config import Config, load_config
 from hardware.serial_backend import SerialBackend
-from hardware.serial_emulator import BridgeEmulator, LockstepLink
+from hardware.emulators.serial_emulator import BridgeEmulator, LockstepLink
 from tests.conftest import ROOT
 from tests.hw_helpers import bench_config, config_copy
 

@@ -18,10 +18,10 @@ from ankle_rt.daemon import run_lockstep
 from ankle_rt.safety import Fault
 from hardware.canbus_load import MAX_BUS_LOAD, frame_bits
 from hardware.canopen_backend import CanopenBackend, configured_bus_load
-from hardware.canopen_emulator import FAULTS as NODE_FAULTS, lockstep_pair
+from hardware.emulators.canopen_emulator import FAULTS as NODE_FAULTS, lockstep_pair
 from hardware.canopen_pdo import (COUNTER_1, COUNTER_2, DEFAULT_EDS, DIGITAL_IN, DIGITAL_OUT, SET_VALUE_1,
                                   SET_VALUE_2, STRAIN_1, STRAIN_2, EdsError, load_node)
-from hardware.fault_schedule import parse_schedule
+from hardware.emulators.fault_schedule import parse_schedule
 from tests.conftest import ROOT
 from tests.hw_helpers import Bench, QuantisedSimBackend, bench_config, read_cycles, sim_copy
 
@@ -364,7 +364,7 @@ def test_standalone_emulator_serves_a_backend_on_the_real_clock(bench_cfg):
     import time
 
     from ankle_rt.clock import MonotonicClock
-    from hardware.canopen_emulator import CanopenEmulator
+    from hardware.emulators.canopen_emulator import CanopenEmulator
 
     channel = bench_cfg["canopen"]["channel"]
     bench_cfg["canopen"]["tpdo_wait_us"] = 2000

@@ -18,7 +18,8 @@ from ankle_rt.config import Config, ConfigError
 from ankle_rt.daemon import run_lockstep
 from ankle_rt.safety import Fault, State
 from hardware.serial_backend import SerialBackend
-from hardware.serial_emulator import BridgeEmulator, LockstepLink
+from hardware.emulators.serial_emulator import CORES, BridgeEmulator, LockstepLink, open_lockstep
+from hardware.serial_protocol import PAYLOADS, MsgType
 from tests.conftest import ROOT
 from tests.hw_helpers import Bench, QuantisedSimBackend, bench_config, config_copy, sim_copy
 
@@ -29,6 +30,18 @@ BENCH = ROOT / "config" / "bench-serial.yaml"
 def bench_cfg() -> Config:
     """A private copy of config/bench-serial.yaml."""
     return bench_config(BENCH)
+
+
+@pytest.fixture(params=CORES)
+def core(request) -> str:
+    """The bridge firmware core behind the emulated board: the Python reference, or the firmware's
+    C core compiled natively (firmware in the loop). Every test taking it runs against both."""
+    return request.param
+
+
+def open_bench(cfg: Config, clock: SimClock, core: str) -> SerialBackend:
+    """The serial backend against the lockstep emulator with firmware ``core``."""
+    return SerialBackend(cfg, clock, port=open_lockstep(cfg, core))
 
 
 def test_section7_through_the_serial_bridge_matches_the_direct_simulation(bench_cfg):
@@ -63,6 +76,23 @@ def test_section7_through_the_serial_bridge_matches_the_direct_simulation(bench_
         assert np.max(np.abs(quantised[k] - via[k])) < 1e-9, k
 
 
+def test_section7_through_the_firmware_c_core_is_the_python_emulator_run(bench_cfg):
+    """Firmware in the loop: the same run with the bridge firmware's C core (compiled natively) in place
+    of the Python one, the plant side unchanged. Both send the same codes, so nothing is left to
+    quantisation: every logged value is equal, bit for bit (loop timing is simulated too)."""
+    runs, counters = [], []
+    for core in CORES:
+        backend = open_bench(config_copy(bench_cfg), SimClock(), core)
+        runs.append(run_lockstep(bench_cfg, 3.5, backend=backend))
+        counters.append(backend.counters())
+        backend.close()
+    python, c = runs
+    assert c.summary["fault"] == "NONE" and counters[0] == counters[1]
+    for k in python.records.dtype.names:
+        assert np.array_equal(python[k], c[k], equal_nan=True), k
+    assert abs(c["ankle_dp"][-1] - math.radians(10)) < math.radians(0.5)
+
+
 # -- fault injection through the daemon's safety ---------------------------------------------------
 
 # (fault, expected reason, stated detection time in cycles: 1 = safe in the cycle whose sample shows
@@ -80,8 +110,8 @@ FAULTS = [
 
 
 @pytest.mark.parametrize("name, expected, within", FAULTS, ids=[f[0] for f in FAULTS])
-def test_injected_fault_goes_safe_in_time_and_resumes_after_reset(bench_cfg, name, expected, within):
-    bench = Bench(bench_cfg)
+def test_injected_fault_goes_safe_in_time_and_resumes_after_reset(core, bench_cfg, name, expected, within):
+    bench = Bench(bench_cfg, lambda cfg, clock: open_bench(cfg, clock, core))
     emu = bench.emu
     try:
         bench.run_into_the_step()                            # the motors work when the fault comes
@@ -96,8 +126,8 @@ def test_injected_fault_goes_safe_in_time_and_resumes_after_reset(bench_cfg, nam
         bench.assert_latched(expected)
         emu.inject(name, on=False)
         bench.cycles(10)
-        bench.reset_and_resume()
-        assert max(abs(c) for c in emu.amplifier_currents()) > 0.0
+        bench.reset_and_resume()                             # the amplifiers drive what the daemon sends
+        assert emu.outputs_enabled() and emu.amplifier_currents() == tuple(bench.backend.sent)
     finally:
         bench.close()
 
@@ -114,10 +144,10 @@ def run_frames(backend, n, frame=None):
     return out
 
 
-def test_single_lost_or_corrupted_samples_are_counted_and_tolerated(bench_cfg):
+def test_single_lost_or_corrupted_samples_are_counted_and_tolerated(core, bench_cfg):
     """One sample dropped, the next one corrupted: the frame holds the last sample (the daemon's
     safety.stale_cycles bounds how long), the CRC error and the gap are reported once and counted."""
-    backend = open_backend(bench_cfg, SimClock())
+    backend = open_bench(bench_cfg, SimClock(), core)
     emu = backend.emulator
     frame = SensorFrame()
     seq = run_frames(backend, 5, frame)[-1][0]
@@ -139,10 +169,10 @@ def test_single_lost_or_corrupted_samples_are_counted_and_tolerated(bench_cfg):
     backend.close()
 
 
-def test_bridge_watchdog_zeroes_outputs_when_commands_stop(bench_cfg):
+def test_bridge_watchdog_zeroes_outputs_when_commands_stop(core, bench_cfg):
     """Free-running bridge ticks without commands: after serial.watchdog_s the set values are zero,
     the enables off, and the host sees the bridge's watchdog status as a device fault."""
-    backend = open_backend(bench_cfg, SimClock())
+    backend = open_bench(bench_cfg, SimClock(), core)
     emu = backend.emulator
     backend.activate()
     frame = SensorFrame()
@@ -160,8 +190,8 @@ def test_bridge_watchdog_zeroes_outputs_when_commands_stop(bench_cfg):
     backend.close()
 
 
-def test_link_lost_when_the_port_fails(bench_cfg):
-    backend = open_backend(bench_cfg, SimClock())
+def test_link_lost_when_the_port_fails(core, bench_cfg):
+    backend = open_bench(bench_cfg, SimClock(), core)
     run_frames(backend, 3)
     backend.port.port.close()                    # the device vanished
     frame = SensorFrame()
@@ -186,10 +216,10 @@ def test_configuration_errors_name_the_key(bench_cfg, tmp_path):
         open_backend(cfg, SimClock())
 
 
-def test_a_bridge_that_cannot_do_the_configuration_is_refused(bench_cfg):
+def test_a_bridge_that_cannot_do_the_configuration_is_refused(core, bench_cfg):
     device = config_copy(bench_cfg)
     device["encoders"]["counter_bits"] = 32            # the bridge has 32-bit counters, the host says 16
-    link = LockstepLink(BridgeEmulator(device))
+    link = LockstepLink(BridgeEmulator(device, core=core))
     with pytest.raises(BackendError, match=r"refused its configuration.*encoders.counter_bits"):
         SerialBackend(bench_cfg, SimClock(), port=link)
     link.close()
@@ -209,9 +239,9 @@ def test_no_bridge_on_the_port(bench_cfg):
         os.close(slave)
 
 
-def test_16_bit_counters_unwrap_end_to_end_and_a_negative_start_reads_negative(bench_cfg):
+def test_16_bit_counters_unwrap_end_to_end_and_a_negative_start_reads_negative(core, bench_cfg):
     assert bench_cfg["encoders"]["counter_bits"] == 16
-    emu = BridgeEmulator(bench_cfg)
+    emu = BridgeEmulator(bench_cfg, core=core)
     emu.plant.model.set_rest_at((0.0, 0.1))                  # motor 2 starts at -0.25 rad: counter near 2^16
     backend = SerialBackend(bench_cfg, SimClock(), port=LockstepLink(emu))
     rad = 2 * math.pi / bench_cfg["actuator"]["encoder_counts_per_rev"]
@@ -232,10 +262,10 @@ def test_16_bit_counters_unwrap_end_to_end_and_a_negative_start_reads_negative(b
     backend.close()
 
 
-def test_pwm_set_values_reach_the_amplifiers(bench_cfg):
+def test_pwm_set_values_reach_the_amplifiers(core, bench_cfg):
     for amp in bench_cfg["escon"]["amplifiers"]:
         amp.update(mode="pwm", current_at_min=-15.0, current_at_max=15.0)
-    backend = open_backend(bench_cfg, SimClock())
+    backend = open_bench(bench_cfg, SimClock(), core)
     emu = backend.emulator
     assert emu.modes == 0b11 and backend.zero_codes == (5000, 5000)
     frame = SensorFrame()
@@ -251,9 +281,9 @@ def test_pwm_set_values_reach_the_amplifiers(bench_cfg):
     backend.close()
 
 
-def test_a_new_configuration_restarts_the_sample_time(bench_cfg):
+def test_a_new_configuration_restarts_the_sample_time(core, bench_cfg):
     clock = SimClock()
-    first = open_backend(bench_cfg, clock)
+    first = open_bench(bench_cfg, clock, core)
     run_frames(first, 50)
     second = SerialBackend(bench_cfg, clock, port=first.port)   # the daemon restarts on the same link
     frame = SensorFrame()
@@ -262,14 +292,14 @@ def test_a_new_configuration_restarts_the_sample_time(bench_cfg):
     second.close()
 
 
-def test_emulate_standalone_on_a_pty_serves_a_daemon_in_another_process(bench_cfg, tmp_path):
-    """`ankle-rt emulate --transport serial --port pty` in a subprocess, the backend in this one.
-    No timing is asserted: only that every command stepped the emulator once and samples came back."""
+def test_emulate_standalone_on_a_pty_serves_a_daemon_in_another_process(core, bench_cfg, tmp_path):
+    """`ankle-rt emulate --transport serial --port pty --core ...` in a subprocess, the backend in this
+    one. No timing is asserted: only that every command stepped the emulator once and samples came back."""
     import subprocess
     import sys
 
     proc = subprocess.Popen([sys.executable, "-m", "ankle_rt.cli", "emulate", "--transport", "serial",
-                             "--config", str(BENCH), "--port", "pty", "--duration", "20"],
+                             "--config", str(BENCH), "--port", "pty", "--duration", "20", "--core", core],
                             stdout=subprocess.PIPE, text=True)
     try:
         line = proc.stdout.readline()
@@ -290,7 +320,7 @@ def test_emulate_standalone_on_a_pty_serves_a_daemon_in_another_process(bench_cf
     assert counters["samples"] - 1 <= ticks <= commands <= 301
 
 
-def test_emulate_free_running_like_the_real_bridge(bench_cfg):
+def test_emulate_free_running_like_the_real_bridge(core, bench_cfg):
     """`--free-run`: the emulator owns the clock; a real-time host loop reads whatever arrived. Only
     what does not depend on timing is asserted: samples arrive intact and the sample time advances."""
     import subprocess
@@ -299,11 +329,11 @@ def test_emulate_free_running_like_the_real_bridge(bench_cfg):
     from ankle_rt.clock import MonotonicClock
 
     proc = subprocess.Popen([sys.executable, "-m", "ankle_rt.cli", "emulate", "--transport", "serial",
-                             "--config", str(BENCH), "--port", "pty", "--free-run", "--duration", "20"],
-                            stdout=subprocess.PIPE, text=True)
+                             "--config", str(BENCH), "--port", "pty", "--free-run", "--duration", "20",
+                             "--core", core], stdout=subprocess.PIPE, text=True)
     try:
         line = proc.stdout.readline()
-        assert line.endswith("free-running\n"), line
+        assert line.endswith(f"free-running, {core} core\n"), line
         bench_cfg["serial"].update(emulator="none", port=line.split(" on ")[1].split(" ")[0], open_timeout_s=10.0)
         clock = MonotonicClock()
         backend = open_backend(bench_cfg, clock)
@@ -359,17 +389,19 @@ def test_emulate_refuses_a_bad_injection(capsys):
 @given(seed=st.integers(0, 2**32 - 1))
 def test_line_noise_never_crashes_the_backend_nor_yields_a_sample_that_was_not_sent(seed):
     """Random bytes between the frames and random bit flips, through the real pty: every sample the
-    backend hands out is bit for bit one the bridge sent, and every intact sample arrives."""
+    backend hands out is bit for bit one the bridge sent, and every intact sample arrives. Both
+    firmware cores (the seed picks one)."""
     cfg = bench_config(BENCH)
     cfg["sim"]["seed"] = seed % 2**31
-    emu = BridgeEmulator(cfg)
+    emu = BridgeEmulator(cfg, core=CORES[seed % 2])
     sent = {}
-    build = emu._sample
+    send = emu._send_sample
 
-    def recording_sample():
-        build()
-        sent[emu._last_sample[0]] = emu._last_sample
-    emu._sample = recording_sample
+    def recording_send(frame: bytes) -> None:
+        fields = PAYLOADS[MsgType.SAMPLE].unpack_from(frame, 7)
+        sent[fields[0]] = fields                                        # before the line noise
+        send(frame)
+    emu._send_sample = recording_send
     emu.inject("noise")
     backend = SerialBackend(cfg, SimClock(), port=LockstepLink(emu))
     frame = SensorFrame()
@@ -390,11 +422,11 @@ def test_line_noise_never_crashes_the_backend_nor_yields_a_sample_that_was_not_s
     assert corrupted - 1 <= lost <= corrupted
 
 
-def test_a_scheduled_fault_is_in_the_run_log_with_its_reason(bench_cfg, tmp_path):
+def test_a_scheduled_fault_is_in_the_run_log_with_its_reason(core, bench_cfg, tmp_path):
     """The whole run through run_lockstep: the strain gauge goes to its rail at 1.0 s of plant time.
     The log records the reason and the backend's fault bits from that cycle on, the set values are
     zero and the run ends normally."""
-    backend = SerialBackend(bench_cfg, SimClock())
+    backend = open_bench(bench_cfg, SimClock(), core)
     backend.emulator.add_schedule("sg_rail_1@1.0")
     res = run_lockstep(bench_cfg, 1.5, backend=backend, log_path=tmp_path / "run.arlog")
     backend.close()
@@ -405,11 +437,11 @@ def test_a_scheduled_fault_is_in_the_run_log_with_its_reason(bench_cfg, tmp_path
     assert res.summary["fault"] == "SG_RAIL" and (tmp_path / "run.arlog").stat().st_size > 0
 
 
-def test_a_frozen_bridge_holds_its_outputs_until_its_watchdog_and_resumes(bench_cfg):
+def test_a_frozen_bridge_holds_its_outputs_until_its_watchdog_and_resumes(core, bench_cfg):
     """Scheduled in plant time: hung from 10 ms to 20 ms. The plant goes on with the outputs as they
     were until the watchdog (5 ms) zeroes them; the host sees no samples (LINK_LOST after 3 ms);
     afterwards samples resume with the plant's time, the first one reporting the watchdog trip."""
-    backend = open_backend(bench_cfg, SimClock())
+    backend = open_bench(bench_cfg, SimClock(), core)
     emu = backend.emulator
     emu.add_schedule("frozen@0.010:0.020")
     backend.activate()
@@ -427,6 +459,7 @@ def test_a_frozen_bridge_holds_its_outputs_until_its_watchdog_and_resumes(bench_
     assert held[:5] == pytest.approx([2.0] * 5, abs=0.01) and held[5:] == [0.0] * 5   # watchdog: 5 ms
     assert times[21:] == list(range(21, 30))                                 # resumed in plant time
     assert log[21][1] == BackendFault.DEVICE_FAULT and log[22][1] == BackendFault.NONE
+    assert emu.watchdog_resets == 1                                          # the hardware watchdog, once
     assert log[22][2] == pytest.approx(2.0, abs=0.01)
     backend.close()
 
@@ -437,7 +470,7 @@ def test_bridge_numbering_that_jumps_back_is_taken_up_again(bench_cfg):
     backend = open_backend(bench_cfg, SimClock())
     frame = SensorFrame()
     run_frames(backend, 5, frame)
-    backend.emulator.writer.seq = (backend.last_frame_seq + 40000) % 65536
+    backend.emulator.core.writer.seq = (backend.last_frame_seq + 40000) % 65536     # Python core
     seen = run_frames(backend, 4, frame)
     assert [f for _, f in seen] == [BackendFault.NONE, BackendFault.SEQUENCE_GAP, BackendFault.NONE,
                                     BackendFault.NONE]
@@ -445,11 +478,11 @@ def test_bridge_numbering_that_jumps_back_is_taken_up_again(bench_cfg):
     backend.close()
 
 
-def test_a_slow_enable_input_is_why_the_set_value_is_zeroed_too(bench_cfg):
+def test_a_slow_enable_input_is_why_the_set_value_is_zeroed_too(core, bench_cfg):
     """An ESCON may take 8 ms to follow its enable input. Dropping only the enable would leave the
     current on for 8 ticks; deactivate() zeroes the set value as well, so it is off at the next tick."""
     def currents_after(deactivate: bool) -> list[float]:
-        emu = BridgeEmulator(bench_cfg, enable_delay_s=0.008)
+        emu = BridgeEmulator(bench_cfg, enable_delay_s=0.008, core=core)
         backend = SerialBackend(bench_cfg, SimClock(), port=LockstepLink(emu))
         frame = SensorFrame()
         backend.activate()

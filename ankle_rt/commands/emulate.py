@@ -6,6 +6,7 @@ hardware config against it without knowing the difference.
 
     ankle-rt emulate --transport serial --config config/bench-serial.yaml --port pty
     ankle-rt emulate --transport serial --config config/bench-serial.yaml --port /dev/ttyUSB0
+    ankle-rt emulate --transport serial --config config/bench-serial.yaml --port pty --core c
     ankle-rt emulate --transport canopen --config config/bench-canopen.yaml --interface socketcan --channel can0
 
 The plant steps once per command frame (serial) or SYNC (CANopen): the daemon's clock paces it.
@@ -21,8 +22,8 @@ import importlib
 
 # transport -> "module:function" taking (validated config, parsed arguments) and returning an exit code
 EMULATORS: dict[str, str] = {
-    "serial": "hardware.serial_emulator:run_standalone",
-    "canopen": "hardware.canopen_emulator:run_standalone",
+    "serial": "hardware.emulators.serial_emulator:run_standalone",
+    "canopen": "hardware.emulators.canopen_emulator:run_standalone",
 }
 
 
@@ -40,6 +41,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--channel", help="canopen: python-can channel (default: canopen.channel)")
     parser.add_argument("--free-run", action="store_true", help="serial: tick on the emulator's own clock at "
                         "controller.rate_hz like the real bridge (default: lockstep, one tick per command)")
+    parser.add_argument("--core", choices=("python", "c"), default="python",
+                        help="serial: the bridge firmware core behind the emulated board: the Python reference "
+                        "or the firmware's C core compiled natively with the host's gcc (firmware in the loop)")
     parser.add_argument("--duration", type=float, default=0.0, metavar="S",
                         help="stop after this many seconds of wall time (0: until Ctrl-C)")
     parser.add_argument("--inject", action="append", default=[], metavar="NAME@START[:STOP]",

@@ -35,7 +35,7 @@ from hardware.canopen_pdo import (COUNTER_1, COUNTER_2, DIGITAL_IN, DIGITAL_OUT,
                                   READY_BITS, SET_VALUE_1, SET_VALUE_2, STRAIN_1, STRAIN_2, SYNC_COB_ID,
                                   ANALOG_CODE_SHIFT, PdoLayout, analog_codec, compile_pdo, counter_bits)
 from hardware.escon import escon_amplifiers
-from hardware.fault_schedule import ScheduledFault, parse_schedule
+from hardware.emulators.fault_schedule import ScheduledFault, parse_schedule
 from hardware.sensors import MotorEncoders, StrainGauges
 from sim_backend.plant import SimulatedPlant
 

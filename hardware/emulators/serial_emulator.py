@@ -1,12 +1,17 @@
 """The microcontroller bridge, emulated: the simulated plant behind the serial protocol.
 
-:class:`BridgeEmulator` is the bridge's firmware in Python. It takes received bytes
-(:meth:`~BridgeEmulator.receive`) and queues the bytes it answers with (:meth:`~BridgeEmulator.take_output`).
-Lockstep: a COMMAND frame that answers the newest sample steps the plant one tick (with the amplifier
-currents of the commanded set values, as the ESCONs configured in ``escon:`` drive them) and queues
-the next SAMPLE, so the host's commands pace the plant and results do not depend on machine load.
-A real bridge (and ``--free-run``) ticks on its own 1 kHz clock instead; :meth:`~BridgeEmulator.tick`
-is that tick.
+:class:`BridgeEmulator` is the bridge board: the simulated plant behind its sensors and outputs,
+and a firmware core on top: ``core="python"`` (``bridge_core.PythonCore``, the reference) or
+``core="c"`` (the firmware's own C core, compiled natively: ``native_core.NativeCore``). The plant
+side (sensors, amplifiers, injected faults) is this one piece of code for both, so a test that passes
+against one core and fails against the other has found a bug in one of them.
+
+It takes received bytes (:meth:`~BridgeEmulator.receive`) and queues the bytes it answers with
+(:meth:`~BridgeEmulator.take_output`). Lockstep: a COMMAND frame that answers the newest sample steps
+the plant one tick (with the amplifier currents of the commanded set values, as the ESCONs configured
+in ``escon:`` drive them) and queues the next SAMPLE, so the host's commands pace the plant and results
+do not depend on machine load. A real bridge (and ``--free-run``) ticks on its own 1 kHz clock
+instead; :meth:`~BridgeEmulator.tick` is that tick.
 
 :class:`LockstepLink` puts an emulator on the master side of a pty pair (raw mode) and hands the
 host a pyserial port on the slave side, wrapped so that every ``write`` services the emulator at
@@ -17,7 +22,7 @@ competes for the GIL and nothing depends on scheduling (docs/serial-protocol.md,
 Fault injection (:data:`FAULTS`, by name, on/off or scheduled in plant time): dropped samples, a
 corrupted CRC, line noise (random bytes between frames, random bit flips), a stuck encoder, a strain
 gauge at its rail, an ESCON dropping ready, a frozen bridge (silent, commands ignored, outputs held
-until its hardware watchdog forces them safe) and a stale bridge (repeats its last sample).
+until its hardware watchdog resets it: outputs safe) and a stale bridge (repeats its last sample).
 """
 
 from __future__ import annotations
@@ -31,29 +36,49 @@ import signal
 import sys
 import time
 import tty
+from typing import TYPE_CHECKING
 
 from ankle_rt.config import Config, ConfigError
+from hardware.emulators.bridge_core import BridgeInputs, PythonCore
 from hardware.escon import escon_amplifiers
-from hardware.fault_schedule import ScheduledFault, parse_schedule
+from hardware.emulators.fault_schedule import ScheduledFault, parse_schedule
 from hardware.sensors import JointEncoders, MotorEncoders, StrainGauges
-from hardware.serial_protocol import (FAULT_BAD_CONFIG, IN_JOINT_VALID, IN_READY_1, IN_READY_2, OUT_ENABLE_1,
-                                      OUT_ENABLE_2, PAYLOADS, ST_CONFIGURED, ST_WATCHDOG, FrameWriter, MsgType,
-                                      StreamParser, set_value_modes)
+from hardware.serial_protocol import (HEADER, CRC, IN_JOINT_VALID, IN_READY_1, IN_READY_2, OUT_ENABLE_1,
+                                      OUT_ENABLE_2, MsgType, StreamParser, set_value_modes)
 from sim_backend.plant import SimulatedPlant
+
+if TYPE_CHECKING:
+    from hardware.emulators.native_core import NativeCore
 
 FAULTS = ("drop", "corrupt", "noise", "stuck_encoder_1", "stuck_encoder_2", "sg_rail_1", "sg_rail_2",
           "not_ready_1", "not_ready_2", "frozen", "stale")
+CORES = ("python", "c")
 NOISE_BYTES = 24          # "noise": up to this many random bytes before each sample ...
 NOISE_FLIP_EVERY = 8      # ... and one random bit flipped in one sample in this many (on average)
-BRIDGE_STATE_RUNNING = 2
 SETTLE_TIMEOUT_S = 5.0   # LockstepLink: longest wait for bytes to cross the pty (a safety net only)
 
 
-class BridgeEmulator:
-    """The bridge firmware with :class:`SimulatedPlant` behind it. ``cfg`` is the device's truth:
-    plant parameters and the ESCON Studio settings, encoder and strain-gauge wiring it emulates."""
+def make_core(name: str, cfg: Config, amps: tuple) -> PythonCore | NativeCore:
+    """The firmware core ``name`` (one of :data:`CORES`) for a board wired as ``cfg`` says."""
+    if name not in CORES:
+        raise ValueError(f"unknown bridge core {name!r} (expected one of: {', '.join(CORES)})")
+    enable_off = ((OUT_ENABLE_1 if amps[0].enable_level(False) else 0)
+                  | (OUT_ENABLE_2 if amps[1].enable_level(False) else 0))
+    args = (cfg["controller"]["rate_hz"], cfg["encoders"]["counter_bits"], set_value_modes(amps[0].mode, amps[1].mode),
+            enable_off, [(a.codec.code_min, a.codec.code_max) for a in amps], [a.zero_code for a in amps])
+    if name == "c":
+        from hardware.emulators.native_core import NativeCore
 
-    def __init__(self, cfg: Config, *, lockstep: bool = True, enable_delay_s: float = 0.0):
+        return NativeCore(*args)
+    return PythonCore(*args)
+
+
+class BridgeEmulator:
+    """The bridge board with :class:`SimulatedPlant` behind it and a firmware core (``core``: one of
+    :data:`CORES`) on top. ``cfg`` is the device's truth: plant parameters and the ESCON Studio
+    settings, encoder and strain-gauge wiring it emulates."""
+
+    def __init__(self, cfg: Config, *, lockstep: bool = True, enable_delay_s: float = 0.0, core: str = "python"):
         """``enable_delay_s``: how long an ESCON takes to follow its enable input (up to 8 ms on the
         ESCON 50/5's digital inputs; 0: at once). The set value acts at once either way."""
         self.plant = SimulatedPlant(cfg, getattr(cfg, "source", "config"))
@@ -66,32 +91,52 @@ class BridgeEmulator:
         self.rate_hz = cfg["controller"]["rate_hz"]
         self.period_us = round(1e6 / self.rate_hz)
         self.modes = set_value_modes(self.amps[0].mode, self.amps[1].mode)
+        self.core_name = core
+        self.core = make_core(core, cfg, self.amps)
         self.lockstep = lockstep
-        self.parser = StreamParser()
-        self.writer = FrameWriter()
         self.output = bytearray()
-        self.configured = False
-        self.codes = [self.amps[0].zero_code, self.amps[1].zero_code]
-        self.safe_codes = list(self.codes)
-        self.enable_levels = [self.amps[0].enable_level(False), self.amps[1].enable_level(False)]
         self.enable_delay_ticks = round(enable_delay_s * self.rate_hz)
         self.amp_enabled = [False, False]     # what the ESCONs follow, enable_delay_ticks behind the lines
         self._enable_countdown = [self.enable_delay_ticks, self.enable_delay_ticks]
-        self.watchdog_ticks = 1
-        self.config_tick = 0
-        self.since_command = 0
-        self.watchdog_tripped = False
-        self.last_command_seq = 0
         self.awaiting_command = False
+        self.hung_ticks = 0                   # "frozen": ticks the firmware has not run
+        self._hung_parser = StreamParser()    # "frozen" in lockstep: each command is still a period
         self.active: set[str] = set()
         self.schedule: list[ScheduledFault] = []
         self._stuck_counts: list[int | None] = [None, None]
-        self._last_sample: tuple | None = None
-        self.commands = 0
         self.samples_dropped = 0
         self.samples_corrupted = 0
+        self.watchdog_resets = 0                        # "frozen": resets by the hardware watchdog
         self.bytes_lost = 0                             # standalone: output the link could not take
         self.rng = random.Random(cfg["sim"]["seed"])   # line noise, reproducible
+        self.inputs: BridgeInputs | None = None        # latched at the last tick (the sensor noise draws
+                                                        # from the plant's generator: once per tick)
+
+    # -- what the core drives ----------------------------------------------------------------------
+    @property
+    def codes(self) -> list[int]:
+        """The set-value codes at the outputs now."""
+        return self.core.codes
+
+    @property
+    def commands(self) -> int:
+        return self.core.commands
+
+    def enable_level(self, k: int) -> bool:
+        """The electrical level of ESCON ``k``'s enable line (0 or 1) now."""
+        return bool(self.core.enables & (OUT_ENABLE_1, OUT_ENABLE_2)[k])
+
+    @property
+    def enable_levels(self) -> list[bool]:
+        return [self.enable_level(0), self.enable_level(1)]
+
+    def outputs_enabled(self) -> bool:
+        """Whether an enable line is on (the watchdog has something to switch off)."""
+        return self.core.outputs_enabled()
+
+    def trip_watchdog(self) -> None:
+        """No valid command within the watchdog time: zero set values, enables off, status bit set."""
+        self.core.trip_watchdog()
 
     # -- fault injection -------------------------------------------------------------------------
     def inject(self, name: str, on: bool = True) -> None:
@@ -120,149 +165,54 @@ class BridgeEmulator:
             if on != (name in self.active):
                 self.inject(name, on)
 
-    # -- bytes in, bytes out ---------------------------------------------------------------------
+    # -- the link ----------------------------------------------------------------------------------
     def receive(self, data: bytes) -> None:
         """Handle received bytes: frames are acted on as they complete (a frozen bridge ignores them)."""
+        if "frozen" in self.active:        # the firmware hangs; in lockstep each command is still a period
+            self._hung_parser.feed(data)
+            while self._hung_parser.next_frame():
+                if self._hung_parser.mtype == MsgType.COMMAND and self.lockstep:
+                    self.tick()
+            return
+        core = self.core
+        if not core.configured:                     # unconfigured, a board still latches every tick
+            self._latch_sensors()                   # (lockstep does not tick it); nothing is sent
         view = memoryview(data)
-        parser = self.parser
         while len(view):
-            n = min(len(view), parser.space())
-            parser.feed(view[:n])
-            view = view[n:]
-            while parser.next_frame():
-                self._handle(parser.mtype, parser.seq, PAYLOADS[parser.mtype].unpack_from(parser.buf, parser.offset))
+            taken = core.receive(bytes(view))
+            view = view[taken:]
+            handled = False
+            while mtype := core.poll():
+                handled = True
+                self._collect()
+                if (mtype == MsgType.COMMAND and core.configured and self.lockstep
+                        and self.awaiting_command):   # the first command after a sample
+                    self.awaiting_command = False
+                    self.tick()
+            if not taken and not handled:
+                raise RuntimeError("bridge core took no bytes and found no frame")   # cannot happen: a bug
 
     def take_output(self) -> bytes:
         out = bytes(self.output)
         self.output.clear()
         return out
 
-    def _send(self, mtype: MsgType, *fields: int) -> None:
-        self.output += self.writer.frame(mtype, *fields)
-
-    def _handle(self, mtype: int, seq: int, fields: tuple) -> None:
-        if "frozen" in self.active:      # the firmware hangs; in lockstep each command is still a period
-            if mtype == MsgType.COMMAND and self.lockstep:
-                self.tick()
-            return
-        if mtype == MsgType.CONFIG:
-            self._configure(fields)
-        elif mtype == MsgType.COMMAND and self.configured:
-            self.commands += 1
-            self.codes[0], self.codes[1] = fields[0], fields[1]
-            outputs = fields[2]
-            self.enable_levels[0] = bool(outputs & OUT_ENABLE_1)
-            self.enable_levels[1] = bool(outputs & OUT_ENABLE_2)
-            self.last_command_seq = seq
-            self.since_command = 0
-            self.watchdog_tripped = False
-            if self.lockstep and self.awaiting_command:   # the first command after a sample
-                self.awaiting_command = False
-                self.tick()
-        elif mtype == MsgType.HEARTBEAT:
-            self._send(MsgType.HEARTBEAT, BRIDGE_STATE_RUNNING if self.configured else 0,
-                       (self.plant.ticks * self.period_us // 1000) & 0xFFFFFFFF)
-
-    def _configure(self, fields: tuple) -> None:
-        rate_hz, watchdog_us, counter_bits, modes, safe_1, safe_2 = fields
-        for index, ok in enumerate((rate_hz == self.rate_hz, watchdog_us > 0,
-                                    counter_bits == self.encoders.counter_bits, modes == self.modes)):
-            if not ok:   # the bridge's hardware cannot do what the host asks (field index in detail)
-                self._send(MsgType.FAULT, FAULT_BAD_CONFIG, index)
-                return
-        self.watchdog_ticks = max(1, math.ceil(watchdog_us / self.period_us))
-        self.config_tick = self.plant.ticks          # sample time counts from the configuration
-        self.safe_codes[0], self.safe_codes[1] = safe_1, safe_2
-        self._go_safe()
-        self.watchdog_tripped = False
-        self.configured = True
-        self._send(MsgType.CONFIG, *fields)          # the acknowledgement echoes the configuration
-        self._sample()                               # sample of the current tick, without stepping
-
-    def _go_safe(self) -> None:
-        self.codes[0], self.codes[1] = self.safe_codes
-        self.enable_levels[0] = self.amps[0].enable_level(False)
-        self.enable_levels[1] = self.amps[1].enable_level(False)
-
-    def outputs_enabled(self) -> bool:
-        """Whether an enable line is on (the watchdog has something to switch off)."""
-        return any(amp.is_enabled(level) for amp, level in zip(self.amps, self.enable_levels))
-
-    def trip_watchdog(self) -> None:
-        """No valid command within the watchdog time: zero set values, enables off, status bit set."""
-        self._go_safe()
-        self.watchdog_tripped = True
-
-    # -- one bridge tick -------------------------------------------------------------------------
-    def amplifier_currents(self) -> tuple[float, float]:
-        """A: what the two ESCONs drive now (zero when disabled or in fault)."""
-        out = []
-        for k, amp in enumerate(self.amps):
-            enabled = amp.is_enabled(self.enable_levels[k]) if self.enable_delay_ticks == 0 else self.amp_enabled[k]
-            on = enabled and f"not_ready_{k + 1}" not in self.active
-            out.append(amp.current(self.codes[k]) if on else 0.0)
-        return out[0], out[1]
-
-    def _follow_enables(self) -> None:
-        """The ESCONs take enable_delay_ticks to follow a change of their enable lines."""
-        for k, amp in enumerate(self.amps):
-            wanted = amp.is_enabled(self.enable_levels[k])
-            if wanted == self.amp_enabled[k]:
-                self._enable_countdown[k] = self.enable_delay_ticks
+    def _collect(self) -> None:
+        """Move the core's frames onto the link; samples pass the injected link faults."""
+        data = self.core.take_tx()
+        at = 0
+        while at < len(data):
+            end = at + HEADER.size + data[at + 2] + CRC.size
+            frame = data[at:end]
+            if data[at + 4] == MsgType.SAMPLE:
+                self._send_sample(frame)
             else:
-                self._enable_countdown[k] -= 1
-                if self._enable_countdown[k] <= 0:
-                    self.amp_enabled[k] = wanted
-                    self._enable_countdown[k] = self.enable_delay_ticks
+                self.output += frame
+            at = end
 
-    def tick(self) -> None:
-        """One period of the bridge's clock: watchdog, plant step, sample.
-
-        A frozen bridge sends nothing and applies no command, but the world goes on: the plant steps
-        with the outputs as they were until the watchdog, which a real bridge must implement in an
-        independent hardware watchdog (it outlives a firmware hang), forces them safe."""
-        self._apply_schedule()
-        if not self.configured:
-            return
-        self.since_command += 1
-        if self.since_command > self.watchdog_ticks and self.outputs_enabled():
-            self.trip_watchdog()
-        self._follow_enables()
-        self.plant.step(*self.amplifier_currents())
-        if "frozen" not in self.active:
-            self._sample()
-
-    def _sample(self) -> None:
-        active = self.active
-        if "stale" in active and self._last_sample is not None:
-            fields = self._last_sample                  # the acquisition hangs: old data, old time
-        else:
-            plant = self.plant
-            c1, c2 = plant.encoder_counts()
-            if self._stuck_counts[0] is not None:
-                c1 = self._stuck_counts[0]
-            if self._stuck_counts[1] is not None:
-                c2 = self._stuck_counts[1]
-            e1, e2 = self.encoders.raw_from_counts(c1, c2)
-            s1, s2 = self.gauges.raw(*plant.strain_gauge_torques(), self.adc_min, self.adc_max)
-            if "sg_rail_1" in active:
-                s1 = self.adc_max
-            if "sg_rail_2" in active:
-                s2 = self.adc_max
-            inputs = 0
-            if self.amps[0].ready_level("not_ready_1" not in active):
-                inputs |= IN_READY_1
-            if self.amps[1].ready_level("not_ready_2" not in active):
-                inputs |= IN_READY_2
-            j1 = j2 = 0
-            if self.joints is not None:
-                j1, j2 = self.joints.raw(*plant.ankle_positions())
-                inputs |= IN_JOINT_VALID
-            status = ST_CONFIGURED | (ST_WATCHDOG if self.watchdog_tripped else 0)
-            fields = ((plant.ticks - self.config_tick) * self.period_us, e1, e2, s1, s2, j1, j2, inputs, status, self.last_command_seq)
-            self._last_sample = fields
-        frame = self.writer.frame(MsgType.SAMPLE, *fields)   # numbered even when lost: the host sees a gap
+    def _send_sample(self, frame: bytes) -> None:
         self.awaiting_command = True
+        active = self.active
         if "drop" in active:
             self.samples_dropped += 1
         elif "corrupt" in active:
@@ -279,6 +229,88 @@ class BridgeEmulator:
                 self.output[start + rng.randrange(len(frame))] ^= 1 << rng.randrange(8)
         else:
             self.output += frame
+
+    # -- one bridge tick -------------------------------------------------------------------------
+    def amplifier_currents(self) -> tuple[float, float]:
+        """A: what the two ESCONs drive now (zero when disabled or in fault)."""
+        out = []
+        codes = self.core.codes
+        for k, amp in enumerate(self.amps):
+            enabled = amp.is_enabled(self.enable_level(k)) if self.enable_delay_ticks == 0 else self.amp_enabled[k]
+            on = enabled and f"not_ready_{k + 1}" not in self.active
+            out.append(amp.current(codes[k]) if on else 0.0)
+        return out[0], out[1]
+
+    def _follow_enables(self) -> None:
+        """The ESCONs take enable_delay_ticks to follow a change of their enable lines."""
+        for k, amp in enumerate(self.amps):
+            wanted = amp.is_enabled(self.enable_level(k))
+            if wanted == self.amp_enabled[k]:
+                self._enable_countdown[k] = self.enable_delay_ticks
+            else:
+                self._enable_countdown[k] -= 1
+                if self._enable_countdown[k] <= 0:
+                    self.amp_enabled[k] = wanted
+                    self._enable_countdown[k] = self.enable_delay_ticks
+
+    def tick(self) -> None:
+        """One period of the bridge's clock: watchdog, plant step, sample.
+
+        A frozen bridge sends nothing and applies no command, but the world goes on: the plant steps
+        with the outputs as they were until the independent hardware watchdog (which outlives a
+        firmware hang) resets the board after the command watchdog time: outputs safe, and the core,
+        its state retained, flags the reset in the status once it runs again."""
+        self._apply_schedule()
+        core = self.core
+        if not core.configured:
+            return
+        frozen = "frozen" in self.active
+        if frozen:
+            self.hung_ticks += 1
+            if self.hung_ticks == core.watchdog_ticks + 1:
+                core.restart()
+                self.watchdog_resets += 1
+        else:
+            self.hung_ticks = 0
+            core.tick()
+        self._follow_enables()
+        self.plant.step(*self.amplifier_currents())
+        if not frozen:
+            self._latch_sensors()
+            self._collect()
+
+    def _latch_sensors(self) -> None:
+        """Latch the sensors and hand them to the core (which sends them once configured). Stale:
+        the acquisition hangs, the old data and time are handed over again."""
+        if self.inputs is None or "stale" not in self.active:
+            self.inputs = self._latch()
+        self.core.sample(self.inputs.fields())
+
+    def _latch(self) -> BridgeInputs:
+        """The board's sensors now, with the injected sensor faults."""
+        active = self.active
+        plant = self.plant
+        c1, c2 = plant.encoder_counts()
+        if self._stuck_counts[0] is not None:
+            c1 = self._stuck_counts[0]
+        if self._stuck_counts[1] is not None:
+            c2 = self._stuck_counts[1]
+        e1, e2 = self.encoders.raw_from_counts(c1, c2)
+        s1, s2 = self.gauges.raw(*plant.strain_gauge_torques(), self.adc_min, self.adc_max)
+        if "sg_rail_1" in active:
+            s1 = self.adc_max
+        if "sg_rail_2" in active:
+            s2 = self.adc_max
+        inputs = 0
+        if self.amps[0].ready_level("not_ready_1" not in active):
+            inputs |= IN_READY_1
+        if self.amps[1].ready_level("not_ready_2" not in active):
+            inputs |= IN_READY_2
+        j1 = j2 = 0
+        if self.joints is not None:
+            j1, j2 = self.joints.raw(*plant.ankle_positions())
+            inputs |= IN_JOINT_VALID
+        return BridgeInputs(plant.ticks * self.period_us, e1, e2, s1, s2, j1, j2, inputs, 0)
 
 
 class LockstepLink:
@@ -353,9 +385,9 @@ class LockstepLink:
             select.select([self.port.fileno()], [], [], 0.01)
 
 
-def open_lockstep(cfg: Config) -> LockstepLink:
-    """The bench in one process: an emulator configured like ``cfg`` behind a pty pair."""
-    return LockstepLink(BridgeEmulator(cfg), cfg["serial"]["baudrate"])
+def open_lockstep(cfg: Config, core: str = "python") -> LockstepLink:
+    """The bench in one process: an emulator configured like ``cfg`` (firmware ``core``) behind a pty pair."""
+    return LockstepLink(BridgeEmulator(cfg, core=core), cfg["serial"]["baudrate"])
 
 
 # -- ankle-rt emulate --transport serial ----------------------------------------------------------
@@ -373,7 +405,7 @@ def run_standalone(cfg: Config, args: argparse.Namespace) -> int:
     bridge, commands only update the outputs, and the watchdog counts ticks.
     """
     free_run = bool(getattr(args, "free_run", False))
-    emulator = BridgeEmulator(cfg, lockstep=not free_run)
+    emulator = BridgeEmulator(cfg, lockstep=not free_run, core=getattr(args, "core", "python"))
     try:
         for spec in args.inject:
             emulator.add_schedule(spec)
@@ -401,7 +433,8 @@ def run_standalone(cfg: Config, args: argparse.Namespace) -> int:
         fd = port.fileno()
         where = port_name
     os.set_blocking(fd, False)
-    print(f"emulator: serial bridge on {where}, {'free-running' if free_run else 'lockstep'}", flush=True)
+    print(f"emulator: serial bridge on {where}, {'free-running' if free_run else 'lockstep'}, "
+          f"{emulator.core_name} core", flush=True)
     signal.signal(signal.SIGTERM, _interrupt)
     try:
         _serve(emulator, fd, cfg, args.duration, free_run)
@@ -413,7 +446,7 @@ def run_standalone(cfg: Config, args: argparse.Namespace) -> int:
         else:
             keep_open.close()
     print(f"emulator: {emulator.plant.ticks} ticks, {emulator.commands} commands, "
-          f"{emulator.parser.crc_errors} CRC errors received, {emulator.samples_dropped} samples dropped, "
+          f"{emulator.core.crc_errors} CRC errors received, {emulator.samples_dropped} samples dropped, "
           f"{emulator.samples_corrupted} corrupted, {emulator.bytes_lost} bytes not sent (nobody reading)",
           flush=True)
     return 0
