@@ -200,15 +200,14 @@ class BatchPlant:
     def motor_positions(self) -> tuple[np.ndarray, np.ndarray]:
         """rad: what the encoders report (floor-quantised where configured)."""
         x, c = self.model.x, self.counts_per_rad
-        p1, p2 = x[2], x[3]
-        if self.quantize.any():
-            p1 = np.where(self.quantize, np.floor(p1 * c) / c, p1)
-            p2 = np.where(self.quantize, np.floor(p2 * c) / c, p2)
-        return p1.copy(), p2.copy()
+        if self.quantize.all():
+            return np.floor(x[2] * c) / c, np.floor(x[3] * c) / c
+        return np.where(self.quantize, np.floor(x[2] * c) / c, x[2]), np.where(self.quantize, np.floor(x[3] * c) / c, x[3])
 
-    def strain_gauge_torques(self) -> tuple[np.ndarray, np.ndarray]:
-        """N m [DP, IE]: joint torque plus each plant's offset and noise."""
-        t0, t1 = self.model.joint_torque()
+    def strain_gauge_torques(self, joint=None) -> tuple[np.ndarray, np.ndarray]:
+        """N m [DP, IE]: joint torque (``joint``, if the caller has it already) plus each plant's
+        offset and noise."""
+        t0, t1 = self.model.joint_torque() if joint is None else joint
         if self._noise_i >= NOISE_BLOCK:
             for j, rng in enumerate(self.rngs):
                 if self.noise_rms[j] > 0.0:
@@ -223,9 +222,9 @@ class BatchPlant:
         x = self.model.x
         return x[0].copy(), x[1].copy()
 
-    def cable_torques(self) -> tuple[np.ndarray, np.ndarray]:
+    def cable_torques(self, joint=None) -> tuple[np.ndarray, np.ndarray]:
         """N m: the cable torque each motor feels, R^-T of the joint torque (reciprocal transmission)."""
-        t0, t1 = self.model.joint_torque()
+        t0, t1 = self.model.joint_torque() if joint is None else joint
         RiT = self.model._RiT
         return RiT[0] * t0 + RiT[1] * t1, RiT[2] * t0 + RiT[3] * t1
 

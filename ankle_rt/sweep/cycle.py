@@ -142,13 +142,16 @@ class BatchRun:
         M = self.law_matrix
         pk = self.i_peak
         t_prev = math.nan
+        ff_any = bool(self.ff_on.any())
+        x = plant.model.x
         for k in range(T):
             if k:
                 plant.step(set1, set2)
             t = plant.t
             p1, p2 = plant.motor_positions()
-            s0, s1 = plant.strain_gauge_torques()
-            j0, j1 = plant.ankle_positions()
+            joint = plant.model.joint_torque()
+            s0, s1 = plant.strain_gauge_torques(joint)
+            j0, j1 = plant.model.x[0], plant.model.x[1]     # true angles (joint encoders), this tick only
             # -- estimate (Estimator.update)
             h = t - t_prev
             if h > 0.0:
@@ -180,7 +183,8 @@ class BatchRun:
 
             def flag(cond, fault):
                 nonlocal code
-                code = np.where((code == 0) & cond, int(fault), code)
+                if cond.any():
+                    code = np.where((code == 0) & cond, int(fault), code)
 
             flag(~np.isfinite(p1 + p2 + s0 + s1 + t), Fault.SENSOR_INVALID)
             rail = self.sg_rail
@@ -210,8 +214,11 @@ class BatchRun:
             # -- control law (MotorPD / ImpedanceController.update), soft start, friction feed-forward
             controlling = (state == ACTIVE) & (code == 0)
             scale = np.minimum(scale + self.soft_step, 1.0)
-            ff1 = np.where(self.ff_on, self.ff_kc * np.clip(v1 * self.ff_inv_band, -1.0, 1.0) + self.ff_d * v1, 0.0)
-            ff2 = np.where(self.ff_on, self.ff_kc * np.clip(v2 * self.ff_inv_band, -1.0, 1.0) + self.ff_d * v2, 0.0)
+            if ff_any:
+                ff1 = np.where(self.ff_on, self.ff_kc * np.clip(v1 * self.ff_inv_band, -1.0, 1.0) + self.ff_d * v1, 0.0)
+                ff2 = np.where(self.ff_on, self.ff_kc * np.clip(v2 * self.ff_inv_band, -1.0, 1.0) + self.ff_d * v2, 0.0)
+            else:
+                ff1 = ff2 = 0.0
             if self.impedance:
                 w0 = Ri[0] * v1 + Ri[1] * v2
                 w1 = Ri[2] * v1 + Ri[3] * v2
@@ -243,10 +250,10 @@ class BatchRun:
             ok = state == ACTIVE
             set1 = np.where(ok, i1, 0.0)
             set2 = np.where(ok, i2, 0.0)
-            trace.ankle[k, 0], trace.ankle[k, 1] = j0, j1
+            trace.ankle[k] = x[0:2]
             trace.reference[k, 0], trace.reference[k, 1] = r0, r1
             trace.current[k, 0], trace.current[k, 1] = set1, set2
-            c = np.abs(plant.cable_torques())
+            c = np.abs(plant.cable_torques(joint))
             np.maximum(trace.cable_torque_peak, c, out=trace.cable_torque_peak)
             now_slack = c >= self.slack_torque
             trace.slack_events += now_slack & ~slack
