@@ -1,8 +1,8 @@
 """Element-wise maths for laws written once for one plant (plain floats) and for a batch of plants
 (numpy arrays over the batch, :mod:`sim_backend.batch`).
 
-A float goes to :mod:`math` (the single plant's hot path stays on fast scalar calls); anything else
-to numpy. An effect whose hooks use only arithmetic and these functions declares
+A scalar (float, or a numpy scalar such as the daemon's float64 set values) goes to :mod:`math` and
+plain comparisons, so the single plant's hot path stays on fast scalar calls; an array to numpy. An effect whose hooks use only arithmetic and these functions declares
 ``Effect.elementwise = True`` and a batch calls each hook once for all its plants.
 """
 
@@ -13,18 +13,19 @@ import math
 import numpy as np
 
 _tanh, _exp, _sin = math.tanh, math.exp, math.sin
+_ARRAY = np.ndarray
 
 
 def tanh(x):
-    return _tanh(x) if x.__class__ is float else np.tanh(x)
+    return np.tanh(x) if x.__class__ is _ARRAY else _tanh(x)
 
 
 def exp(x):
-    return _exp(x) if x.__class__ is float else np.exp(x)
+    return np.exp(x) if x.__class__ is _ARRAY else _exp(x)
 
 
 def sin(x):
-    return _sin(x) if x.__class__ is float else np.sin(x)
+    return np.sin(x) if x.__class__ is _ARRAY else _sin(x)
 
 
 def absolute(x):
@@ -33,31 +34,31 @@ def absolute(x):
 
 def clip(x, low, high):
     """``x`` limited to [low, high] (bounds broadcast over the batch)."""
-    if x.__class__ is float:
-        return low if x < low else (high if x > high else x)
-    return np.minimum(np.maximum(x, low), high)
+    if x.__class__ is _ARRAY or low.__class__ is _ARRAY:
+        return np.minimum(np.maximum(x, low), high)
+    return low if x < low else (high if x > high else x)
 
 
 def select(condition, if_true, if_false):
     """``if_true`` where ``condition`` holds, else ``if_false``."""
-    if condition.__class__ is bool:
-        return if_true if condition else if_false
-    return np.where(condition, if_true, if_false)
+    if condition.__class__ is _ARRAY:
+        return np.where(condition, if_true, if_false)
+    return if_true if condition else if_false
 
 
 def positive_part(x):
     """max(x, 0)."""
-    if x.__class__ is float:
-        return x if x > 0.0 else 0.0
-    return np.maximum(x, 0.0)
+    if x.__class__ is _ARRAY:
+        return np.maximum(x, 0.0)
+    return x if x > 0.0 else 0.0
 
 
 def pick(buffer, index):
     """``buffer[index]`` of a ring buffer: one slot for one plant; for a batch, ``buffer`` is
     (slots, plants) and ``index`` one slot per plant."""
-    if index.__class__ is int:
-        return buffer[index]
-    return buffer[index, np.arange(index.size)]
+    if index.__class__ is _ARRAY:
+        return buffer[index, np.arange(index.size)]
+    return buffer[index]
 
 
 def stack(objects):
