@@ -40,11 +40,14 @@ CRITERIA: dict[str, float | None] = {
 AXES = ("dp", "ie")
 
 
-def _step_of(ref: np.ndarray, t: np.ndarray) -> tuple[int, float] | None:
-    """(index, size) of the step of a piecewise-constant reference with one jump, else None."""
+STEP_MIN_RAD = 1e-3   # a reference jump smaller than this (0.06 deg) is not a step
+
+
+def _step_of(ref: np.ndarray) -> tuple[int, float] | None:
+    """(index, size) of the step of a reference with exactly one jump (of at least STEP_MIN_RAD), else None."""
     d = np.diff(ref)
-    jumps = np.flatnonzero(np.abs(d) > 1e-6)
-    if len(jumps) != 1:
+    jumps = np.flatnonzero(np.abs(d) >= STEP_MIN_RAD)
+    if len(jumps) != 1 or np.any((np.abs(d) > 1e-9) & (np.abs(d) < STEP_MIN_RAD)):
         return None
     k = jumps[0] + 1
     return k, float(ref[k] - ref[k - 1])
@@ -76,9 +79,9 @@ def run_metrics(trace: BatchTrace, j: int, cfg: Mapping[str, Any], criteria: Map
         out[f"tracking_peak_{name}_deg"] = float(np.max(np.abs(e))) if e.size else math.nan
         el = err[late, a]
         final_rms = max(final_rms, float(np.sqrt(np.mean(el * el))) if el.size else math.inf)
-        step = _step_of(ref[:, a], t)
+        step = _step_of(ref[:, a])
         overshoot = settling = math.nan
-        if step is not None and step[0] >= k0 and abs(step[1]) > 1e-6:
+        if step is not None and step[0] > k0:
             k, size = step
             nxt = [d["start"] for d in dists if d["start"] > t[k] and (d["torque_dp"] if a == 0 else d["torque_ie"])]
             k_stop = min([k_end] + [int(np.searchsorted(t, s)) for s in nxt])
@@ -123,7 +126,7 @@ def run_metrics(trace: BatchTrace, j: int, cfg: Mapping[str, Any], criteria: Map
                 v = out[pattern.format(name)]
                 if c == "max_impedance_error_pct":
                     v = abs(v)
-                if c == "max_settling_s" and not math.isfinite(v) and out[f"overshoot_{name}_pct"] == out[f"overshoot_{name}_pct"]:
+                if c == "max_settling_s" and math.isnan(v) and not math.isnan(out[f"overshoot_{name}_pct"]):
                     ok = False                      # a step that never settled
                 elif math.isfinite(v) and v > crit[c]:
                     ok = False
