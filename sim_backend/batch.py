@@ -71,7 +71,12 @@ def stack_effects(effects: Sequence[Effect]):
     kind = type(effects[0])
     if any(type(e) is not kind for e in effects):
         raise ValueError("a batch needs the same effect types in the same order on every plant")
-    return kind.stack(effects) if kind.elementwise else PlantByPlant(effects)
+    if kind.elementwise:
+        try:
+            return kind.stack(effects)
+        except ValueError:        # per-plant data that is not a number (a table, a list)
+            pass
+    return PlantByPlant(effects)
 
 
 class BatchModel(CompliantModel):
@@ -155,7 +160,7 @@ class BatchPlant:
         if any(p.dt != self.dt for p in plants):
             raise ValueError("a batch needs one control period")
         self.model = BatchModel([p.model for p in plants])
-        self.amps = [stack([p.amps[k] for p in plants]) for k in range(2)]
+        self.amps = [stack([p.amps[k] for p in plants]) for k in range(2)]   # numbers only
         self.kt = np.array([p.kt for p in plants])
         self.counts_per_rad = np.array([p.counts_per_rad for p in plants])
         self.quantize = np.array([p.quantize for p in plants])

@@ -98,3 +98,20 @@ def test_a_batch_refuses_plants_of_different_structure(sim_cfg):
     other["sim"]["effects"] = [{"type": "delay", "delay": 0.002}]
     with pytest.raises(ValueError, match="same"):
         BatchPlant([sim_cfg, other])
+
+
+def test_an_elementwise_effect_with_per_plant_tables_falls_back_to_plant_by_plant(sim_cfg):
+    """Stacking turns numbers into arrays; other per-plant data (here a list) cannot be stacked, so
+    the batch calls those plants one by one; equal data is shared."""
+    from ankle_rt.params import PlantParams
+    from sim_backend.batch import stack_effects
+    from sim_backend.effects import build_effects
+
+    params = PlantParams.from_config(sim_cfg)
+    effects = [build_effects(case, params, 1e-3)[0] for case in EFFECT_CASES["stribeck"]]
+    assert not isinstance(stack_effects(effects), PlantByPlant)
+    for e in effects:
+        e.table = [1.0, 2.0]
+    assert stack_effects(effects).table == [1.0, 2.0]
+    effects[1].table = [1.0, 3.0]
+    assert isinstance(stack_effects(effects), PlantByPlant)

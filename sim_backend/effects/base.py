@@ -78,9 +78,11 @@ class Effect:
     @classmethod
     def stack(cls, effects: Sequence["Effect"]) -> "Effect":
         """One instance standing for ``effects`` (same class, one per plant of a batch): every number
-        becomes an array over the batch, anything else is taken from the first. Only for
-        ``elementwise`` effects; stateful ones override this to lay out their state per plant."""
-        return stack(effects)
+        becomes an array over the batch (``params`` and ``plant``, descriptive only, are the first
+        plant's). Raises ValueError when another attribute differs between plants (the batch then
+        calls them plant by plant). Only for ``elementwise`` effects; stateful ones override this to
+        lay out their state per plant."""
+        return stack(effects, shared=("params", "plant"))
 
     @classmethod
     def uses(cls, hook: str) -> bool:

@@ -61,13 +61,26 @@ def pick(buffer, index):
     return buffer[index]
 
 
-def stack(objects):
+def stack(objects, shared: tuple[str, ...] = ()):
     """One object of the same class standing for ``objects`` (one per plant of a batch): every
-    number becomes an array over the batch, anything else is taken from the first object."""
+    number becomes an array over the batch; anything else must be equal on every object (else
+    ValueError: the caller runs them one by one), except the ``shared`` attributes, which are
+    descriptive only and taken from the first object."""
     first = objects[0]
     out = object.__new__(type(first))
     for name, value in vars(first).items():
         if isinstance(value, (int, float)) and not isinstance(value, bool):
             value = np.array([getattr(o, name) for o in objects], dtype=float)
+        elif name not in shared and not all(_equal(getattr(o, name), value) for o in objects[1:]):
+            raise ValueError(f"{type(first).__name__}.{name} differs between plants and is not a number")
         setattr(out, name, value)
     return out
+
+
+def _equal(a, b) -> bool:
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        return bool(np.array_equal(a, b))
+    try:
+        return bool(a == b)
+    except (TypeError, ValueError):
+        return a is b
