@@ -141,9 +141,9 @@ def execute(study: Study, out: Path, *, scheduler: Any = None, workers: int | No
 
     if todo:
         if scheduler is not None:
-            _run_dask(todo, scheduler, finished)
+            run_dask(todo, scheduler, finished)
         else:
-            _run_local(todo, workers or os.cpu_count() or 1, finished)
+            run_local(todo, workers or os.cpu_count() or 1, finished)
     rows: list[dict[str, Any]] = []
     for t in tasks:
         rows.extend(json.loads(_batch_file(out, t.index).read_text()))
@@ -151,25 +151,28 @@ def execute(study: Study, out: Path, *, scheduler: Any = None, workers: int | No
     return rows
 
 
-def _run_local(tasks: list[BatchTask], workers: int, finished) -> None:
+def run_local(tasks: list, workers: int, finished, fn: Callable = run_batch) -> None:
+    """``fn`` over ``tasks`` on a process pool of ``workers`` (1: in this process), calling
+    ``finished(task, result)`` as each one ends."""
     if workers <= 1 or len(tasks) == 1:
         for t in tasks:
-            finished(t, run_batch(t))
+            finished(t, fn(t))
         return
     with ProcessPoolExecutor(max_workers=min(workers, len(tasks))) as pool:
-        futures: dict[Future, BatchTask] = {pool.submit(run_batch, t): t for t in tasks}
+        futures: dict[Future, Any] = {pool.submit(fn, t): t for t in tasks}
         for fut in as_completed(futures):
             finished(futures[fut], fut.result())
 
 
-def _run_dask(tasks: list[BatchTask], scheduler: Any, finished) -> None:
+def run_dask(tasks: list, scheduler: Any, finished, fn: Callable = run_batch) -> None:
+    """The same on a Dask cluster (scheduler address or ``distributed.Client``), tasks as futures."""
     try:
         from distributed import Client, as_completed as dask_completed
     except ImportError:
         raise RuntimeError("--scheduler needs dask distributed (pip install 'ankle-rt[sweep]')") from None
     client = scheduler if isinstance(scheduler, Client) else Client(scheduler)
     try:
-        futures = client.map(run_batch, tasks, pure=False)
+        futures = client.map(fn, tasks, pure=False)
         by_key = {f.key: t for f, t in zip(futures, tasks)}
         for fut in dask_completed(futures):
             finished(by_key[fut.key], fut.result())
