@@ -108,7 +108,7 @@ class BatchRun:
         done: dict[str, np.ndarray] = {}
         for j, r in enumerate(refs):
             p = r.profile
-            key = repr((type(p).__name__, sorted((k, v) for k, v in vars(p).items() if not isinstance(v, list))))
+            key = repr((type(p).__name__, sorted(vars(p).items())))
             if key not in done:
                 table = np.empty((self.ticks, 2))
                 for k in range(self.ticks):
