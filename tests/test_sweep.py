@@ -148,3 +148,18 @@ def test_rerun_replays_one_case_as_a_logged_run(tmp_path, capsys):
     assert (tmp_path / "out" / "rerun" / "run-3.arlog").stat().st_size > 0
     text = (tmp_path / "out" / "rerun" / "run-3.yaml").read_text()
     assert "run 3 of" in text and "scenario disturbance" in text
+
+
+def test_runs_of_different_structure_go_to_different_batches(tmp_path):
+    from ankle_rt.sweep.engine import plan
+
+    study = load_study(_spec(tmp_path, parameters={
+        "sim.substeps": {"dist": "uniform", "low": 1.6, "high": 3.4},          # integer key: rounded
+        "controller.type": {"dist": "choice", "values": ["pd", "impedance"]}}))
+    seen = {(r.config["sim"]["substeps"], r.config["controller"]["type"]) for r in study.runs}
+    assert {s for s, _ in seen} <= {2, 3} and len(seen) > 2
+    tasks = plan(study)
+    assert sorted(r["run_id"] for t in tasks for r in t.runs) == list(range(len(study.runs)))
+    for t in tasks:
+        assert len(t.runs) <= study.batch_size
+        assert len({(c["sim"]["substeps"], c["controller"]["type"]) for c in t.configs}) == 1

@@ -67,7 +67,7 @@ def run_batch(task: BatchTask) -> list[dict[str, Any]]:
     for j, (meta, cfg) in enumerate(zip(task.runs, cfgs)):
         row = {"run_id": meta["run_id"], "sample": meta["sample"], "scenario": meta["scenario"], "seed": meta["seed"]}
         row.update(meta["values"])
-        row.update(run_metrics(trace, j, cfg, task.criteria, task.duration_s))
+        row.update(run_metrics(trace, j, cfg, task.criteria))
         rows.append(row)
     return rows
 

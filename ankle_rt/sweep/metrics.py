@@ -53,8 +53,7 @@ def _step_of(ref: np.ndarray) -> tuple[int, float] | None:
     return k, float(ref[k] - ref[k - 1])
 
 
-def run_metrics(trace: BatchTrace, j: int, cfg: Mapping[str, Any], criteria: Mapping[str, float],
-                duration_s: float) -> dict[str, Any]:
+def run_metrics(trace: BatchTrace, j: int, cfg: Mapping[str, Any], criteria: Mapping[str, float]) -> dict[str, Any]:
     """The metrics row of plant ``j`` of a batch trace."""
     crit = {**{k: v for k, v in CRITERIA.items() if v is not None}, **criteria}
     t = trace.t

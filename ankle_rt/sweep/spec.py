@@ -364,8 +364,9 @@ def expand(study: Study) -> list[Run]:
                 v = values[p.column]
                 if p.relative:
                     v = v * _get(base_raw, p.key)
-                elif isinstance(_get_or_none(base_raw, p.key), int) and isinstance(v, float) and v.is_integer():
-                    v = int(v)
+                base_value = _get_or_none(base_raw, p.key)
+                if isinstance(base_value, int) and not isinstance(base_value, bool) and isinstance(v, float):
+                    v = int(round(v))          # an integer key (substeps, tare_samples) gets the nearest integer
                 _set(data, p.key, v)
             try:
                 cfg = Config(validate(data, SCHEMA, lambda _k: source))
