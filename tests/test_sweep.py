@@ -163,3 +163,16 @@ def test_runs_of_different_structure_go_to_different_batches(tmp_path):
     for t in tasks:
         assert len(t.runs) <= study.batch_size
         assert len({(c["sim"]["substeps"], c["controller"]["type"]) for c in t.configs}) == 1
+
+
+def test_the_table_falls_back_to_csv_without_pyarrow(tmp_path, monkeypatch):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "pyarrow", None)       # import pyarrow raises ImportError
+    rows = [{"run_id": 0, "scenario": "step", "x": 0.1 + 0.2, "passed": True},
+            {"run_id": 1, "scenario": "gait", "x": float("nan"), "passed": False}]
+    path = write_table(rows, tmp_path)
+    assert path.name == "results.csv"
+    back = read_table(path)
+    assert [r["scenario"] for r in back] == ["step", "gait"]
+    assert float(back[0]["x"]) == 0.1 + 0.2 and math.isnan(float(back[1]["x"]))

@@ -1,5 +1,6 @@
 """``ankle-rt bench loop``: timing of the daemon's real-time loop on the simulator, and the lockstep
-speed of the whole stack. Prints figures; it asserts nothing (timing depends on the machine).
+speed of the whole stack; ``ankle-rt bench batch``: the batch simulator's aggregate speed (sweeps).
+Prints figures; it asserts nothing (timing depends on the machine).
 
 Real time: the configured daemon (section 7 experiment, logging on, as deployed) on the monotonic
 clock for ``--duration`` s. Period error = |start-to-start period - nominal|; compute = cycle start
