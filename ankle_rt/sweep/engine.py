@@ -21,6 +21,10 @@ from typing import Any, Callable, Iterable
 
 from ankle_rt.sweep.spec import Run, Study
 
+# a batch records 24 bytes per plant and tick (ankle, reference, current; float32): long runs get
+# smaller batches so that one stays under ~250 MB
+MAX_PLANT_TICKS = 10_000_000
+
 
 @dataclass
 class BatchTask:
@@ -35,7 +39,8 @@ class BatchTask:
 
 
 def plan(study: Study) -> list[BatchTask]:
-    """Runs that can share a batch (same structure and controller), in run order, cut at batch_size."""
+    """Runs that can share a batch (same structure and controller), in run order, cut at batch_size
+    (fewer for long runs, see MAX_PLANT_TICKS)."""
     from sim_backend.batch import structure_key
 
     groups: dict[tuple, list[Run]] = {}
@@ -43,8 +48,10 @@ def plan(study: Study) -> list[BatchTask]:
         groups.setdefault(structure_key(r.config) + (r.config["controller"]["type"],), []).append(r)
     tasks = []
     for runs in groups.values():
-        for i in range(0, len(runs), study.batch_size):
-            chunk = runs[i:i + study.batch_size]
+        ticks = study.duration_s * runs[0].config["controller"]["rate_hz"]
+        size = max(1, min(study.batch_size, int(MAX_PLANT_TICKS // ticks)))
+        for i in range(0, len(runs), size):
+            chunk = runs[i:i + size]
             tasks.append(BatchTask(len(tasks), [{"run_id": r.run_id, "sample": r.sample, "scenario": r.scenario,
                                                  "seed": r.seed, "values": r.values} for r in chunk],
                                    [dict(r.config) for r in chunk], study.duration_s, dict(study.criteria),
