@@ -176,3 +176,36 @@ def test_the_table_falls_back_to_csv_without_pyarrow(tmp_path, monkeypatch):
     back = read_table(path)
     assert [r["scenario"] for r in back] == ["step", "gait"]
     assert float(back[0]["x"]) == 0.1 + 0.2 and math.isnan(float(back[1]["x"]))
+
+
+@pytest.mark.parametrize("method", ["sobol", "random", "grid"])
+def test_every_sampling_method_maps_each_distribution_into_its_support(tmp_path, method):
+    parameters = {
+        "actuator.coulomb": {"dist": "normal", "mean": 0.28, "std": 0.02},
+        "sensors.strain_gauge_noise_rms": {"dist": "log-uniform", "low": 0.005, "high": 0.08, "steps": 3},
+        "actuator.damping": {"dist": "uniform", "low": 0.08, "high": 0.14, "steps": 2},
+        "controller.type": {"dist": "choice", "values": ["pd", "impedance"]},
+    }
+    if method == "grid":
+        parameters.pop("actuator.coulomb")         # a normal distribution has no grid
+    spec = _spec(tmp_path, parameters=parameters, scenarios=["step"],
+                 sampling={"method": method, "runs": 16, "seed": 3})
+    study = load_study(spec)
+    again = load_study(spec)
+    assert [r.values for r in study.runs] == [r.values for r in again.runs]
+    assert len(study.runs) == (12 if method == "grid" else 16)
+    noise = [r.config["sensors"]["strain_gauge_noise_rms"] for r in study.runs]
+    assert all(0.005 <= v <= 0.08 for v in noise)
+    assert {r.config["controller"]["type"] for r in study.runs} == {"pd", "impedance"}
+    if method == "grid":
+        assert sorted(set(noise)) == pytest.approx([0.005, 0.02, 0.08])
+    else:
+        kc = [r.config["actuator"]["coulomb"] for r in study.runs]
+        assert 0.2 < min(kc) and max(kc) < 0.36 and len(set(kc)) == 16
+
+
+def test_grid_refuses_a_normal_distribution(tmp_path):
+    spec = _spec(tmp_path, parameters={"actuator.coulomb": {"dist": "normal", "mean": 0.28, "std": 0.02}},
+                 sampling={"method": "grid"})
+    with pytest.raises(SpecError, match="parameters.actuator.coulomb"):
+        load_study(spec)
