@@ -22,7 +22,12 @@ import numpy as np
 from sim_backend.effects import Effect
 from sim_backend.effects.elementwise import stack
 from sim_backend.model import CompliantModel
-from sim_backend.plant import NOISE_BLOCK, SimulatedPlant
+from sim_backend.plant import SimulatedPlant
+
+# strain-gauge noise drawn per plant this many samples at a time: the same stream as the single
+# plant's larger blocks (a generator's normals do not depend on the chunking), and the transpose to
+# (samples, 2, plants) stays in cache (twice as fast per tick as 4096 at 256 plants)
+NOISE_BLOCK = 512
 
 
 def structure_key(cfg: Mapping[str, Any]) -> tuple:
@@ -173,7 +178,8 @@ class BatchPlant:
             for i, d in enumerate(p.disturbances):
                 self._dist[:, i, j] = d["start"], d["stop"], d["torque_dp"], d["torque_ie"]
         self.rngs = [p.rng for p in plants]
-        self._noise = np.zeros((NOISE_BLOCK, 2, n))
+        self._noise = np.zeros((NOISE_BLOCK, 2, n))          # read per tick: (2, plants) contiguous
+        self._draw = np.empty((n, NOISE_BLOCK, 2))           # each plant's stream drawn as alone
         self._noise_i = NOISE_BLOCK
         self.current = [np.zeros(n), np.zeros(n)]
         self.ticks = 0
@@ -216,7 +222,8 @@ class BatchPlant:
         if self._noise_i >= NOISE_BLOCK:
             for j, rng in enumerate(self.rngs):
                 if self.noise_rms[j] > 0.0:
-                    self._noise[:, :, j] = rng.standard_normal((NOISE_BLOCK, 2))
+                    rng.standard_normal(out=self._draw[j])
+            self._noise[:] = self._draw.transpose(1, 2, 0)
             self._noise_i = 0
         n = self._noise[self._noise_i]
         self._noise_i += 1

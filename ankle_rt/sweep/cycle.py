@@ -47,6 +47,20 @@ class BatchTrace:
     slack_events: np.ndarray  # (2, plants): times a motor's cable torque reached slack_torque
 
 
+def first_fault(code: np.ndarray, checks: list[tuple[np.ndarray, int]]) -> np.ndarray:
+    """``code`` (a fault per plant, 0: none) with, where it is 0, the first of ``checks``
+    [(condition per plant, fault)] that holds, in order (as Safety returns its first failing check)."""
+    bad = checks[0][0]
+    for cond, _ in checks[1:]:
+        bad = bad | cond
+    if not bad.any():
+        return code
+    first = np.zeros_like(code)
+    for cond, fault in reversed(checks):
+        first = np.where(cond, int(fault), first)
+    return np.where(code == 0, first, code)
+
+
 def _column(objects: Sequence[Any], get) -> np.ndarray:
     return np.array([get(o) for o in objects], dtype=float)
 
@@ -142,6 +156,7 @@ class BatchRun:
         M = self.law_matrix
         pk = self.i_peak
         t_prev = math.nan
+        no_fault = np.zeros(n, int)
         ff_any = bool(self.ff_on.any())
         x = plant.model.x
         for k in range(T):
@@ -179,24 +194,17 @@ class BatchRun:
                 r1 = np.where(ramping, ramp_from[1] + f * (r1 - ramp_from[1]), r1)
             # -- sensor checks (Safety.check_sensors), first failing check wins
             live = state != FAULTED
-            code = np.zeros(n, int)
-
-            def flag(cond, fault):
-                nonlocal code
-                if cond.any():
-                    code = np.where((code == 0) & cond, int(fault), code)
-
-            flag(~np.isfinite(p1 + p2 + s0 + s1 + t), Fault.SENSOR_INVALID)
-            rail = self.sg_rail
-            flag((np.abs(s0) >= rail) | (np.abs(s1) >= rail), Fault.SG_RAIL)
+            rail, lim = self.sg_rail, self.ankle_limit
+            checks = [(~np.isfinite(p1 + p2 + s0 + s1 + t), Fault.SENSOR_INVALID),
+                      ((np.abs(s0) >= rail) | (np.abs(s1) >= rail), Fault.SG_RAIL)]
             if lp1 is not None:
                 allowed = self.max_motor_speed * max(h, dt)
-                flag((np.abs(p1 - lp1) > allowed) | (np.abs(p2 - lp2) > allowed), Fault.MOTOR_JUMP)
-                flag((np.abs(s0 - ls0) > self.max_sg_step) | (np.abs(s1 - ls1) > self.max_sg_step), Fault.SG_JUMP)
-            lim = self.ankle_limit
-            flag(self.check_estimated & ((np.abs(a0) > lim) | (np.abs(a1) > lim)), Fault.ANKLE_RANGE)
-            flag((np.abs(j0) > lim) | (np.abs(j1) > lim), Fault.ANKLE_RANGE)
-            code = np.where(live, code, 0)
+                checks += [((np.abs(p1 - lp1) > allowed) | (np.abs(p2 - lp2) > allowed), Fault.MOTOR_JUMP),
+                           ((np.abs(s0 - ls0) > self.max_sg_step) | (np.abs(s1 - ls1) > self.max_sg_step),
+                            Fault.SG_JUMP)]
+            checks += [(self.check_estimated & ((np.abs(a0) > lim) | (np.abs(a1) > lim)), Fault.ANKLE_RANGE),
+                       ((np.abs(j0) > lim) | (np.abs(j1) > lim), Fault.ANKLE_RANGE)]
+            code = np.where(live, first_fault(no_fault, checks), 0)
             t_prev, lp1, lp2, ls0, ls1 = t, p1, p2, s0, s1
             # -- auto-activation (Daemon.activate): soft start from zero, a hold ramps from the ankle
             starting = live & (state == CONFIGURED) & (code == 0) & self.auto_activate & tared
@@ -232,7 +240,7 @@ class BatchRun:
             # -- current limits (Safety.limit_currents)
             i1, i2 = tq1 * self.inv_kt, tq2 * self.inv_kt
             bad = ~np.isfinite(i1 + i2)
-            flag(controlling & bad, Fault.OUTPUT_INVALID)
+            code = first_fault(code, [(controlling & bad, Fault.OUTPUT_INVALID)])
             over = (np.abs(i1) > pk) | (np.abs(i2) > pk)
             trace.saturated += controlling & ~bad & over
             i1, i2 = np.clip(i1, -pk, pk), np.clip(i2, -pk, pk)
@@ -240,7 +248,8 @@ class BatchRun:
             n2 = q2 + (i2 * i2 - self.i_cont2) * dt
             q1 = np.where(controlling & ~bad, np.maximum(n1, 0.0), q1)
             q2 = np.where(controlling & ~bad, np.maximum(n2, 0.0), q2)
-            flag(controlling & ~bad & ((n1 >= self.i2t_budget) | (n2 >= self.i2t_budget)), Fault.OVERCURRENT)
+            code = first_fault(code, [(controlling & ~bad & ((n1 >= self.i2t_budget) | (n2 >= self.i2t_budget)),
+                                       Fault.OVERCURRENT)])
             # -- faults latch, set values reach the amplifiers only while active and fault-free
             tripped = live & (code != 0)
             if tripped.any():
