@@ -157,6 +157,9 @@ class BatchRun:
         pk = self.i_peak
         t_prev = math.nan
         no_fault = np.zeros(n, int)
+        last_tare = int(self.tare_samples.max())
+        any_hold = bool(self.hold.any())
+        waiting = True       # some plant still waits for its activation
         ff_any = bool(self.ff_on.any())
         x = plant.model.x
         for k in range(T):
@@ -173,8 +176,8 @@ class BatchRun:
                 a = self.alpha
                 v1 += a * ((p1 - lp1) / h - v1)
                 v2 += a * ((p2 - lp2) / h - v2)
-            taring = k < self.tare_samples
-            if taring.any():
+            if k < last_tare:
+                taring = k < self.tare_samples
                 tare0 += np.where(taring, s0, 0.0)
                 tare1 += np.where(taring, s1, 0.0)
                 cnt = np.minimum(k + 1, self.tare_samples)
@@ -186,8 +189,8 @@ class BatchRun:
             a1 = Ri[2] * p1 + Ri[3] * p2 - self.Ki[1] * e1
             # -- reference (a configured hold is ramped to from the ankle at activation)
             r0, r1 = self.ref_table[k, 0], self.ref_table[k, 1]
-            ramping = self.hold & (t >= ramp_t0)
-            if ramping.any():
+            ramping = self.hold & (t >= ramp_t0) if any_hold else None
+            if any_hold and ramping.any():
                 tau = t - ramp_t0       # RampTo.value
                 f = np.where(tau >= self.ramp_s, 1.0, np.clip(tau / np.maximum(self.ramp_s, 1e-12), 0.0, 1.0))
                 r0 = np.where(ramping, ramp_from[0] + f * (r0 - ramp_from[0]), r0)
@@ -207,8 +210,8 @@ class BatchRun:
             code = np.where(live, first_fault(no_fault, checks), 0)
             t_prev, lp1, lp2, ls0, ls1 = t, p1, p2, s0, s1
             # -- auto-activation (Daemon.activate): soft start from zero, a hold ramps from the ankle
-            starting = live & (state == CONFIGURED) & (code == 0) & self.auto_activate & tared
-            if starting.any():
+            starting = live & (state == CONFIGURED) & (code == 0) & self.auto_activate & tared if waiting else None
+            if waiting and starting.any():
                 state = np.where(starting, ACTIVE, state)
                 scale = np.where(starting, 0.0, scale)
                 trace.activation_time[starting] = t
@@ -256,6 +259,7 @@ class BatchRun:
                 trace.fault[tripped] = code[tripped]
                 trace.fault_time[tripped] = t
                 state = np.where(tripped, FAULTED, state)
+            waiting = waiting and bool((state == CONFIGURED).any())
             ok = state == ACTIVE
             set1 = np.where(ok, i1, 0.0)
             set2 = np.where(ok, i2, 0.0)
