@@ -209,3 +209,14 @@ def test_grid_refuses_a_normal_distribution(tmp_path):
                  sampling={"method": "grid"})
     with pytest.raises(SpecError, match="parameters.actuator.coulomb"):
         load_study(spec)
+
+
+def test_a_changed_study_does_not_resume_from_the_old_batches(tmp_path):
+    out = tmp_path / "out"
+    execute(load_study(_spec(tmp_path, duration_s=0.3)), out, workers=1, progress=False)
+    ran = []
+    changed = load_study(_spec(tmp_path, duration_s=0.3, sampling={"method": "lhs", "runs": 6, "seed": 8}))
+    rows = execute(changed, out, workers=1, progress=False, on_batch=ran.append)
+    assert len(ran) == 3
+    assert [r["transmission.cable_stiffness (factor)"] for r in rows] == \
+        [r.values["transmission.cable_stiffness (factor)"] for r in changed.runs]

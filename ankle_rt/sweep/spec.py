@@ -127,16 +127,18 @@ class Study:
     scheduler: str | None
     cable_pretension_n: float
     runs: list[Run] = field(default_factory=list)
+    base_data: dict = field(default_factory=dict)   # the base config with its includes merged
 
     @property
     def fingerprint(self) -> str:
-        """Changes when anything that decides the runs changes (resume refuses a different study)."""
+        """Changes when anything that decides the runs changes, the base config's included files
+        too (resume refuses a different study)."""
         h = hashlib.sha256()
         h.update(json.dumps([self.duration_s, self.method, self.runs_requested, self.seed, self.cable_pretension_n,
                              self.batch_size, self.criteria,
                              [(p.key, p.dist, p.args, p.relative) for p in self.parameters],
                              self.scenarios, self.overrides], sort_keys=True, default=str).encode())
-        h.update(self.base.read_bytes())
+        h.update(json.dumps(self.base_data, sort_keys=True, default=str).encode())  # includes too
         return h.hexdigest()[:16]
 
 
@@ -342,6 +344,7 @@ def expand(study: Study) -> list[Run]:
 
     origins: dict = {}
     base_raw = read_with_includes(study.base, origins)
+    study.base_data = copy.deepcopy(base_raw)
     merge(base_raw, study.overrides)
     for p in study.parameters:                     # the key must exist in the (overridden) base
         try:
