@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 
 import pytest
 import yaml
@@ -48,3 +49,25 @@ def test_diagnose_batch_gives_a_row_per_log_and_tracks_friction_wear(sim_cfg, tm
 def test_diagnose_batch_refuses_a_missing_folder(tmp_path, capsys):
     assert main(["diagnose", "--batch", str(tmp_path / "nope")]) == 2
     assert "not a directory" in capsys.readouterr().err
+
+
+def test_identify_batch_gives_a_row_per_session(tmp_path, capsys):
+    pytest.importorskip("scipy", reason="identification needs the analysis extra")
+    sessions = tmp_path / "sessions"
+    for name, kc in (("monday", 0.28), ("friday", 0.34)):
+        cfg = tmp_path / f"{name}.yaml"
+        cfg.write_text(yaml.safe_dump({"include": [str(SIM_CONFIG)], "actuator": {"coulomb": kc}}))
+        assert main(["identify", "viscous", "--config", str(cfg), "--out", str(sessions / "unit-a" / name),
+                     "--repeats", "1"]) == 0
+    (sessions / "unit-b" / "empty").mkdir(parents=True)      # no recordings: not a session
+    capsys.readouterr()
+    out = tmp_path / "trends"
+    assert main(["identify", "viscous", "--batch", str(sessions), "--config", str(SIM_CONFIG), "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    lines = [line for line in text.splitlines() if "identified" in line]
+    assert len(lines) == 2 and all(line.startswith("unit-a") for line in lines)
+    by_session = {line.split()[2].rstrip(":"): line for line in lines}
+    for session, kc in (("monday", 0.28), ("friday", 0.34)):
+        fitted = float(re.search(r"actuator\.coulomb ([0-9.]+)", by_session[session]).group(1))
+        assert fitted == pytest.approx(kc, rel=0.03)
+    assert (out / "results.parquet").exists() or (out / "results.csv").exists()
