@@ -113,24 +113,25 @@ class BatchRun:
 
         self.hold = np.array([isinstance(r.profile, Hold) for r in refs])
         self.ramp_s = np.array([c["reference"]["ramp_s"] for c in cfgs])
-        self.ref_table = self._reference_tables(refs)
+        self.ref_tables, self.ref_index = self._reference_tables(refs)
 
-    def _reference_tables(self, refs) -> np.ndarray:
-        """rad (ticks, 2, plants): each configured profile sampled at the cycle times (profiles of
-        the same config are computed once). Holds are ramped to at activation (see run)."""
-        out = np.empty((self.ticks, 2, self.n))
-        done: dict[str, np.ndarray] = {}
-        for j, r in enumerate(refs):
+    def _reference_tables(self, refs) -> tuple[np.ndarray, np.ndarray]:
+        """rad (ticks, 2, profiles): each distinct configured profile sampled at the cycle times,
+        and which one each plant follows. Holds are ramped to at activation (see run)."""
+        keys: dict[str, int] = {}
+        tables, index = [], []
+        for r in refs:
             p = r.profile
             key = repr((type(p).__name__, sorted(vars(p).items())))
-            if key not in done:
+            if key not in keys:
+                keys[key] = len(tables)
                 table = np.empty((self.ticks, 2))
                 for k in range(self.ticks):
                     r.update(k * self.dt)
                     table[k] = r.ref
-                done[key] = table
-            out[:, :, j] = done[key]
-        return out
+                tables.append(table)
+            index.append(keys[key])
+        return np.stack(tables, axis=2), np.array(index)
 
     def run(self) -> BatchTrace:
         """Run every plant for the duration; returns the trace."""
@@ -159,6 +160,8 @@ class BatchRun:
         no_fault = np.zeros(n, int)
         last_tare = int(self.tare_samples.max())
         any_hold = bool(self.hold.any())
+        ref_tables = self.ref_tables
+        shared_ref = ref_tables.shape[2] == 1
         waiting = True       # some plant still waits for its activation
         ff_any = bool(self.ff_on.any())
         x = plant.model.x
@@ -188,7 +191,10 @@ class BatchRun:
             a0 = Ri[0] * p1 + Ri[1] * p2 - self.Ki[0] * e0
             a1 = Ri[2] * p1 + Ri[3] * p2 - self.Ki[1] * e1
             # -- reference (a configured hold is ramped to from the ankle at activation)
-            r0, r1 = self.ref_table[k, 0], self.ref_table[k, 1]
+            if shared_ref:                      # one profile for all: plain floats, broadcast
+                r0, r1 = float(ref_tables[k, 0, 0]), float(ref_tables[k, 1, 0])
+            else:
+                r0, r1 = ref_tables[k, 0][self.ref_index], ref_tables[k, 1][self.ref_index]
             ramping = self.hold & (t >= ramp_t0) if any_hold else None
             if any_hold and ramping.any():
                 tau = t - ramp_t0       # RampTo.value
