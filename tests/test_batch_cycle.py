@@ -63,3 +63,14 @@ def test_batched_impedance_cycle_matches_the_daemon(sim_cfg):
     cfgs[1]["controller"]["impedance"]["stiffness_dp"] *= 0.5
     cfgs[2]["sim"]["effects"] = []
     _compare(cfgs)
+
+
+def test_batched_cycle_with_effects_matches_the_daemon(sim_cfg):
+    cfgs = []
+    for excess, delay, half_width in ((0.2, 0.0025, 1e-4), (0.4, 0.006, 3e-4)):
+        c = sim_cfg.deep_copy()
+        c["sim"]["effects"] = [{"type": "stribeck", "static_excess": excess, "stribeck_velocity": 0.05},
+                               {"type": "delay", "delay": delay},
+                               {"type": "backlash", "half_width": half_width}]
+        cfgs.append(c)
+    assert _compare(cfgs) == [0, 0]
