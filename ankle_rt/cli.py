@@ -14,7 +14,7 @@ import sys
 from ankle_rt.config import ConfigError
 
 # Module names under ankle_rt.commands, in the order `--help` lists them.
-COMMANDS: tuple[str, ...] = ("run", "log", "analyze", "ctl", "identify", "validate", "emulate", "calibrate", "canbus_load", "diagnose", "bench")
+COMMANDS: tuple[str, ...] = ("run", "log", "analyze", "ctl", "identify", "validate", "emulate", "calibrate", "canbus_load", "diagnose", "bench", "sweep")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from ankle_rt.params import AmplifierParams
+from sim_backend.effects.elementwise import clip, positive_part, select
 
 PEAK_DURATION_S = 20.0  # the ESCON 50/5 allows its peak current for < 20 s
 
@@ -22,8 +23,9 @@ class EsconCurrentLimit:
         self.used = 0.0
 
     def apply(self, current: float) -> float:
-        """A: the current the amplifier actually drives for the set value ``current``."""
-        limit = self.i_cont if self.used >= self.budget else self.i_peak
-        i = limit if current > limit else (-limit if current < -limit else current)
-        self.used = max(0.0, self.used + (i * i - self.i_cont * self.i_cont) * self.dt)
+        """A: the current the amplifier actually drives for the set value ``current`` (element-wise:
+        a batch stacks one limiter per plant, :mod:`sim_backend.batch`)."""
+        limit = select(self.used >= self.budget, self.i_cont, self.i_peak)
+        i = clip(current, -limit, limit)
+        self.used = positive_part(self.used + (i * i - self.i_cont * self.i_cont) * self.dt)
         return i

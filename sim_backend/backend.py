@@ -59,6 +59,7 @@ class SimBackend(Backend):
         frame.motor_pos[0], frame.motor_pos[1] = plant.motor_positions()
         frame.sg_torque[0], frame.sg_torque[1] = plant.strain_gauge_torques()
         frame.ankle_pos[0], frame.ankle_pos[1] = plant.ankle_positions()
-        ready = not (self.injected & BackendFault.AMP_NOT_READY)
+        injected = self.injected   # usually NONE: skip the flag arithmetic (~0.5 us per IntFlag "&")
+        ready = not (injected and injected & BackendFault.AMP_NOT_READY)
         frame.amp_ready[0] = frame.amp_ready[1] = ready
         frame.faults = self.injected

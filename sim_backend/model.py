@@ -20,6 +20,7 @@ from ankle_rt.linear_model import N_X, LinearModel
 from ankle_rt.params import PlantParams
 from sim_backend.discretize import zoh
 from sim_backend.effects import Effect
+from sim_backend.effects.elementwise import sin
 from sim_backend.effects.friction import CoulombFriction
 
 
@@ -91,14 +92,17 @@ class CompliantModel:
         t0, t1 = K[0] * (p0 + b * d0), K[1] * (p1 + b * d1)
         for fx in self._cable_fx:
             c0, c1 = fx(p0, p1, d0, d1)
-            t0 += c0
-            t1 += c1
+            t0 = t0 + c0
+            t1 = t1 + c1
         return t0, t1
 
     def generalized_forces(self, s: list[float], tau1: float, tau2: float,
                            td_dp: float, td_ie: float) -> tuple[float, float, float, float]:
-        """The non-linear generalised forces f of the state ``s`` (list of 8 floats), in N m."""
-        f0 = td_dp - self._grav * (math.sin(s[0]) - s[0])
+        """The non-linear generalised forces f of the state ``s`` (list of 8 floats), in N m.
+
+        Written element-wise (no augmented assignment, :mod:`~sim_backend.effects.elementwise`
+        maths), so the batch simulator runs this same code on rows of arrays over its plants."""
+        f0 = td_dp - self._grav * (sin(s[0]) - s[0])
         f1 = td_ie
         f2, f3 = tau1, tau2
         d2 = d3 = tc1 = tc2 = 0.0
@@ -107,15 +111,15 @@ class CompliantModel:
             dt0 = dt1 = 0.0
             for fx in self._cable_fx:
                 c0, c1 = fx(p0, p1, d0, d1)
-                dt0 += c0
-                dt1 += c1
+                dt0 = dt0 + c0
+                dt1 = dt1 + c1
             RiT = self._RiT
-            f0 += dt0
-            f1 += dt1
+            f0 = f0 + dt0
+            f1 = f1 + dt1
             d2 = RiT[0] * dt0 + RiT[1] * dt1   # the motors feel the correction's R^-T image
             d3 = RiT[2] * dt0 + RiT[3] * dt1
-            f2 -= d2
-            f3 -= d3
+            f2 = f2 - d2
+            f3 = f3 - d3
         if self._needs_tc:
             mc, b = self._motor_cable, self._beta
             tc1 = mc[0] * s[0] + mc[1] * s[1] + mc[2] * s[2] + mc[3] * s[3] \
@@ -124,8 +128,8 @@ class CompliantModel:
                 + b * (mc[4] * s[4] + mc[5] * s[5] + mc[6] * s[6] + mc[7] * s[7]) + d3
         for fx in self._motor_fx:
             r1, r2 = fx(s[2], s[3], s[6], s[7], tc1, tc2)
-            f2 -= r1
-            f3 -= r2
+            f2 = f2 - r1
+            f3 = f3 - r2
         return f0, f1, f2, f3
 
     def command_torque(self, tau1: float, tau2: float) -> tuple[float, float]:

@@ -1,5 +1,6 @@
 """``ankle-rt bench loop``: timing of the daemon's real-time loop on the simulator, and the lockstep
-speed of the whole stack. Prints figures; it asserts nothing (timing depends on the machine).
+speed of the whole stack; ``ankle-rt bench batch``: the batch simulator's aggregate speed (sweeps).
+Prints figures; it asserts nothing (timing depends on the machine).
 
 Real time: the configured daemon (section 7 experiment, logging on, as deployed) on the monotonic
 clock for ``--duration`` s. Period error = |start-to-start period - nominal|; compute = cycle start
@@ -13,6 +14,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+BATCH_GOAL = 1000.0   # aggregate real-time factor of 256 nominal plants under PD (issue 14)
 GOALS = {"late_cycles": 0, "period_error_p99_us": 100.0, "compute_p99_us": 250.0, "lockstep_realtime_factor": 20.0}
 
 
@@ -29,6 +31,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                       help="SCHED_FIFO priority for the loop (default: loop.realtime.priority of the config)")
     loop.add_argument("--json", action="store_true", help="print one JSON object")
     loop.set_defaults(handler=bench_loop)
+    batch = sub.add_parser("batch", help="aggregate speed of the batch simulator (sweeps) by batch size",
+                           description="Runs the configured experiment (default: the section 7 step under PD) "
+                                       "as batches of identical plants through the batched daemon cycle "
+                                       "(ankle_rt.sweep.cycle). Real-time factor = simulated s x plants / wall s.")
+    batch.add_argument("--config", metavar="FILE", help="configuration (default: the shipped config/sim.yaml)")
+    batch.add_argument("--seconds", type=float, default=5.0, metavar="S", help="simulated seconds per run (default 5)")
+    batch.add_argument("--sizes", default="1,16,256", metavar="N,N,...", help="batch sizes (default 1,16,256)")
+    batch.add_argument("--json", action="store_true", help="print one JSON object")
+    batch.set_defaults(handler=bench_batch)
 
 
 def realtime_run(cfg, duration_s: float, log_dir: Path) -> tuple[dict, list[str]]:
@@ -112,4 +123,51 @@ def bench_loop(args: argparse.Namespace) -> int:
           f"overruns {result['overruns']}, skipped deadlines {result['skipped_cycles']}")
     print(f"lockstep (daemon + simulated plant): {rtf:.1f}x real time "
           f"(goal >= 20x: {ok[met['lockstep_realtime_factor']]})")
+    return 0
+
+
+def batch_speed(cfg, plants: int, sim_s: float) -> float:
+    """Aggregate real-time factor of ``plants`` copies of ``cfg`` run as one batch (build excluded)."""
+    import time
+
+    from ankle_rt.sweep.cycle import BatchRun
+
+    run = BatchRun([cfg] * plants, sim_s, getattr(cfg, "source", "config"))
+    t0 = time.perf_counter()
+    run.run()
+    return sim_s * plants / (time.perf_counter() - t0)
+
+
+def bench_batch(args: argparse.Namespace) -> int:
+    import json
+    import sys
+
+    from ankle_rt.config import load_config
+    from ankle_rt.paths import default_config_path
+
+    cfg = load_config(Path(args.config) if args.config else default_config_path())
+    try:
+        sizes = [int(s) for s in args.sizes.split(",")]
+        if not sizes or min(sizes) < 1:
+            raise ValueError
+    except ValueError:
+        print(f"ankle-rt bench batch: --sizes must be positive integers separated by commas, got {args.sizes!r}",
+              file=sys.stderr)
+        return 2
+    factors = {}
+    for n in sizes:
+        if not args.json:
+            print(f"batch of {n}: {args.seconds:g} simulated s each ...", flush=True)
+        factors[str(n)] = batch_speed(cfg, n, args.seconds)
+    result = {"realtime_factor_by_batch": factors, "sim_s": args.seconds, "controller": cfg["controller"]["type"],
+              "goal_256": BATCH_GOAL}
+    if "256" in factors:
+        result["goal_met"] = factors["256"] >= BATCH_GOAL
+    if args.json:
+        print(json.dumps(result))
+        return 0
+    for n, f in factors.items():
+        print(f"  {n:>5} plants: {f:8.0f}x real time in aggregate ({f / int(n):.1f}x per plant)")
+    if "256" in factors:
+        print(f"goal >= {BATCH_GOAL:g}x at 256 plants: {'ok' if result['goal_met'] else 'MISSED'}")
     return 0

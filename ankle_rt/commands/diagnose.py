@@ -14,7 +14,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "test every named effect (stribeck, asymmetric_friction, load_dependent_friction, backlash, "
                     "cogging, delay, stiffness_nonlinear) and a catch-all, name the cause (or none / unknown), "
                     "and report the validation gain of the extended model.")
-    p.add_argument("data", help="identification data: interchange CSV or `ankle-rt run` log")
+    p.add_argument("data", nargs="?", help="identification data: interchange CSV or `ankle-rt run` log")
+    p.add_argument("--batch", metavar="DIR", help="every log under DIR, one row each, with parameter trends "
+                                                  "over time (docs/sweeps.md; --report DIR for the outputs)")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="with --batch: run on this Dask scheduler")
     p.add_argument("--validation", metavar="FILE",
                    help="validation data (default: the last 25 %% of the identification data is held out)")
     p.add_argument("--plant", choices=("ankle", "actuator"), default="ankle",
@@ -60,6 +63,12 @@ def run(args: argparse.Namespace) -> int:
         print("ankle-rt diagnose: needs the analysis extra (scipy, matplotlib): pip install 'ankle-rt[analysis]'",
               file=sys.stderr)
         return 3
+    if args.batch:
+        from ankle_rt.sweep.logs import batch_command
+        return batch_command(args)
+    if args.data is None:
+        print("ankle-rt diagnose: give a data file (or --batch DIR)", file=sys.stderr)
+        return 2
     from ankle_rt.config import load_config
     from ankle_rt.diagnosis import DiagnosisError, diagnose
     from ankle_rt.diagnosis.closed_loop import applicable, closed_loop_gain

@@ -31,6 +31,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--motor", type=int, choices=(1, 2), default=1, help="which motor (default 1)")
     p.add_argument("--repeats", type=_positive_int, default=3, help="repeats per direction of each experiment (default 3)")
     p.add_argument("--out", default="identification", help="output directory (default ./identification)")
+    p.add_argument("--batch", metavar="DIR", help="every session folder under DIR holding the experiment's CSVs: "
+                                                  "one row each, parameter trends over time (docs/sweeps.md)")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="with --batch: run on this Dask scheduler")
     p.set_defaults(handler=run)
 
 
@@ -56,6 +59,9 @@ def run(args: argparse.Namespace) -> int:
     from ankle_rt.identification.signals import IdentificationError
     from ankle_rt.interchange import InterchangeError, write_csv
 
+    if args.batch:
+        from ankle_rt.sweep.logs import identify_batch_command
+        return identify_batch_command(args)
     names = EXPERIMENTS if args.experiment == "all" else (args.experiment,)
     cfg = load_config(args.config) if args.config else None
     out = Path(args.out)

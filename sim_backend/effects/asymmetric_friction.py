@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-import math
-
 from ankle_rt.config import Field, Section
 from sim_backend.effects.base import Effect, register_effect
+from sim_backend.effects.elementwise import tanh
 
 
 @register_effect("asymmetric_friction")
@@ -19,6 +18,7 @@ class AsymmetricFriction(Effect):
         "viscous_asymmetry": Field(float, "N m s/rad, (D+ - D-) / 2", default=0.0),
     })
     cause = "asymmetric_friction"
+    elementwise = True
 
     def __init__(self, params, plant, dt):
         super().__init__(params, plant, dt)
@@ -28,5 +28,5 @@ class AsymmetricFriction(Effect):
 
     def motor_torque(self, th1, th2, w1, w2, tc1, tc2):
         dc, dv, ive = self.dc, self.dv, self.inv_ve
-        return (dc * abs(math.tanh(w1 * ive)) + dv * abs(w1),
-                dc * abs(math.tanh(w2 * ive)) + dv * abs(w2))
+        return (dc * abs(tanh(w1 * ive)) + dv * abs(w1),
+                dc * abs(tanh(w2 * ive)) + dv * abs(w2))

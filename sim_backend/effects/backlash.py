@@ -5,6 +5,7 @@ from __future__ import annotations
 from ankle_rt.config import Section, non_negative
 from ankle_rt.kinematics import Kinematics
 from sim_backend.effects.base import Effect, register_effect
+from sim_backend.effects.elementwise import clip
 
 
 @register_effect("backlash")
@@ -18,6 +19,7 @@ class Backlash(Effect):
         "half_width": non_negative("m of cable length, dead zone +/- half_width"),
     })
     cause = "backlash"
+    elementwise = True
     min_substeps = 4  # within 0.5 % RMS joint torque of RK4 at dt/40 (tests/test_effects.py)
 
     def __init__(self, params, plant, dt):
@@ -30,6 +32,4 @@ class Backlash(Effect):
 
     def cable_torque(self, phi_dp, phi_ie, dphi_dp, dphi_ie):
         b0, b1 = self.b_dp, self.b_ie
-        c0 = b0 if phi_dp > b0 else (-b0 if phi_dp < -b0 else phi_dp)
-        c1 = b1 if phi_ie > b1 else (-b1 if phi_ie < -b1 else phi_ie)
-        return -self.k_dp * c0, -self.k_ie * c1
+        return -self.k_dp * clip(phi_dp, -b0, b0), -self.k_ie * clip(phi_ie, -b1, b1)

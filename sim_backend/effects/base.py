@@ -13,6 +13,11 @@ An effect changes the plant through up to three hooks, all in SI units at the ge
 - ``command(tau1, tau2)``: transforms the motor torque command (N m) once per control tick, before it
   is held for the tick (actuation delay, torque-constant changes).
 
+An effect whose hooks use only arithmetic and :mod:`sim_backend.effects.elementwise` declares
+``elementwise = True``: :meth:`Effect.stack` then makes one instance whose numbers are arrays over a
+batch of plants, and the batch simulator calls each hook once for all of them. Any other effect
+still runs in a batch, called plant by plant (correct, slower).
+
 An effect overrides only the hooks it needs; the model collects the overridden ones once, so an
 unused hook costs nothing per step. Parameters are validated with the config schema machinery, so a
 bad effect entry names its key like any other config error.
@@ -20,10 +25,11 @@ bad effect entry names its key like any other config error.
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Sequence
 
 from ankle_rt.config import ConfigError, Section, validate
 from ankle_rt.params import PlantParams
+from sim_backend.effects.elementwise import stack
 
 EFFECTS: dict[str, type["Effect"]] = {}
 
@@ -47,6 +53,8 @@ class Effect:
     #: integration substeps per control tick this effect needs to stay accurate; the model raises
     #: its substeps to the largest minimum of its effects (cable-side laws act on the stiff cable modes)
     min_substeps: ClassVar[int] = 1
+    #: the hooks work on numpy arrays over a batch as well as on floats (see the module docstring)
+    elementwise: ClassVar[bool] = False
 
     def __init__(self, params: dict[str, Any], plant: PlantParams, dt: float):
         """``params`` are validated already; ``dt`` is the control period (s)."""
@@ -66,6 +74,15 @@ class Effect:
 
     def reset(self) -> None:
         """Forget internal state (delay lines); called when the plant is reset."""
+
+    @classmethod
+    def stack(cls, effects: Sequence["Effect"]) -> "Effect":
+        """One instance standing for ``effects`` (same class, one per plant of a batch): every number
+        becomes an array over the batch (``params`` and ``plant``, descriptive only, are the first
+        plant's). Raises ValueError when another attribute differs between plants (the batch then
+        calls them plant by plant). Only for ``elementwise`` effects; stateful ones override this to
+        lay out their state per plant."""
+        return stack(effects, shared=("params", "plant"))
 
     @classmethod
     def uses(cls, hook: str) -> bool:

@@ -4,8 +4,11 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from ankle_rt.config import Section, non_negative
 from sim_backend.effects.base import Effect, register_effect
+from sim_backend.effects.elementwise import pick
 
 
 @register_effect("delay")
@@ -17,6 +20,7 @@ class ActuationDelay(Effect):
         "delay": non_negative("s, actuation latency"),
     })
     cause = "delay"
+    elementwise = True
 
     def __init__(self, params, plant, dt):
         super().__init__(params, plant, dt)
@@ -27,6 +31,20 @@ class ActuationDelay(Effect):
         self.buf1 = [0.0] * self.size
         self.buf2 = [0.0] * self.size
         self.head = 0
+
+    @classmethod
+    def stack(cls, effects):
+        """Per-plant delays on one ring of the longest length: slots (ring, plants), ``whole`` an
+        index array (any ring of at least whole + 2 slots gives the same output)."""
+        out = object.__new__(cls)
+        out.params, out.plant, out.dt = effects[0].params, effects[0].plant, effects[0].dt
+        out.whole = np.array([e.whole for e in effects], dtype=int)
+        out.frac = np.array([e.frac for e in effects])
+        out.size = max(e.size for e in effects)
+        out.buf1 = np.zeros((out.size, len(effects)))
+        out.buf2 = np.zeros((out.size, len(effects)))
+        out.head = 0
+        return out
 
     def reset(self) -> None:
         for i in range(self.size):
@@ -41,5 +59,5 @@ class ActuationDelay(Effect):
         b = (a - 1) % size                  # one tick older
         f = self.frac
         self.head = (head + 1) % size
-        return ((1.0 - f) * self.buf1[a] + f * self.buf1[b],
-                (1.0 - f) * self.buf2[a] + f * self.buf2[b])
+        return ((1.0 - f) * pick(self.buf1, a) + f * pick(self.buf1, b),
+                (1.0 - f) * pick(self.buf2, a) + f * pick(self.buf2, b))

@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-import math
-
 from ankle_rt.config import Section, positive, non_negative
 from sim_backend.effects.base import Effect, register_effect
+from sim_backend.effects.elementwise import tanh
 
 
 @register_effect("coulomb")
@@ -19,6 +18,7 @@ class CoulombFriction(Effect):
         "smoothing_velocity": positive("rad/s, v_eps of the tanh"),
     })
     cause = "none"
+    elementwise = True
 
     def __init__(self, params, plant, dt):
         super().__init__(params, plant, dt)
@@ -27,4 +27,4 @@ class CoulombFriction(Effect):
 
     def motor_torque(self, th1, th2, w1, w2, tc1, tc2):
         kc, iv = self.kc, self.inv_v
-        return kc * math.tanh(w1 * iv), kc * math.tanh(w2 * iv)
+        return kc * tanh(w1 * iv), kc * tanh(w2 * iv)

@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-import math
-
 from ankle_rt.config import Section, non_negative
 from sim_backend.effects.base import Effect, register_effect
+from sim_backend.effects.elementwise import tanh
 
 
 @register_effect("load_dependent_friction")
@@ -18,6 +17,7 @@ class LoadDependentFriction(Effect):
         "coefficient": non_negative("dimensionless, friction torque per unit cable torque"),
     })
     cause = "load_dependent_friction"
+    elementwise = True
     min_substeps = 4  # within 0.5 % RMS joint torque of RK4 at dt/40 (tests/test_effects.py)
     needs_cable_torque = True
 
@@ -28,4 +28,4 @@ class LoadDependentFriction(Effect):
 
     def motor_torque(self, th1, th2, w1, w2, tc1, tc2):
         mu, ive = self.mu, self.inv_ve
-        return mu * abs(tc1) * math.tanh(w1 * ive), mu * abs(tc2) * math.tanh(w2 * ive)
+        return mu * abs(tc1) * tanh(w1 * ive), mu * abs(tc2) * tanh(w2 * ive)

@@ -17,6 +17,7 @@ class HardeningStiffness(Effect):
         "hardening_stretch": positive("m of cable stretch at which the secant stiffness has doubled"),
     })
     cause = "stiffness_nonlinear"
+    elementwise = True
     min_substeps = 4  # within 0.5 % RMS joint torque of RK4 at dt/40 (tests/test_effects.py)
 
     def __init__(self, params, plant, dt):

@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-import math
-
 from ankle_rt.config import Section, non_negative, positive
 from sim_backend.effects.base import Effect, register_effect
+from sim_backend.effects.elementwise import exp, tanh
 
 
 @register_effect("stribeck")
@@ -19,6 +18,7 @@ class StribeckFriction(Effect):
         "stribeck_velocity": positive("rad/s at the gearbox output, decay speed of the excess"),
     })
     cause = "stribeck"
+    elementwise = True
 
     def __init__(self, params, plant, dt):
         super().__init__(params, plant, dt)
@@ -29,5 +29,5 @@ class StribeckFriction(Effect):
     def motor_torque(self, th1, th2, w1, w2, tc1, tc2):
         a, ivs, ive = self.excess, self.inv_vs, self.inv_ve
         u1, u2 = w1 * ivs, w2 * ivs
-        return (a * math.exp(-u1 * u1) * math.tanh(w1 * ive),
-                a * math.exp(-u2 * u2) * math.tanh(w2 * ive))
+        return (a * exp(-u1 * u1) * tanh(w1 * ive),
+                a * exp(-u2 * u2) * tanh(w2 * ive))

@@ -1,0 +1,242 @@
+"""Many simulated devices stepped at once: the compliant model vectorised over a batch with numpy.
+
+A batch is built from one :class:`~sim_backend.plant.SimulatedPlant` per plant (each from its own
+config, so every parameter may differ) and *stacks* them: the state is (8, plants), each parameter an
+array over the plants, and the model's own :meth:`CompliantModel.generalized_forces` runs unchanged
+on rows of those arrays (it is written element-wise). The linear part uses each plant's exact
+discretisation (one matrix product when all plants share it). Effects: an ``elementwise`` effect is
+stacked and called once per hook for all plants; any other is called plant by plant (correct,
+slower), so a new effect works in a batch without edits. The amplifier limits are the same
+:class:`~sim_backend.amplifier.EsconCurrentLimit` law, stacked.
+
+Plants in one batch must share the structure: control period, substeps, the effect types in order,
+``sim.cables`` (:func:`structure_key` groups configs that can share a batch).
+"""
+
+from __future__ import annotations
+
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from sim_backend.effects import Effect
+from sim_backend.effects.elementwise import stack
+from sim_backend.model import CompliantModel
+from sim_backend.plant import SimulatedPlant
+
+# strain-gauge noise drawn per plant this many samples at a time: the same stream as the single
+# plant's larger blocks (a generator's normals do not depend on the chunking), and the transpose to
+# (samples, 2, plants) stays in cache (twice as fast per tick as 4096 at 256 plants)
+NOISE_BLOCK = 512
+
+
+def structure_key(cfg: Mapping[str, Any]) -> tuple:
+    """Configs with equal keys can be stepped in one batch."""
+    sim = cfg["sim"]
+    return (cfg["controller"]["rate_hz"], sim["substeps"], sim["cables"], sim["friction"],
+            tuple(e["type"] for e in sim["effects"]))
+
+
+class PlantByPlant:
+    """An effect that is not element-wise, run in a batch by calling each plant's instance."""
+
+    def __init__(self, effects: Sequence[Effect]):
+        self.effects = list(effects)
+        self.kind = type(effects[0])
+        self.min_substeps = self.kind.min_substeps
+        self.needs_cable_torque = getattr(self.kind, "needs_cable_torque", False)
+
+    def uses(self, hook: str) -> bool:
+        return self.kind.uses(hook)
+
+    def _each(self, hook: str, *columns) -> tuple[np.ndarray, np.ndarray]:
+        n = len(self.effects)
+        cols = [np.broadcast_to(np.asarray(c, dtype=float), (n,)) for c in columns]
+        a, b = np.empty(n), np.empty(n)
+        for i, e in enumerate(self.effects):
+            a[i], b[i] = getattr(e, hook)(*(float(c[i]) for c in cols))
+        return a, b
+
+    def motor_torque(self, *args):
+        return self._each("motor_torque", *args)
+
+    def cable_torque(self, *args):
+        return self._each("cable_torque", *args)
+
+    def command(self, *args):
+        return self._each("command", *args)
+
+    def reset(self) -> None:
+        for e in self.effects:
+            e.reset()
+
+
+def stack_effects(effects: Sequence[Effect]):
+    """One stand-in for the same effect of every plant of a batch."""
+    kind = type(effects[0])
+    if any(type(e) is not kind for e in effects):
+        raise ValueError("a batch needs the same effect types in the same order on every plant")
+    if kind.elementwise:
+        try:
+            return kind.stack(effects)
+        except ValueError:        # per-plant data that is not a number (a table, a list)
+            pass
+    return PlantByPlant(effects)
+
+
+class BatchModel(CompliantModel):
+    """The compliant model of ``len(models)`` plants; ``x`` is (8, plants). Same equations, same
+    Heun substeps as :class:`CompliantModel` (whose force code it runs on arrays)."""
+
+    def __init__(self, models: Sequence[CompliantModel]):   # noqa: super().__init__ not called: stacked
+        first = models[0]
+        for m in models:
+            if (m.dt, m.substeps, m.cables) != (first.dt, first.substeps, first.cables) \
+                    or len(m.effects) != len(first.effects):
+                raise ValueError("a batch needs the same period, substeps, cables and effects on every plant")
+        self.n = n = len(models)
+        self.dt, self.substeps, self.cables = first.dt, first.substeps, first.cables
+        self.linear = first.linear
+        self.effects = [stack_effects([m.effects[i] for m in models]) for i in range(len(first.effects))]
+        self._motor_fx = [e.motor_torque for e in self.effects if e.uses("motor_torque")]
+        self._cable_fx = [e.cable_torque for e in self.effects if e.uses("cable_torque")] if self.cables else []
+        self._command_fx = [e.command for e in self.effects if e.uses("command")]
+        self._needs_tc = first._needs_tc
+
+        def rows(name: str) -> np.ndarray:   # (entries, plants)
+            return np.array([np.atleast_1d(getattr(m, name)) for m in models], dtype=float).T.copy()
+
+        self._Ri, self._RiT, self._K = rows("_Ri"), rows("_RiT"), rows("_K")
+        self._motor_cable = rows("_motor_cable")
+        self._beta, self._grav = rows("_beta")[0], rows("_grav")[0]
+        phis = np.array([m._phi for m in models])              # (plants, 8, 12)
+        self._phi_shared = phis[0] if np.all(phis == phis[0]) else None
+        self._phi = np.ascontiguousarray(phis.transpose(1, 2, 0))   # (8, 12, plants): einsum's fast layout
+        self._z = np.zeros((12, n))
+        self._x_next = np.zeros((8, n))
+        self.x = self._z[:8]
+        self.tau_applied = [np.zeros(n), np.zeros(n)]
+
+    def reset(self, x0: np.ndarray | None = None) -> None:
+        self._z[:] = 0.0
+        if x0 is not None:
+            self._z[:8] = x0
+        for e in self.effects:
+            e.reset()
+
+    def _linear(self, z: np.ndarray, out: np.ndarray) -> None:
+        if self._phi_shared is not None:
+            np.dot(self._phi_shared, z, out=out)
+        else:
+            np.einsum("ijn,jn->in", self._phi, z, out=out)
+
+    def step(self, tau1, tau2, td_dp=0.0, td_ie=0.0) -> None:
+        """Advance every plant one control tick; torques and disturbances are arrays (plants,) or floats."""
+        tau1, tau2 = self.command_torque(tau1, tau2)
+        self.tau_applied[0], self.tau_applied[1] = tau1, tau2
+        z, x, x_next = self._z, self.x, self._x_next
+        forces = self.generalized_forces
+        for _ in range(self.substeps):
+            f = forces(x, tau1, tau2, td_dp, td_ie)       # Heun, as CompliantModel.step
+            z[8], z[9], z[10], z[11] = f
+            self._linear(z, x_next)
+            g = forces(x_next, tau1, tau2, td_dp, td_ie)
+            z[8] = 0.5 * (f[0] + g[0])
+            z[9] = 0.5 * (f[1] + g[1])
+            z[10] = 0.5 * (f[2] + g[2])
+            z[11] = 0.5 * (f[3] + g[3])
+            self._linear(z, x_next)
+            x[:] = x_next
+
+    def joint_torque(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.joint_torque_of(self.x)
+
+
+class BatchPlant:
+    """``len(cfgs)`` simulated devices (:class:`SimulatedPlant` each, stacked): ESCON limits,
+    quantised encoders, strain-gauge noise (each plant's own seeded stream, as alone) and the
+    configured disturbances. Sensor outputs are arrays over the plants."""
+
+    def __init__(self, cfgs: Sequence[Mapping[str, Any]], source: str = "config"):
+        plants = [SimulatedPlant(c, source) for c in cfgs]
+        first = plants[0]
+        self.n = n = len(plants)
+        self.dt = first.dt
+        if any(p.dt != self.dt for p in plants):
+            raise ValueError("a batch needs one control period")
+        self.model = BatchModel([p.model for p in plants])
+        self.amps = [stack([p.amps[k] for p in plants]) for k in range(2)]   # numbers only
+        self.kt = np.array([p.kt for p in plants])
+        self.counts_per_rad = np.array([p.counts_per_rad for p in plants])
+        self.quantize = np.array([p.quantize for p in plants])
+        self.noise_rms = np.array([p.noise_rms for p in plants])
+        self.sg_offset = np.array([p.sg_offset for p in plants]).T.copy()       # (2, plants)
+        m = max(len(p.disturbances) for p in plants)
+        self._dist = np.zeros((4, m, n))     # start, stop, torque_dp, torque_ie per entry and plant
+        self._dist[0:2] = np.inf
+        for j, p in enumerate(plants):
+            for i, d in enumerate(p.disturbances):
+                self._dist[:, i, j] = d["start"], d["stop"], d["torque_dp"], d["torque_ie"]
+        self.rngs = [p.rng for p in plants]
+        self._noise = np.zeros((NOISE_BLOCK, 2, n))          # read per tick: (2, plants) contiguous
+        self._draw = np.empty((n, NOISE_BLOCK, 2))           # each plant's stream drawn as alone
+        self._noise_i = NOISE_BLOCK
+        self.current = [np.zeros(n), np.zeros(n)]
+        self.ticks = 0
+        self.model.reset()
+
+    @property
+    def t(self) -> float:
+        return self.ticks * self.dt
+
+    def disturbance(self) -> tuple[np.ndarray | float, np.ndarray | float]:
+        """N m at the ankle [DP, IE] per plant at the current time."""
+        if self._dist.shape[1] == 0:
+            return 0.0, 0.0
+        t = self.t
+        d = self._dist
+        on = (d[0] <= t) & (t < d[1])
+        return (np.where(on, d[2], 0.0).sum(axis=0), np.where(on, d[3], 0.0).sum(axis=0))
+
+    def step(self, current_1, current_2) -> None:
+        """Advance one tick with the set values (A, arrays over the plants) held."""
+        i1 = self.amps[0].apply(current_1)
+        i2 = self.amps[1].apply(current_2)
+        self.current[0], self.current[1] = i1, i2
+        dp, ie = self.disturbance()
+        self.model.step(self.kt * i1, self.kt * i2, dp, ie)
+        self.ticks += 1
+
+    # -- sensors ---------------------------------------------------------------------------------
+    def motor_positions(self) -> tuple[np.ndarray, np.ndarray]:
+        """rad: what the encoders report (floor-quantised where configured)."""
+        x, c = self.model.x, self.counts_per_rad
+        if self.quantize.all():
+            return np.floor(x[2] * c) / c, np.floor(x[3] * c) / c
+        return np.where(self.quantize, np.floor(x[2] * c) / c, x[2]), np.where(self.quantize, np.floor(x[3] * c) / c, x[3])
+
+    def strain_gauge_torques(self, joint=None) -> tuple[np.ndarray, np.ndarray]:
+        """N m [DP, IE]: joint torque (``joint``, if the caller has it already) plus each plant's
+        offset and noise."""
+        t0, t1 = self.model.joint_torque() if joint is None else joint
+        if self._noise_i >= NOISE_BLOCK:
+            for j, rng in enumerate(self.rngs):
+                if self.noise_rms[j] > 0.0:
+                    rng.standard_normal(out=self._draw[j])
+            self._noise[:] = self._draw.transpose(1, 2, 0)
+            self._noise_i = 0
+        n = self._noise[self._noise_i]
+        self._noise_i += 1
+        return (t0 + self.noise_rms * n[0] + self.sg_offset[0], t1 + self.noise_rms * n[1] + self.sg_offset[1])
+
+    def ankle_positions(self) -> tuple[np.ndarray, np.ndarray]:
+        """rad [DP, IE]: the true joint angles."""
+        x = self.model.x
+        return x[0].copy(), x[1].copy()
+
+    def cable_torques(self, joint=None) -> tuple[np.ndarray, np.ndarray]:
+        """N m: the cable torque each motor feels, R^-T of the joint torque (reciprocal transmission)."""
+        t0, t1 = self.model.joint_torque() if joint is None else joint
+        RiT = self.model._RiT
+        return RiT[0] * t0 + RiT[1] * t1, RiT[2] * t0 + RiT[3] * t1
+
