@@ -46,12 +46,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     for name, doc in GAIN_FIELDS.items():
         gains.add_argument("--" + name.replace("_", "-"), dest=name, type=float, help=doc)
     profile = sub.add_parser("profile", help="start a reference profile",
-                             description="Start a reference profile. Parameters are KEY=VALUE in SI units "
-                                         "(angles in rad, frequencies in Hz); non-numbers are passed as strings. "
-                                         "csv: path=FILE is sent as an absolute path; the daemon reads it, so its "
-                                         "user must be able to (the service sees neither /home nor /tmp).")
+                             description="Start a reference profile. Parameters are KEY=VALUE: angles (dp, ie, "
+                                         "amplitude_dp, amplitude_ie, ie_phase) in DEGREES (converted to rad on the "
+                                         "wire) unless --rad is given, times in s, frequencies in Hz; non-numbers "
+                                         "are passed as strings. csv: path=FILE is sent as an absolute path; the "
+                                         "daemon reads it, so its user must be able to (the service sees neither "
+                                         "/home nor /tmp).")
     profile.add_argument("name", choices=PROFILE_NAMES)
     profile.add_argument("params", nargs="*", metavar="KEY=VALUE")
+    profile.add_argument("--rad", action="store_true", help="angles are given in rad")
     parser.set_defaults(handler=run)
 
 
@@ -68,10 +71,21 @@ def request_from_args(args: argparse.Namespace) -> dict:
         return {"cmd": "set_gains", **{k: getattr(args, k) for k in GAIN_FIELDS if getattr(args, k) is not None}}
     if name == "profile":
         params = dict(_param(p) for p in args.params)
+        if not args.rad:
+            for key in angle_params(args.name) & params.keys():
+                if isinstance(params[key], float):
+                    params[key] = math.radians(params[key])
         if args.name == "csv" and isinstance(params.get("path"), str):
             params["path"] = str(Path(params["path"]).resolve())
         return {"cmd": "start_profile", "name": args.name, "params": params}
     return {"cmd": name}
+
+
+def angle_params(profile: str) -> set[str]:
+    """The parameters of ``profile`` that are angles (their schema gives them in rad)."""
+    from ankle_rt.references import PROFILE_PARAMS
+
+    return {key for key, spec in PROFILE_PARAMS[profile].fields.items() if getattr(spec, "doc", "").startswith("rad")}
 
 
 def _param(text: str) -> tuple[str, float | str]:
@@ -154,6 +168,17 @@ def _fmt(value: object) -> str:
     return str(value).lower() if isinstance(value, bool) else str(value)
 
 
+def _degree_note(args: argparse.Namespace, reply: dict) -> str:
+    """For a refused angle given in degrees: what the daemon's rad value was on the command line."""
+    field = str(reply.get("field") or "")
+    key = field.removeprefix("params.")
+    if args.ctl_command == "profile" and not args.rad and field != key and key in angle_params(args.name):
+        given = dict(_param(p) for p in args.params).get(key)
+        if isinstance(given, float):
+            return f" (the command line takes degrees: {key}={given:g} deg is {math.radians(given):.4g} rad)"
+    return ""
+
+
 def run(args: argparse.Namespace) -> int:
     path = resolve_socket(args)
     try:
@@ -167,5 +192,6 @@ def run(args: argparse.Namespace) -> int:
         body = {k: v for k, v in reply.items() if k != "ok"}
         print("\n".join(format_fields(body)) if body else "ok")
     else:
-        print(f"ankle-rt ctl: refused: field '{reply.get('field')}': {reply.get('error')}", file=sys.stderr)
+        print(f"ankle-rt ctl: refused: field '{reply.get('field')}': {reply.get('error')}{_degree_note(args, reply)}",
+              file=sys.stderr)
     return 0 if reply.get("ok") else EXIT_REFUSED
