@@ -37,10 +37,10 @@ def default_log_path(directory: str) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
-    import json
     import signal
 
     from ankle_rt.backend import BackendError
+    from ankle_rt.commands import jsonout
     from ankle_rt.clock import MonotonicClock, SimClock
     from ankle_rt.config import load_config
     from ankle_rt.daemon import Daemon
@@ -126,7 +126,7 @@ def run(args: argparse.Namespace) -> int:
     if not args.no_plot and len(records):
         plot_note = plot_run(records, daemon.kt, str(log_path.with_suffix(".png")))
     if args.json:
-        print(json.dumps(summary, indent=2, default=float))
+        print(jsonout.dumps(summary, indent=2))
     else:
         print(format_summary(summary))
         if not args.fast:

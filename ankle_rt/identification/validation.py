@@ -26,6 +26,7 @@ import math
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -250,19 +251,26 @@ def run_step_check(cfg: Config, repeats: int = 1) -> Recording:
 
 
 def run_checks(cfg: Config, model_cfg: Config, checks: tuple[str, ...],
-               frequencies: tuple[float, ...] = SINE_FREQUENCIES_HZ) -> list[Comparison]:
-    """Run ``checks`` ("sine", "step") on ``cfg``'s backend and compare each with ``model_cfg``'s simulation."""
-    out = []
+               frequencies: tuple[float, ...] = SINE_FREQUENCIES_HZ,
+               progress: Callable[[float, float, str], None] | None = None) -> list[Comparison]:
+    """Run ``checks`` ("sine", "step") on ``cfg``'s backend and compare each with ``model_cfg``'s simulation.
+    ``progress(done, total, what)`` is called before each check and at the end, counting checks."""
+    out: list[Comparison] = []
+    total = ("step" in checks) + ("sine" in checks) * len(frequencies)
+    report = progress or (lambda done, total, what: None)
     if "step" in checks:
+        report(0, total, "torque steps")
         rec = run_step_check(cfg)
         out.append(validate_recording(rec, actuator_config(model_config(model_cfg))[0], "input",
                                       f"Fig. 6 torque steps of {STEP_TORQUE:g} N m, motors off the cables"))
     if "sine" in checks:
         for f in frequencies:
+            report(len(out), total, f"sine {f:g} Hz")
             rec = run_sine_check(cfg, f)
             out.append(validate_recording(rec, model_cfg, "reference",
                                           f"Fig. 7 IE sine {math.degrees(SINE_AMPLITUDE_IE):g} deg at {f:g} Hz, PD kp/kd "
                                           f"{cfg['controller']['validation_gains']['kp']:g}/{cfg['controller']['validation_gains']['kd']:g}"))
+    report(total, total, "done")
     return out
 
 
