@@ -306,12 +306,16 @@ class Daemon:
     def log_metadata(self) -> dict[str, Any]:
         """The run log header's metadata. ``controller_config`` is the config's controller section the
         run started with (type, gains, ramps; what ``validate --from`` replays), null when an
-        experiment plugged its own controller in."""
+        experiment plugged its own controller in. ``sim_disturbances``: the ankle torques the simulated
+        plant applied (``sim.disturbances``, replayed by ``validate --from``), null on real hardware."""
+        backend = self.cfg["backend"]
+        simulated = backend == "sim" or self.cfg.get(backend, {}).get("emulator") == "lockstep"
         return log_metadata(config=getattr(self.cfg, "source", "<memory>"), backend=self.cfg["backend"],
                             clock="simulated" if self.clock.simulated else "monotonic",
                             rate_hz=self.cfg["controller"]["rate_hz"], torque_constant=self.kt,
                             controller=type(self.controller).__name__,
                             controller_config=self.cfg["controller"] if self.own_controller else None,
+                            sim_disturbances=self.cfg["sim"]["disturbances"] if simulated else None,
                             states={s.name: int(s) for s in State}, faults={f.name: int(f) for f in Fault})
 
 

@@ -38,7 +38,8 @@ def run(args: argparse.Namespace) -> int:
     from ankle_rt.identification.runner import actuator_config
     from ankle_rt.identification.signals import IdentificationError
     from ankle_rt.identification.validation import (DEFAULT_TOLERANCE, SINE_FREQUENCIES_HZ, model_config,
-                                                    recorded_controller, run_checks, validate_recording,
+                                                    recorded_controller, recorded_disturbances, run_checks,
+                                                    validate_recording,
                                                     write_overlays)
     from ankle_rt.identification.data import load_recording
     from ankle_rt.interchange import InterchangeError, write_csv
@@ -64,6 +65,11 @@ def run(args: argparse.Namespace) -> int:
             comparisons = [validate_recording(rec, model, args.drive, f"{args.source}", controller)]
             if comparisons[0].drive == "reference":
                 notes.append(f"  controller taken from {origin}")
+                disturbances = recorded_disturbances(rec)
+                notes.append("  ankle disturbances replayed from the run log header: " + "; ".join(
+                    f"{d['torque_dp']:g} / {d['torque_ie']:g} N m DP / IE from {d['start']:g} to {d['stop']:g} s"
+                    for d in disturbances) if disturbances else
+                    "  no ankle disturbance recorded: an external torque during the recording counts as model error")
         else:
             checks = ("sine", "step") if args.check == "all" else (args.check,)
             print(f"running {' and '.join(checks)} check(s) on backend {cfg['backend']!r}; model: "

@@ -149,6 +149,12 @@ def recorded_controller(rec: Recording) -> dict | None:
     return validate(given(section), CONTROLLER, lambda _path: f"{rec.source} (log header)", ("controller",))
 
 
+def recorded_disturbances(rec: Recording) -> list[dict] | None:
+    """The ankle disturbances (``sim.disturbances`` items) a run log's header records for a simulated
+    plant, or None (hardware, an interchange CSV, an older log)."""
+    return rec.extra.get("log_meta", {}).get("sim_disturbances")
+
+
 def describe_controller(section: dict) -> str:
     """One line naming a controller section's type and gains, for reports."""
     if section["type"] == "impedance":
@@ -164,7 +170,8 @@ def describe_controller(section: dict) -> str:
 def simulate_references(rec: Recording, model_cfg: Config, controller: dict | None = None) -> Recording:
     """Closed loop: the daemon on the model config replays ``rec``'s references through ``controller``
     (a controller config section: the one the recording was made with; default the paper's validation
-    PD). The result's ``extra["controller_config"]`` is the controller section used."""
+    PD) and the ankle disturbances the recording's log header says the plant saw (a known input, not
+    model error). The result's ``extra["controller_config"]`` is the controller section used."""
     _check_rate(rec, model_cfg)
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "references.csv"
@@ -172,6 +179,9 @@ def simulate_references(rec: Recording, model_cfg: Config, controller: dict | No
         overrides = pd_validation_overrides(model_cfg)
         if controller is not None:
             overrides["controller"] = controller
+        disturbances = recorded_disturbances(rec)
+        if disturbances:
+            overrides["sim"]["disturbances"] = disturbances
         cfg = with_overrides(model_config(model_cfg), reference={"profile": "csv", "csv": {"path": str(path)}},
                              **overrides)
         from ankle_rt.daemon import run_lockstep
