@@ -1,6 +1,6 @@
 """The control daemon: one fixed-rate cycle that reads, estimates, controls, checks and logs.
 
-Cycle (DESIGN.md): backend.read -> estimate -> reference -> control -> safety -> backend.write ->
+Cycle (docs/design.md): backend.read -> estimate -> reference -> control -> safety -> backend.write ->
 log record -> service tick. The cycle method works on preallocated objects only (sensor frame,
 estimate, reference and torque arrays, the log ring), in plain floats, and touches no disk.
 
@@ -323,7 +323,7 @@ class Daemon:
 class RunResult:
     """The recorded cycles of a run as numpy columns.
 
-    ``columns`` holds every log field (DESIGN.md interchange names: t, motor_pos_1/2, current_cmd_1/2,
+    ``columns`` holds every log field (docs/design.md interchange names: t, motor_pos_1/2, current_cmd_1/2,
     sg_torque_dp/ie, ankle_dp/ie (joint encoders), ref_dp/ie; plus est_ankle_dp/ie, motor_vel_1/2,
     torque_cmd_1/2, state, fault, ...). ``summary`` has the loop statistics and counters.
     """
