@@ -119,6 +119,12 @@ def test_calibrate_and_canbus_load_run_on_their_default_configs(capsys):
     assert "bus load 40.6 %" in capsys.readouterr().out
 
 
+def test_the_readme_emulate_line_needs_no_config(capsys):
+    # README: `ankle-rt emulate --transport serial --port /dev/ttyUSB0`; a pty stands in for the adapter
+    assert main(["emulate", "--transport", "serial", "--port", "pty", "--duration", "0.2"]) == 0
+    assert "emulator: serial bridge on /dev/" in capsys.readouterr().out
+
+
 def test_canbus_load_of_a_non_can_config_says_so(capsys):
     assert main(["canbus-load", "--config", str(SIM)]) == 2
     captured = capsys.readouterr()
