@@ -95,6 +95,9 @@ def test_plugin_parameters_are_checked_before_the_run(plugins, tmp_path):
         run_lockstep(cfg, 0.1)
     with pytest.raises(ConfigError, match="controller.type: unknown controller 'phase'.*load_stiffening"):
         load_config(plugin_config(tmp_path, "controller: {type: phase}\n"))
+    cfg = load_config(plugin_config(tmp_path, "controller: {type: pd, params: {kp: 5}}\n"))
+    with pytest.raises(ConfigError, match=r"controller.params: controller 'pd': the built-in controller 'pd' takes no"):
+        run_lockstep(cfg, 0.1)
     cfg = load_config(plugin_config(tmp_path, "controller: {type: missing_module}\n"))
     with pytest.raises(ConfigError, match="cannot load no_such_module_xyz"):
         run_lockstep(cfg, 0.1)

@@ -63,10 +63,18 @@ def build_controller(cfg: "Config", kin: "Kinematics", ref: np.ndarray) -> Cycle
     return controller
 
 
+def _no_params(ctx: "ControllerContext", name: str, where: str) -> None:
+    """Built-ins take their settings from their own sections: plugin parameters would be ignored."""
+    if ctx.params:
+        raise ValueError(f"the built-in controller {name!r} takes no params (its gains are in {where}); "
+                         f"got {', '.join(sorted(ctx.params))}")
+
+
 def motor_pd(ctx: "ControllerContext") -> CycleController:
     """The built-in ``pd``: motor-side PD on the ``controller.pd_gains`` gain set."""
     from ankle_rt.control.pd import MotorPD
 
+    _no_params(ctx, "pd", "controller.step_gains / validation_gains")
     c = ctx.cfg["controller"]
     gains = c[c["pd_gains"] + "_gains"]
     return MotorPD(ctx.kin, ctx.ref, kp=gains["kp"], kd=gains["kd"], dt=ctx.dt, ramp_s=c["gain_ramp_s"],
@@ -77,6 +85,7 @@ def impedance(ctx: "ControllerContext") -> CycleController:
     """The built-in ``impedance``: ankle stiffness and damping, ``controller.impedance``."""
     from ankle_rt.control.impedance import ImpedanceController
 
+    _no_params(ctx, "impedance", "controller.impedance")
     c = ctx.cfg["controller"]
     return ImpedanceController(ctx.kin, ctx.ref, c["impedance"], dt=ctx.dt, ramp_s=c["gain_ramp_s"],
                                soft_start_s=c["soft_start_s"], friction=ctx.friction)
