@@ -71,6 +71,12 @@ def plugin_config(tmp_path: Path, body: str) -> Path:
 
 
 def test_builtins_are_registered_by_name_and_plugins_are_found(plugins):
+    import ankle_rt.control.impedance  # noqa: F401  (a submodule must not shadow its factory's name)
+    import ankle_rt.control.pd  # noqa: F401
+    from ankle_rt.control.plugins import load_controller_factory
+
+    for name in BUILTIN_CONTROLLERS:
+        assert callable(load_controller_factory(name))
     found = available_controllers()
     assert {"pd", "impedance"} <= set(found) and found["pd"] == BUILTIN_CONTROLLERS["pd"]
     assert found["load_stiffening"] == "ankle_rt_example_controller:LoadStiffening"

@@ -70,7 +70,7 @@ def _no_params(ctx: "ControllerContext", name: str, where: str) -> None:
                          f"got {', '.join(sorted(ctx.params))}")
 
 
-def motor_pd(ctx: "ControllerContext") -> CycleController:
+def pd_controller(ctx: "ControllerContext") -> CycleController:
     """The built-in ``pd``: motor-side PD on the ``controller.pd_gains`` gain set."""
     from ankle_rt.control.pd import MotorPD
 
@@ -81,7 +81,7 @@ def motor_pd(ctx: "ControllerContext") -> CycleController:
                    soft_start_s=c["soft_start_s"], friction=ctx.friction)
 
 
-def impedance(ctx: "ControllerContext") -> CycleController:
+def impedance_controller(ctx: "ControllerContext") -> CycleController:
     """The built-in ``impedance``: ankle stiffness and damping, ``controller.impedance``."""
     from ankle_rt.control.impedance import ImpedanceController
 

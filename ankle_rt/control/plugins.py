@@ -25,8 +25,8 @@ if TYPE_CHECKING:
 ENTRY_POINT_GROUP = "ankle_rt.controllers"
 
 BUILTIN_CONTROLLERS: dict[str, str] = {
-    "pd": "ankle_rt.control:motor_pd",
-    "impedance": "ankle_rt.control:impedance",
+    "pd": "ankle_rt.control:pd_controller",
+    "impedance": "ankle_rt.control:impedance_controller",
 }
 
 
