@@ -6,6 +6,7 @@ clean clone of this checkout's HEAD. The first installs the project and runs the
 simulator; the second installs the test extra and runs pytest. To keep CI to one pass over the suite,
 the nested pytest gets ``PYTEST_ADDOPTS`` naming one test file: the command line itself is unchanged,
 and the run still proves that pytest, hypothesis (imported by conftest) and the project import.
+Then the example controller plugin is installed into the same venv and found through its entry point.
 """
 
 from __future__ import annotations
@@ -60,3 +61,11 @@ def test_readme_quick_start_in_a_fresh_venv_from_a_clean_clone(tmp_path):
                            env={**env, "PYTEST_ADDOPTS": NESTED_PYTEST_SELECTION})
     assert tests.returncode == 0, tests.stdout[-3000:] + tests.stderr[-3000:]
     assert re.search(r"\d+ passed", tests.stdout) and " failed" not in tests.stdout, tests.stdout[-3000:]
+
+    # The example controller plugin, installed as a user would: found through its real entry point.
+    example = "examples/ankle-rt-example-controller"
+    plugin = subprocess.run(["bash", "-c", f"python3 -m pip install -e {example} && "
+                             f"ankle-rt config check {example}/run.yaml"],
+                            cwd=clone, env=env, capture_output=True, text=True)
+    assert plugin.returncode == 0, plugin.stdout[-3000:] + plugin.stderr[-3000:]
+    assert "controller:  load_stiffening (plugin)" in plugin.stdout, plugin.stdout[-3000:]
