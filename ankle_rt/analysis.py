@@ -58,7 +58,7 @@ TOLERANCE: dict[str, tuple[str, float]] = {
     "fig10_resonance_hz": ("rel", 0.05),
     "torque_resonance_hz": ("rel", 0.05),
 }
-# Mismatches no geometry can remove (DESIGN.md, "Nominal model"): reported, not fitted.
+# Mismatches no geometry can remove (docs/design.md, "Nominal model"): reported, not fitted.
 KNOWN_MISMATCH = {("fig10_resonance_hz", "dp"), ("fig10_resonance_hz", "ie"), ("torque_resonance_hz", "ie")}
 
 

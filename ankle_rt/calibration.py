@@ -166,7 +166,8 @@ def _check_motor(run: _Runner, kin: Kinematics, m: int, current: float, pulse: i
     if abs(moved[m]) < MIN_MOTION_RAD:
         p.append(f"motor {m + 1} did not move ({deg(moved[m]):+.3f} deg) for a {current:+g} A pulse: amplifier "
                  f"{m + 1} not enabled or powered, the motor blocked, or the pulse too small for the friction "
-                 f"(try --current); check escon.amplifiers.{m}.enable_active_high and the enable wiring")
+                 f"(try --current); check {motor_key('escon.amplifiers', m, '.enable_active_high')} "
+                 "and the enable wiring")
         return check
     if moved[m] < 0:
         culprit = _flipped_sign(check, kin, m)
@@ -181,10 +182,16 @@ def _check_motor(run: _Runner, kin: Kinematics, m: int, current: float, pulse: i
     return check
 
 
+def motor_key(list_key: str, m: int, rest: str = "") -> str:
+    """A per-motor config key for 0-based motor index ``m``: the key as config errors print it (list
+    index from 0) and the motor it belongs to (numbered from 1, as every message numbers motors)."""
+    return f"{list_key}.{m}{rest} (list item {m} = motor {m + 1})"
+
+
 def _flipped_sign(check: MotorCheck, kin: Kinematics, m: int) -> str:
     """Which sign to fix for a motor that turned backwards; joint encoders tell amplifier from encoder."""
-    both = f"the sign of amplifier {m + 1} or of encoder {m + 1} is flipped: check escon.amplifiers.{m}.sign " \
-           f"and encoders.sign.{m}"
+    both = f"the sign of amplifier {m + 1} or of encoder {m + 1} is flipped: check " \
+           f"{motor_key('escon.amplifiers', m, '.sign')} and {motor_key('encoders.sign', m)}"
     if check.ankle_motion is None:
         return both
     a = np.array(check.ankle_motion)
@@ -192,5 +199,6 @@ def _flipped_sign(check: MotorCheck, kin: Kinematics, m: int) -> str:
     if abs(along) < 1e-9:
         return both
     if along > 0:
-        return f"the motor turned forward but encoder {m + 1} counts backwards: flip encoders.sign.{m}"
-    return f"the motor turned backwards: flip escon.amplifiers.{m}.sign (wiring or ESCON Studio direction)"
+        return f"the motor turned forward but encoder {m + 1} counts backwards: flip {motor_key('encoders.sign', m)}"
+    return (f"the motor turned backwards: flip {motor_key('escon.amplifiers', m, '.sign')} "
+            "(wiring or ESCON Studio direction)")

@@ -9,12 +9,13 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
 from ankle_rt.config import ConfigError
 
 # Module names under ankle_rt.commands, in the order `--help` lists them.
-COMMANDS: tuple[str, ...] = ("run", "log", "analyze", "ctl", "identify", "validate", "emulate", "calibrate", "canbus_load", "diagnose", "bench", "sweep")
+COMMANDS: tuple[str, ...] = ("run", "config", "log", "analyze", "ctl", "identify", "validate", "emulate", "calibrate", "canbus_load", "diagnose", "bench", "sweep")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -25,13 +26,24 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+EXIT_BROKEN_PIPE = 141   # 128 + SIGPIPE, what a shell shows for a tool whose reader went away
+
+
 def main(argv: list[str] | None = None) -> int:
+    """Run one command; its exit code. A closed output pipe (``ankle-rt analyze --json | head``)
+    ends the command quietly instead of with a traceback."""
     args = build_parser().parse_args(argv)
     try:
         return int(args.handler(args) or 0)
     except ConfigError as exc:
         print(f"ankle-rt: config error: {exc}", file=sys.stderr)
         return 2
+    except BrokenPipeError:
+        # Python would try to flush stdout again at exit and print a second error: point it at /dev/null.
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+        return EXIT_BROKEN_PIPE
 
 
 if __name__ == "__main__":

@@ -8,6 +8,7 @@ validated by their owners when they are configured.
 from __future__ import annotations
 
 from ankle_rt.config import Field, ListOf, Section, non_negative, positive
+from ankle_rt.control.plugins import check_controller_name
 from ankle_rt.references import PROFILE_PARAMS
 
 GAINS = Section({
@@ -66,8 +67,10 @@ CONTROLLER = Section({
     "rate_hz": Field(int, "control loop rate", low=250, high=2000),
     "validation_gains": GAINS,
     "step_gains": GAINS,
-    "type": Field(str, "pd: motor-side PD (paper eq. 11); impedance: ankle stiffness/damping", default="pd",
-                  choices=("pd", "impedance")),
+    "type": Field(str, "pd: motor-side PD (paper eq. 11); impedance: ankle stiffness/damping; or the name of "
+                  "an installed controller plugin (entry-point group ankle_rt.controllers)", default="pd",
+                  check=check_controller_name),
+    "params": Section({}, "parameters of a plugin controller (the plugin validates them)", optional=True, open=True),
     "pd_gains": Field(str, "which gain set the PD uses", default="step", choices=("step", "validation")),
     "impedance": IMPEDANCE,
     "friction_ff": FRICTION_FF,

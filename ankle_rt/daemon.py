@@ -1,6 +1,6 @@
 """The control daemon: one fixed-rate cycle that reads, estimates, controls, checks and logs.
 
-Cycle (DESIGN.md): backend.read -> estimate -> reference -> control -> safety -> backend.write ->
+Cycle (docs/design.md): backend.read -> estimate -> reference -> control -> safety -> backend.write ->
 log record -> service tick. The cycle method works on preallocated objects only (sensor frame,
 estimate, reference and torque arrays, the log ring), in plain floats, and touches no disk.
 
@@ -306,12 +306,16 @@ class Daemon:
     def log_metadata(self) -> dict[str, Any]:
         """The run log header's metadata. ``controller_config`` is the config's controller section the
         run started with (type, gains, ramps; what ``validate --from`` replays), null when an
-        experiment plugged its own controller in."""
+        experiment plugged its own controller in. ``sim_disturbances``: the ankle torques the simulated
+        plant applied (``sim.disturbances``, replayed by ``validate --from``), null on real hardware."""
+        backend = self.cfg["backend"]
+        simulated = backend == "sim" or self.cfg.get(backend, {}).get("emulator") == "lockstep"
         return log_metadata(config=getattr(self.cfg, "source", "<memory>"), backend=self.cfg["backend"],
                             clock="simulated" if self.clock.simulated else "monotonic",
                             rate_hz=self.cfg["controller"]["rate_hz"], torque_constant=self.kt,
                             controller=type(self.controller).__name__,
                             controller_config=self.cfg["controller"] if self.own_controller else None,
+                            sim_disturbances=self.cfg["sim"]["disturbances"] if simulated else None,
                             states={s.name: int(s) for s in State}, faults={f.name: int(f) for f in Fault})
 
 
@@ -319,7 +323,7 @@ class Daemon:
 class RunResult:
     """The recorded cycles of a run as numpy columns.
 
-    ``columns`` holds every log field (DESIGN.md interchange names: t, motor_pos_1/2, current_cmd_1/2,
+    ``columns`` holds every log field (docs/design.md interchange names: t, motor_pos_1/2, current_cmd_1/2,
     sg_torque_dp/ie, ankle_dp/ie (joint encoders), ref_dp/ie; plus est_ankle_dp/ie, motor_vel_1/2,
     torque_cmd_1/2, state, fault, ...). ``summary`` has the loop statistics and counters.
     """

@@ -1,4 +1,4 @@
-"""The measured-data interchange format (DESIGN.md): one CSV row per control cycle, SI units.
+"""The measured-data interchange format (docs/design.md): one CSV row per control cycle, SI units.
 
 Reading checks the file the way a person would want it checked: a missing required column, a
 non-numeric cell or time that does not increase is an :class:`InterchangeError` naming the column

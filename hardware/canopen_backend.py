@@ -35,6 +35,7 @@ import canopen
 from ankle_rt.backend import Backend, BackendError, BackendFault, SensorFrame
 from ankle_rt.clock import Clock
 from ankle_rt.config import Config, ConfigError
+from hardware.can_hints import describe_open_error
 from hardware.canbus_load import BusLoad, check_bus_load, loop_bus_load
 from hardware.canopen_pdo import (COUNTER_1, COUNTER_2, DIGITAL_IN, DIGITAL_OUT, ENABLE_BITS,
                                   HEARTBEAT_BASE, READY_BITS, SET_VALUE_1, SET_VALUE_2, STRAIN_1, STRAIN_2,
@@ -128,7 +129,7 @@ class CanopenBackend(Backend):
             return can.Bus(interface=co["interface"], channel=co["channel"], bitrate=co["bitrate"])
         except (can.CanError, OSError, ValueError, ImportError) as exc:
             raise BackendError(f"canopen: cannot open interface {co['interface']!r} channel {co['channel']!r}: "
-                               f"{exc}") from None
+                               f"{describe_open_error(exc, co['interface'], co['channel'])}") from None
 
     def _prepare_frames(self) -> None:
         """Preallocate every frame the loop sends and the decode tables for what it receives."""

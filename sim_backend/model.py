@@ -1,4 +1,4 @@
-"""The compliant model of the prosthesis (DESIGN.md "Nominal model"), stepped at control ticks.
+"""The compliant model of the prosthesis (docs/design.md "Nominal model"), stepped at control ticks.
 
 The linear part (foot and motor inertias, cable stiffness and damping, viscous friction, linearised
 gravity) is discretised exactly once for the substep h = dt / substeps, so the ~100 Hz cable modes

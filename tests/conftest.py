@@ -1,10 +1,15 @@
-"""Shared fixtures: the shipped configuration, loaded and validated once per test."""
+"""Shared fixtures: the shipped configuration, loaded and validated once per test. Hypothesis runs
+derandomized (examples drawn from a fixed seed, no example database), so every run tests the same cases."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
+
+settings.register_profile("deterministic", derandomize=True, database=None)
+settings.load_profile("deterministic")
 
 from ankle_rt.config import Config, load_config
 

@@ -51,7 +51,7 @@ def test_dp_torque_resonance_matches_fig11(result):
 
 
 def test_known_mismatches_are_reported_with_the_models_values(result):
-    """Fig. 10 and the IE torque resonance: the model's own values (DESIGN.md), flagged, not failed."""
+    """Fig. 10 and the IE torque resonance: the model's own values (docs/design.md), flagged, not failed."""
     assert result.values["fig10_resonance_hz"]["dp"] == pytest.approx(31.0, rel=0.02)
     assert result.values["fig10_resonance_hz"]["ie"] == pytest.approx(24.5, rel=0.02)
     assert result.values["torque_resonance_hz"]["ie"] == pytest.approx(77.0, rel=0.02)

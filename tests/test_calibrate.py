@@ -68,7 +68,7 @@ def test_a_flipped_amplifier_sign_is_caught_and_named(bench_cfg):
     host["escon"]["amplifiers"][1]["sign"] = -1                    # the config disagrees with the wiring
     report, _ = calibrate_against(bench_cfg, host)
     assert not report.ok and len(report.problems) == 1
-    assert "motor 2 turned -" in report.problems[0] and "flip escon.amplifiers.1.sign" in report.problems[0]
+    assert "motor 2 turned -" in report.problems[0] and "flip escon.amplifiers.1.sign (list item 1 = motor 2)" in report.problems[0]
 
 
 def test_a_flipped_encoder_sign_is_caught_and_named(bench_cfg):
@@ -87,7 +87,8 @@ def test_without_joint_encoders_both_candidate_keys_are_named(bench_cfg):
     host["escon"]["amplifiers"][0]["sign"] = -1
     report, _ = calibrate_against(device, host)
     assert len(report.problems) == 1
-    assert "escon.amplifiers.0.sign and encoders.sign.0" in report.problems[0]
+    assert ("escon.amplifiers.0.sign (list item 0 = motor 1) and encoders.sign.0 (list item 0 = motor 1)"
+            in report.problems[0])
 
 
 def test_crossed_set_value_cables_are_caught(bench_cfg):

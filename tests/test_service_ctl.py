@@ -10,6 +10,8 @@ from pathlib import Path
 import pytest
 
 from ankle_rt.cli import main
+from ankle_rt.config import ConfigError
+from ankle_rt.references import make_profile
 from ankle_rt.service.protocol import CommandError, SetGains, SetReference, StartProfile, Status
 from ankle_rt.service.server import CommandServer
 
@@ -25,6 +27,11 @@ def daemon(tmp_path):
         got.append(command)
         if type(command).__name__ == "ResetFault":
             raise CommandError("cmd", "not in the fault state")
+        if isinstance(command, StartProfile) and command.name != "csv":   # the daemon's own parameter check
+            try:
+                make_profile(command.name, command.params)
+            except ConfigError as exc:
+                raise CommandError(exc.key, exc.message) from None
         return {"state": "safe", "ankle_deg": [1.5, float("nan")], "loop": {"overruns": 0}}
 
     server = CommandServer(tmp_path / "ctl.sock", 0o600, handle)
@@ -67,6 +74,20 @@ def test_gains_and_profile(daemon):
     assert ctl(server, "gains", "--kp", "90", "--stiffness-ie", "3") == 0
     assert ctl(server, "profile", "csv", "path=r.csv", "rate=2") == 0
     assert got == [SetGains(kp=90.0, stiffness_ie=3.0), StartProfile("csv", {"path": str(Path("r.csv").resolve()), "rate": 2.0})]
+
+
+def test_profile_angles_take_degrees_and_send_rad(daemon, capsys):
+    server, got = daemon
+    assert ctl(server, "profile", "sine", "amplitude_dp=5", "ie_phase=90", "frequency_hz=0.5") == 0
+    assert ctl(server, "profile", "step", "dp=-3", "ie=2", "start_s=0.25") == 0
+    assert ctl(server, "profile", "sine", "amplitude_dp=0.05", "--rad") == 0
+    assert got == [StartProfile("sine", {"amplitude_dp": math.radians(5), "ie_phase": math.radians(90),
+                                         "frequency_hz": 0.5}),
+                   StartProfile("step", {"dp": math.radians(-3), "ie": math.radians(2), "start_s": 0.25}),
+                   StartProfile("sine", {"amplitude_dp": 0.05})]
+    assert ctl(server, "profile", "sine", "amplitude_dp=50") == 1
+    err = capsys.readouterr().err
+    assert "field 'params.amplitude_dp'" in err and "amplitude_dp=50 deg is 0.8727 rad" in err
 
 
 def test_error_replies_exit_non_zero_naming_the_field(daemon, capsys):

@@ -85,3 +85,43 @@ def test_service_config_fragment_turns_a_device_config_into_a_service(tmp_path):
     assert cfg["logging"]["directory"] == "/var/log/ankle-rt"
     assert socket_mode(cfg) == 0o660 and cfg["service"]["socket_path"] == "auto"
     assert cfg["loop"]["realtime"]["priority"] <= int(dict(directives(UNIT.read_text()))["LimitRTPRIO"])
+
+
+CAN_DROP_IN = UNIT.parent / "ankle-rt.service.d" / "can0.conf"
+
+
+@needs_systemd
+def test_unit_with_the_can0_drop_in_verifies_and_waits_for_can0(tmp_path):
+    (tmp_path / "ankle-rt.service.d").mkdir()
+    (tmp_path / "ankle-rt.service.d" / "can0.conf").write_text(CAN_DROP_IN.read_text())
+    assert verify(with_local_exec(UNIT.read_text()), tmp_path) == ""      # verify reads the drop-in beside it
+    keys = dict(directives(CAN_DROP_IN.read_text()))
+    assert keys["BindsTo"] == keys["After"] == "sys-subsystem-net-devices-can0.device"
+    (tmp_path / "ankle-rt.service.d" / "can0.conf").write_text(CAN_DROP_IN.read_text().replace("BindsTo", "BindsToo"))
+    assert "Unknown key" in verify(with_local_exec(UNIT.read_text()), tmp_path)   # the drop-in is really read
+
+
+def test_can0_network_file_matches_the_canopen_config():
+    from ankle_rt.config import load_config
+
+    network = (UNIT.parent / "80-can0.network").read_text()
+    cfg = load_config(UNIT.parent.parent / "config" / "hw-canopen.yaml")
+    assert cfg["canopen"]["channel"] == "can0" and cfg["canopen"]["bitrate"] == 1_000_000
+    assert ("Name", "can0") in directives(network) and ("BitRate", "1M") in directives(network)
+
+
+def _sh_block(text: str, after: str) -> list[str]:
+    """The command lines (comments and blank lines dropped) of the first ```sh block after ``after``."""
+    block = text.split(after, 1)[1].split("```sh\n", 1)[1].split("```", 1)[0]
+    lines = [line.split("  #")[0].rstrip() for line in block.splitlines()]
+    return [line for line in lines if line and not line.lstrip().startswith("#")]
+
+
+def test_readme_deploy_steps_are_those_of_docs_service_md():
+    root = UNIT.parent.parent
+    readme = _sh_block((root / "README.md").read_text(), "## Deploy as a systemd service")
+    service = _sh_block((root / "docs" / "service.md").read_text(), "## Install as a systemd service")
+    assert readme and set(readme) <= set(service)
+    assert readme == [line for line in service if line in readme]          # same order
+    assert not any("python -c" in line for line in service)                # the config check is a command
+    assert "/opt/ankle-rt/venv/bin/ankle-rt config check /etc/ankle-rt/config.yaml" in readme

@@ -8,7 +8,6 @@ mismatches of Fig. 10 and the IE torque resonance do not count), 1 otherwise.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
@@ -33,6 +32,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ankle_rt.analysis import analyze
+    from ankle_rt.commands import jsonout
     from ankle_rt.config import load_config
     from ankle_rt.params import PlantParams
     from ankle_rt.paths import default_config_path
@@ -49,7 +49,7 @@ def run(args: argparse.Namespace) -> int:
         if plot_note:
             out["plots_note"] = plot_note
             print(f"ankle-rt analyze: {plot_note}", file=sys.stderr)
-        print(json.dumps(out, indent=2))
+        print(jsonout.dumps(out, indent=2))
     else:
         print(format_report(result, str(config_path)))
         if plot_dir:
@@ -116,8 +116,12 @@ def write_plots(bodes: dict, values: dict, out_dir: Path) -> tuple[list[Path], s
         out_dir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         return [], f"cannot create the plot directory {out_dir}: {exc.strerror}; no Bode plots written"
+    from ankle_rt.progress import Progress
+
     written = []
-    for name, bode in bodes.items():
+    progress = Progress("analyze: Bode plots", len(bodes))
+    for k, (name, bode) in enumerate(bodes.items()):
+        progress.update(k, name)
         fig = Figure(figsize=(11, 7), layout="constrained")
         axes = fig.subplots(2, 2, sharex=True)
         fig.suptitle(bode.title)
@@ -145,4 +149,5 @@ def write_plots(bodes: dict, values: dict, out_dir: Path) -> tuple[list[Path], s
         path = out_dir / f"{name}.png"
         fig.savefig(path, dpi=100)
         written.append(path)
+    progress.close()
     return written, ""

@@ -73,8 +73,9 @@ def lockstep_speed(cfg, sim_s: float) -> float:
 
 
 def bench_loop(args: argparse.Namespace) -> int:
-    import json
     import tempfile
+
+    from ankle_rt.commands import jsonout
 
     from ankle_rt.config import load_config
     from ankle_rt.paths import default_config_path
@@ -110,7 +111,7 @@ def bench_loop(args: argparse.Namespace) -> int:
     }
     result["goals_met"] = met
     if args.json:
-        print(json.dumps(result))
+        print(jsonout.dumps(result))
         return 0
     ok = {True: "ok", False: "MISSED"}
     print(f"loop at {rate} Hz, {result['cycles']} cycles in {args.duration:g} s "

@@ -24,7 +24,8 @@ import sys
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser("calibrate", help="strain-gauge tare and amplifier / encoder sign check",
                               description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--config", metavar="FILE", required=True, help="configuration of the device")
+    p.add_argument("--config", metavar="FILE", help="configuration of the device (default: the shipped "
+                   "config/sim.yaml, the simulator; use it with --fast)")
     p.add_argument("--fast", action="store_true", help="lockstep on a simulated clock (simulator or emulator)")
     p.add_argument("--current", type=float, default=0.5, metavar="A", help="pulse current (default 0.5 A)")
     p.add_argument("--pulse", type=float, default=0.05, metavar="S", help="pulse duration (default 0.05 s)")
@@ -42,6 +43,9 @@ def run(args: argparse.Namespace) -> int:
     if not 0.0 < args.current <= 3.0:
         print("ankle-rt calibrate: --current must be in (0, 3] A", file=sys.stderr)
         return 2
+    from ankle_rt.paths import default_config_path
+
+    args.config = args.config or str(default_config_path())
     cfg = load_config(args.config)
     clock = SimClock() if args.fast else MonotonicClock()
     try:

@@ -35,6 +35,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     sub.add_parser("deactivate", help="zero the set values and disable the amplifiers")
     sub.add_parser("reset", help="acknowledge a fault (fault -> safe)")
     sub.add_parser("stop", help="shut the daemon down cleanly (safe state first, log flushed)")
+    watch = sub.add_parser("watch", help="live view: state, fault, references, angles, currents (Ctrl-C quits)",
+                           description="Ask the daemon for its status every --interval s and redraw it (on a "
+                                       "terminal; otherwise one block per refresh). Angles in degrees. Ends on "
+                                       "Ctrl-C, after --count refreshes, or when the daemon goes away (exit 3).")
+    watch.add_argument("--interval", type=float, default=0.5, metavar="S", help="s between refreshes (default 0.5)")
+    watch.add_argument("--count", type=int, default=0, metavar="N", help="stop after N refreshes (default: never)")
     ref = sub.add_parser("ref", help="set the ankle reference",
                          description="Set the ankle reference. DP and IE are in DEGREES (converted to rad on "
                                      "the wire) unless --rad is given.")
@@ -46,12 +52,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     for name, doc in GAIN_FIELDS.items():
         gains.add_argument("--" + name.replace("_", "-"), dest=name, type=float, help=doc)
     profile = sub.add_parser("profile", help="start a reference profile",
-                             description="Start a reference profile. Parameters are KEY=VALUE in SI units "
-                                         "(angles in rad, frequencies in Hz); non-numbers are passed as strings. "
-                                         "csv: path=FILE is sent as an absolute path; the daemon reads it, so its "
-                                         "user must be able to (the service sees neither /home nor /tmp).")
+                             description="Start a reference profile. Parameters are KEY=VALUE: angles (dp, ie, "
+                                         "amplitude_dp, amplitude_ie, ie_phase) in DEGREES (converted to rad on the "
+                                         "wire) unless --rad is given, times in s, frequencies in Hz; non-numbers "
+                                         "are passed as strings. csv: path=FILE is sent as an absolute path; the "
+                                         "daemon reads it, so its user must be able to (the service sees neither "
+                                         "/home nor /tmp).")
     profile.add_argument("name", choices=PROFILE_NAMES)
     profile.add_argument("params", nargs="*", metavar="KEY=VALUE")
+    profile.add_argument("--rad", action="store_true", help="angles are given in rad")
     parser.set_defaults(handler=run)
 
 
@@ -68,10 +77,21 @@ def request_from_args(args: argparse.Namespace) -> dict:
         return {"cmd": "set_gains", **{k: getattr(args, k) for k in GAIN_FIELDS if getattr(args, k) is not None}}
     if name == "profile":
         params = dict(_param(p) for p in args.params)
+        if not args.rad:
+            for key in angle_params(args.name) & params.keys():
+                if isinstance(params[key], float):
+                    params[key] = math.radians(params[key])
         if args.name == "csv" and isinstance(params.get("path"), str):
             params["path"] = str(Path(params["path"]).resolve())
         return {"cmd": "start_profile", "name": args.name, "params": params}
     return {"cmd": name}
+
+
+def angle_params(profile: str) -> set[str]:
+    """The parameters of ``profile`` that are angles (their schema gives them in rad)."""
+    from ankle_rt.references import PROFILE_PARAMS
+
+    return {key for key, spec in PROFILE_PARAMS[profile].fields.items() if getattr(spec, "doc", "").startswith("rad")}
 
 
 def _param(text: str) -> tuple[str, float | str]:
@@ -154,8 +174,73 @@ def _fmt(value: object) -> str:
     return str(value).lower() if isinstance(value, bool) else str(value)
 
 
+def _degree_note(args: argparse.Namespace, reply: dict) -> str:
+    """For a refused angle given in degrees: what the daemon's rad value was on the command line."""
+    field = str(reply.get("field") or "")
+    key = field.removeprefix("params.")
+    if args.ctl_command == "profile" and not args.rad and field != key and key in angle_params(args.name):
+        given = dict(_param(p) for p in args.params).get(key)
+        if isinstance(given, float):
+            return f" (the command line takes degrees: {key}={given:g} deg is {math.radians(given):.4g} rad)"
+    return ""
+
+
+def watch_view(status: dict, path: Path) -> list[str]:
+    """The live view of one status reply (angles in degrees, SI otherwise, units named)."""
+    def row(name: str, values, unit: str, scale: float = 1.0, fmt: str = "10.3f") -> str:
+        cells = "".join(f"{'-':>10}" if v is None else f"{v * scale:{fmt}}" for v in values or ())
+        return f"  {name:<18}{cells}  {unit}"
+
+    deg = 180.0 / math.pi
+    fault = status.get("fault") or "none"
+    loop = status.get("loop") or {}
+    pe = loop.get("period_error") or {}
+    gains = status.get("gains") or {}
+    lines = [f"ankle-rt ctl watch  {path}  t = {_fmt(status.get('t'))} s   (Ctrl-C quits)",
+             f"  state: {str(status.get('state', '?')).upper()}   fault: {fault}"
+             + (f" ({status.get('fault_description')}, at t = {_fmt(status.get('fault_time_s'))} s)"
+                if fault != "none" else ""),
+             f"  {'':<18}{'DP':>10}{'IE':>10}",
+             row("reference", status.get("reference_deg"), "deg"),
+             row("ankle", status.get("ankle_deg"), "deg"),
+             row("joint torque", status.get("sg_torque_nm"), "N m"),
+             f"  {'':<18}{'motor 1':>10}{'motor 2':>10}",
+             row("position", status.get("motor_pos_rad"), "deg", deg),
+             row("velocity", status.get("motor_vel_rad_s"), "deg/s", deg, "10.1f"),
+             row("current", status.get("current_a"), "A"),
+             "  gains: " + (", ".join(f"{k} {_fmt(v)}" for k, v in gains.items()) or "-"),
+             f"  loop: {loop.get('cycles', '-')} cycles, {loop.get('overruns', '-')} overruns, period error p99 "
+             f"{_fmt(pe.get('p99_us'))} us"]
+    return lines
+
+
+def watch(args: argparse.Namespace, path: Path) -> int:
+    """Redraw the status until Ctrl-C, --count refreshes, or the daemon goes away."""
+    import time
+
+    tty = sys.stdout.isatty()
+    shown = 0
+    try:
+        while True:
+            try:
+                status = send(path, {"cmd": "status"}, args.timeout)
+            except Unreachable as exc:
+                print(f"ankle-rt ctl: {exc}", file=sys.stderr)
+                return EXIT_UNREACHABLE
+            view = "\n".join(watch_view(status, path))
+            print(("\x1b[H\x1b[2J" + view) if tty else view + "\n", flush=True)
+            shown += 1
+            if args.count and shown >= args.count:
+                return 0
+            time.sleep(max(args.interval, 0.05))
+    except KeyboardInterrupt:
+        return 0
+
+
 def run(args: argparse.Namespace) -> int:
     path = resolve_socket(args)
+    if args.ctl_command == "watch":
+        return watch(args, path)
     try:
         reply = send(path, request_from_args(args), args.timeout)
     except Unreachable as exc:
@@ -167,5 +252,6 @@ def run(args: argparse.Namespace) -> int:
         body = {k: v for k, v in reply.items() if k != "ok"}
         print("\n".join(format_fields(body)) if body else "ok")
     else:
-        print(f"ankle-rt ctl: refused: field '{reply.get('field')}': {reply.get('error')}", file=sys.stderr)
+        print(f"ankle-rt ctl: refused: field '{reply.get('field')}': {reply.get('error')}{_degree_note(args, reply)}",
+              file=sys.stderr)
     return 0 if reply.get("ok") else EXIT_REFUSED

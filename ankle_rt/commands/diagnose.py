@@ -76,24 +76,33 @@ def run(args: argparse.Namespace) -> int:
     from ankle_rt.diagnosis.model_fragment import write_fragment
     from ankle_rt.interchange import InterchangeError
 
+    from ankle_rt.progress import Progress
+
     cfg = load_config(args.config) if args.config else None
+    progress = Progress("diagnose", 4)   # stages: read, fit and select, closed-loop gain, write
     try:
+        progress.update(0, "reading the data")
         ident = load_recording(args.data)
         valid = load_recording(args.validation) if args.validation else None
+        progress.update(1, "fitting the baseline and the candidate effects")
         diag = diagnose(ident, valid, plant=args.plant, cfg=cfg)
     except (InterchangeError, DiagnosisError) as exc:
+        progress.close()
         print(f"ankle-rt diagnose: {exc}", file=sys.stderr)
         return 2
     closed = None
     run_data = valid if valid is not None else ident
     if (not args.no_closed_loop and args.config and args.plant == "ankle" and diag.effect is not None
             and applicable(run_data)):
+        progress.update(2, "closed-loop simulation of both models")
         closed = closed_loop_gain(run_data, args.config, diag)
+    progress.update(3, "writing the results")
     if args.write_model:
         write_fragment(args.write_model, diag, args.config)
     if args.report:
         from ankle_rt.diagnosis.report import write_report
         write_report(args.report, diag, closed)
+    progress.close()
     if args.json:
         out = diag.to_json()
         if closed is not None:

@@ -32,8 +32,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "emulate", help="run a device emulator (simulated plant behind the serial or CANopen protocol)",
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--transport", required=True, choices=sorted(EMULATORS), help="protocol to speak")
-    parser.add_argument("--config", metavar="FILE", required=True,
-                        help="plant parameters and the device's calibration (e.g. config/bench-serial.yaml)")
+    parser.add_argument("--config", metavar="FILE",
+                        help="plant parameters and the device's calibration (default: the shipped "
+                             "config/bench-serial.yaml or config/bench-canopen.yaml, by --transport)")
     parser.add_argument("--port", help="serial: device path (/dev/ttyUSB0) or 'pty' for a new pseudo-terminal "
                         "whose path is printed (default: serial.port of the config)")
     parser.add_argument("--baudrate", type=int, help="serial: bit/s (default: serial.baudrate of the config)")
@@ -53,7 +54,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ankle_rt.config import load_config
+    from ankle_rt.paths import default_config_path
 
-    cfg = load_config(args.config)
+    cfg = load_config(args.config or default_config_path(f"bench-{args.transport}.yaml"))
     module_name, _, func = EMULATORS[args.transport].partition(":")
     return int(getattr(importlib.import_module(module_name), func)(cfg, args) or 0)

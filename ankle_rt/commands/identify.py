@@ -23,7 +23,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "cables: sim.cables false) or estimate from recorded CSV files; write a parameter "
                     "YAML a config can include, a text report like Table 1 and Figs 2-4, and PNG plots.")
     p.add_argument("experiment", choices=("stiction", "viscous", "inertia", "all"))
-    p.add_argument("--config", help="config file (backend, torque constant, prior parameters)")
+    p.add_argument("--config", help="config file (backend, torque constant, prior parameters); default for "
+                   "running the experiments: the shipped config/sim.yaml; with --from: none (no torque constant)")
     p.add_argument("--from", dest="source", metavar="PATH",
                    help="estimate from data: an interchange CSV (or a daemon run log) for one experiment, or "
                         "for 'all' a directory holding stiction.csv, viscous.csv and inertia.csv (what a "
@@ -58,11 +59,15 @@ def run(args: argparse.Namespace) -> int:
     from ankle_rt.identification.runner import actuator_config
     from ankle_rt.identification.signals import IdentificationError
     from ankle_rt.interchange import InterchangeError, write_csv
+    from ankle_rt.paths import default_config_path
+    from ankle_rt.progress import Progress
 
     if args.batch:
         from ankle_rt.sweep.logs import identify_batch_command
         return identify_batch_command(args)
     names = EXPERIMENTS if args.experiment == "all" else (args.experiment,)
+    if args.config is None and not args.source:
+        args.config = str(default_config_path())
     cfg = load_config(args.config) if args.config else None
     out = Path(args.out)
     stamp = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
@@ -71,17 +76,14 @@ def run(args: argparse.Namespace) -> int:
             recordings = _read(args, names)
             header = f"Actuator identification from {args.source}, motor {args.motor} ({stamp})"
         else:
-            if cfg is None:
-                print("ankle-rt identify: give --config to run the experiments, or --from to use recorded data",
-                      file=sys.stderr)
-                return 2
             acfg, note = actuator_config(cfg)
             sim = acfg["sim"]
             noise = (f"; quantisation {'on' if sim['quantization'] else 'off'}, strain-gauge noise "
                      f"{'on' if sim['sensor_noise'] else 'off'}") if acfg["backend"] == "sim" else ""
             print(f"running {', '.join(names)} on backend {acfg['backend']!r}, motor {args.motor}, "
                   f"{args.repeats} repeats per direction ({note}{noise}) ...", flush=True)
-            recordings = run_experiments(acfg, names, args.motor, args.repeats)
+            with Progress("identify", 1.0) as progress:
+                recordings = run_experiments(acfg, names, args.motor, args.repeats, progress=progress.callback)
             header = (f"Actuator identification on backend {acfg['backend']!r}, motor {args.motor}, {note}{noise} "
                       f"({stamp})")
         kt = cfg["actuator"]["torque_constant"] if cfg else None

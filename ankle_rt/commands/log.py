@@ -15,7 +15,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     info.add_argument("path")
     info.add_argument("--json", action="store_true", help="print the summary as JSON")
     info.set_defaults(handler=info_cmd)
-    export = sub.add_parser("export", help="write the measured-data interchange CSV (DESIGN.md), one row per cycle")
+    export = sub.add_parser("export", help="write the measured-data interchange CSV (docs/design.md), one row per cycle")
     export.add_argument("path")
     export.add_argument("--csv", required=True, metavar="OUT", help="CSV file to write")
     export.set_defaults(handler=export_cmd)

@@ -4,6 +4,9 @@ Real time by default (the monotonic clock, real-time settings from ``loop.realti
 socket and systemd notification); ``--fast`` runs the same loop in lockstep on a simulated clock.
 SIGINT/SIGTERM (or the ``stop`` command) put the device in the safe state first, then the log is
 flushed and a summary printed. With the default config/sim.yaml it reproduces the paper's section 7.
+
+Exit code: 0 the run ended normally; 1 it ended in FAULT (the fault is named on stderr) or could not
+start (backend, log, socket); 2 bad configuration or arguments.
 """
 
 from __future__ import annotations
@@ -34,10 +37,10 @@ def default_log_path(directory: str) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
-    import json
     import signal
 
     from ankle_rt.backend import BackendError
+    from ankle_rt.commands import jsonout
     from ankle_rt.clock import MonotonicClock, SimClock
     from ankle_rt.config import load_config
     from ankle_rt.daemon import Daemon
@@ -90,7 +93,8 @@ def run(args: argparse.Namespace) -> int:
 
     old = {s: signal.signal(s, stop) for s in (signal.SIGINT, signal.SIGTERM)}
     mode = "lockstep (--fast)" if args.fast else "real time"
-    print(f"ankle-rt run: {config_path}, backend {cfg['backend']}, {cfg['controller']['rate_hz']} Hz, {mode}, "
+    print(f"ankle-rt run: {config_path}, backend {cfg['backend']}, controller {cfg['controller']['type']}, "
+          f"{cfg['controller']['rate_hz']} Hz, {mode}, "
           f"{'until stopped' if not duration else f'{duration:g} s'}; log: {log_path or 'off'}", flush=True)
     for note in notes:
         print(f"  {note}", flush=True)
@@ -106,7 +110,7 @@ def run(args: argparse.Namespace) -> int:
             signal.signal(s, h)
     if log_path is None:
         print(f"stopped after {daemon.loop.stats.cycles} cycles (no log written)")
-        return 0
+        return _exit_code(daemon)
     # Only the most recent records: a run of days must not load gigabytes after the safe state
     # (systemd's stop timeout, mlockall). The whole run's loop timing is in the live histograms.
     run_log = read_log(log_path, last=SUMMARY_MAX_RECORDS)
@@ -122,7 +126,7 @@ def run(args: argparse.Namespace) -> int:
     if not args.no_plot and len(records):
         plot_note = plot_run(records, daemon.kt, str(log_path.with_suffix(".png")))
     if args.json:
-        print(json.dumps(summary, indent=2, default=float))
+        print(jsonout.dumps(summary, indent=2))
     else:
         print(format_summary(summary))
         if not args.fast:
@@ -133,4 +137,17 @@ def run(args: argparse.Namespace) -> int:
         print(f"log: {log_path}  (ankle-rt log info / ankle-rt log export {log_path} --csv OUT.csv)")
         if plot_note:
             print(plot_note)
-    return 0
+    return _exit_code(daemon)
+
+
+def _exit_code(daemon) -> int:
+    """1 (and the fault on stderr) when the run ended in FAULT, else 0."""
+    from ankle_rt.safety import Fault, State
+
+    safety = daemon.safety
+    if safety.state != State.FAULT:
+        return 0
+    fault = Fault(safety.fault)
+    print(f"ankle-rt run: ended in FAULT at t = {safety.fault_time:.3f} s: {fault.name} ({fault.description})",
+          file=sys.stderr)
+    return 1

@@ -17,7 +17,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "channel. With --from the closed-loop replay uses the controller the recording was made with: "
                     "a run log's header records it; for a CSV it is --config's controller section. "
                     "Exit 0: agrees; 1: discrepancy; 2: error.")
-    p.add_argument("--config", required=True, help="config file: the backend to run on, and the model")
+    p.add_argument("--config", help="config file: the backend to run on, and the model (default: the shipped "
+                   "config/sim.yaml)")
     p.add_argument("--model", help="model config for the simulation side (default: --config)")
     p.add_argument("--from", dest="source", metavar="FILE",
                    help="validate recorded data (interchange CSV or daemon run log) instead of running checks")
@@ -37,11 +38,16 @@ def run(args: argparse.Namespace) -> int:
     from ankle_rt.identification.runner import actuator_config
     from ankle_rt.identification.signals import IdentificationError
     from ankle_rt.identification.validation import (DEFAULT_TOLERANCE, SINE_FREQUENCIES_HZ, model_config,
-                                                    recorded_controller, run_checks, validate_recording,
+                                                    recorded_controller, recorded_disturbances, run_checks,
+                                                    validate_recording,
                                                     write_overlays)
     from ankle_rt.identification.data import load_recording
     from ankle_rt.interchange import InterchangeError, write_csv
 
+    from ankle_rt.paths import default_config_path
+    from ankle_rt.progress import Progress
+
+    args.config = args.config or str(default_config_path())
     cfg = load_config(args.config)
     model = load_config(args.model) if args.model else cfg
     tolerance = args.tolerance if args.tolerance is not None else DEFAULT_TOLERANCE
@@ -59,11 +65,18 @@ def run(args: argparse.Namespace) -> int:
             comparisons = [validate_recording(rec, model, args.drive, f"{args.source}", controller)]
             if comparisons[0].drive == "reference":
                 notes.append(f"  controller taken from {origin}")
+                disturbances = recorded_disturbances(rec)
+                notes.append("  ankle disturbances replayed from the run log header: " + "; ".join(
+                    f"{d['torque_dp']:g} / {d['torque_ie']:g} N m DP / IE from {d['start']:g} to {d['stop']:g} s"
+                    for d in disturbances) if disturbances else
+                    "  no ankle disturbance recorded: an external torque during the recording counts as model error")
         else:
             checks = ("sine", "step") if args.check == "all" else (args.check,)
             print(f"running {' and '.join(checks)} check(s) on backend {cfg['backend']!r}; model: "
                   f"{args.model or args.config} on the simulator (noise-free) ...", flush=True)
-            comparisons = run_checks(cfg, model, checks, tuple(args.frequencies or SINE_FREQUENCIES_HZ))
+            with Progress("validate", 1.0) as progress:
+                comparisons = run_checks(cfg, model, checks, tuple(args.frequencies or SINE_FREQUENCIES_HZ),
+                                         progress=progress.callback)
     except (InterchangeError, IdentificationError, ConfigError) as exc:
         print(f"ankle-rt validate: {exc}", file=sys.stderr)
         return 2

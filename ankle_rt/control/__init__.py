@@ -6,9 +6,12 @@ gearbox output) into ``out_torque[0:2]``. The loop converts them to current set 
 torque constant and lets the safety layer clamp them. Identification experiments plug their own
 excitation in through the same protocol.
 
-The controllers the config selects (``controller.type``) are built by :func:`build_controller`:
-motor-side PD (:mod:`.pd`) or ankle impedance (:mod:`.impedance`), each with optional friction
-feed-forward (:mod:`.friction`), bumpless gain changes and a soft start (:mod:`.gains`).
+The controller the config selects (``controller.type``) is built by :func:`build_controller` from
+its name (:mod:`.plugins`): the built-ins, motor-side PD (:mod:`.pd`) or ankle impedance
+(:mod:`.impedance`), each with optional friction feed-forward (:mod:`.friction`), bumpless gain
+changes and a soft start (:mod:`.gains`); or an installed plugin, a :class:`.base.Controller`
+subclass registered under the entry-point group ``ankle_rt.controllers``. The safety layer sits
+after every one of them.
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ from ankle_rt.estimation import Estimate
 
 if TYPE_CHECKING:
     from ankle_rt.config import Config
+    from ankle_rt.control.base import ControllerContext
     from ankle_rt.kinematics import Kinematics
 
 
@@ -35,17 +39,53 @@ class CycleController(Protocol):
 
 def build_controller(cfg: "Config", kin: "Kinematics", ref: np.ndarray) -> CycleController:
     """The controller ``controller.type`` names, tracking the ankle reference ``ref`` (rad [DP, IE],
-    a preallocated array the loop refreshes every cycle before calling ``update``)."""
-    from ankle_rt.control.friction import FrictionFeedForward
-    from ankle_rt.control.impedance import ImpedanceController
+    a preallocated array the loop refreshes every cycle before calling ``update``). A bad plugin or
+    bad ``controller.params`` raise ConfigError naming the key."""
+    from ankle_rt.config import ConfigError
+    from ankle_rt.control.base import ControllerContext
+    from ankle_rt.control.plugins import ControllerNotFound, load_controller_factory
+
+    name = cfg["controller"]["type"]
+    source = getattr(cfg, "source", "")
+    try:
+        factory = load_controller_factory(name)
+    except ControllerNotFound as exc:
+        raise ConfigError(str(exc), source, "controller.type") from None
+    try:
+        controller = factory(ControllerContext.from_config(cfg, kin, ref))
+    except (ValueError, TypeError, KeyError) as exc:
+        if isinstance(exc, ConfigError):
+            raise
+        raise ConfigError(f"controller {name!r}: {exc}", source, "controller.params") from None
+    if not isinstance(controller, CycleController):
+        raise ConfigError(f"controller {name!r} built a {type(controller).__name__}, which has no "
+                          "reset(est) and update(est, out_torque)", source, "controller.type")
+    return controller
+
+
+def _no_params(ctx: "ControllerContext", name: str, where: str) -> None:
+    """Built-ins take their settings from their own sections: plugin parameters would be ignored."""
+    if ctx.params:
+        raise ValueError(f"the built-in controller {name!r} takes no params (its gains are in {where}); "
+                         f"got {', '.join(sorted(ctx.params))}")
+
+
+def pd_controller(ctx: "ControllerContext") -> CycleController:
+    """The built-in ``pd``: motor-side PD on the ``controller.pd_gains`` gain set."""
     from ankle_rt.control.pd import MotorPD
 
-    c = cfg["controller"]
-    dt = 1.0 / c["rate_hz"]
-    ff = FrictionFeedForward.from_config(cfg)
-    if c["type"] == "impedance":
-        return ImpedanceController(kin, ref, c["impedance"], dt=dt, ramp_s=c["gain_ramp_s"],
-                                   soft_start_s=c["soft_start_s"], friction=ff)
+    _no_params(ctx, "pd", "controller.step_gains / validation_gains")
+    c = ctx.cfg["controller"]
     gains = c[c["pd_gains"] + "_gains"]
-    return MotorPD(kin, ref, kp=gains["kp"], kd=gains["kd"], dt=dt, ramp_s=c["gain_ramp_s"],
-                   soft_start_s=c["soft_start_s"], friction=ff)
+    return MotorPD(ctx.kin, ctx.ref, kp=gains["kp"], kd=gains["kd"], dt=ctx.dt, ramp_s=c["gain_ramp_s"],
+                   soft_start_s=c["soft_start_s"], friction=ctx.friction)
+
+
+def impedance_controller(ctx: "ControllerContext") -> CycleController:
+    """The built-in ``impedance``: ankle stiffness and damping, ``controller.impedance``."""
+    from ankle_rt.control.impedance import ImpedanceController
+
+    _no_params(ctx, "impedance", "controller.impedance")
+    c = ctx.cfg["controller"]
+    return ImpedanceController(ctx.kin, ctx.ref, c["impedance"], dt=ctx.dt, ramp_s=c["gain_ramp_s"],
+                               soft_start_s=c["soft_start_s"], friction=ctx.friction)

@@ -1,5 +1,5 @@
 """Model-discrepancy diagnosis: from measured data, find what the simulation gets wrong, name the
-cause (DESIGN.md vocabulary), fit the effect that explains it and measure the gain on held-out data.
+cause (docs/design.md vocabulary), fit the effect that explains it and measure the gain on held-out data.
 
 Offline tool: needs the analysis extra (scipy; matplotlib for reports). See docs/diagnosis.md.
 """

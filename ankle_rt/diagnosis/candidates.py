@@ -3,7 +3,7 @@
 A candidate adds columns to the baseline regression of its channel (coefficients shared by the
 motors or ankle axes, as the simulator's effect is) and may have one nonlinear parameter searched on a
 grid (Stribeck velocity, delay, slack width, cogging period). ``parameters`` turns the fitted
-coefficients into the simulator effect's parameters (DESIGN.md vocabulary = the effect's ``cause``).
+coefficients into the simulator effect's parameters (docs/design.md vocabulary = the effect's ``cause``).
 """
 
 from __future__ import annotations

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Callable
 
 from ankle_rt.config import Config
 from ankle_rt.identification.inertia import InertiaResult, TorqueStepExperiment, estimate_inertia
@@ -41,12 +42,21 @@ def make_experiment(name: str, motor: int, repeats: int):
 
 
 def run_experiments(cfg: Config, names: tuple[str, ...], motor: int = 1, repeats: int = 3,
-                    run: Runner = run_lockstep_recording) -> dict[str, Recording]:
-    """Run each experiment on ``cfg``'s backend (``cfg`` must already have the motors off the cables)."""
+                    run: Runner = run_lockstep_recording,
+                    progress: Callable[[float, float, str], None] | None = None) -> dict[str, Recording]:
+    """Run each experiment on ``cfg``'s backend (``cfg`` must already have the motors off the cables).
+    ``progress(done, total, what)`` is called before and after each, in experiment seconds."""
+    experiments = [make_experiment(name, motor, repeats) for name in names]
+    total = sum(e.duration_s for e in experiments)
+    done = 0.0
     recordings = {}
-    for name in names:
-        experiment = make_experiment(name, motor, repeats)
+    for name, experiment in zip(names, experiments):
+        if progress is not None:
+            progress(done, total, name)
         recordings[name] = run(cfg, experiment, experiment.duration_s)
+        done += experiment.duration_s
+    if progress is not None:
+        progress(total, total, "done")
     return recordings
 
 

@@ -14,7 +14,7 @@ class IdentificationError(ValueError):
 
 def motor_channel(rec: Recording, motor: int, kt: float | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(t s, motor angle rad, motor torque N m) of motor 1 or 2; the torque is the set value held
-    from each row's time to the next (DESIGN.md timing)."""
+    from each row's time to the next (docs/design.md timing)."""
     name = f"motor_pos_{motor}"
     if name not in rec:
         raise InterchangeError(f"motor {motor} requested but the file has no such column", rec.source, name, 0)

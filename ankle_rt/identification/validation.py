@@ -26,6 +26,7 @@ import math
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -148,6 +149,12 @@ def recorded_controller(rec: Recording) -> dict | None:
     return validate(given(section), CONTROLLER, lambda _path: f"{rec.source} (log header)", ("controller",))
 
 
+def recorded_disturbances(rec: Recording) -> list[dict] | None:
+    """The ankle disturbances (``sim.disturbances`` items) a run log's header records for a simulated
+    plant, or None (hardware, an interchange CSV, an older log)."""
+    return rec.extra.get("log_meta", {}).get("sim_disturbances")
+
+
 def describe_controller(section: dict) -> str:
     """One line naming a controller section's type and gains, for reports."""
     if section["type"] == "impedance":
@@ -163,7 +170,8 @@ def describe_controller(section: dict) -> str:
 def simulate_references(rec: Recording, model_cfg: Config, controller: dict | None = None) -> Recording:
     """Closed loop: the daemon on the model config replays ``rec``'s references through ``controller``
     (a controller config section: the one the recording was made with; default the paper's validation
-    PD). The result's ``extra["controller_config"]`` is the controller section used."""
+    PD) and the ankle disturbances the recording's log header says the plant saw (a known input, not
+    model error). The result's ``extra["controller_config"]`` is the controller section used."""
     _check_rate(rec, model_cfg)
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "references.csv"
@@ -171,6 +179,9 @@ def simulate_references(rec: Recording, model_cfg: Config, controller: dict | No
         overrides = pd_validation_overrides(model_cfg)
         if controller is not None:
             overrides["controller"] = controller
+        disturbances = recorded_disturbances(rec)
+        if disturbances:
+            overrides["sim"]["disturbances"] = disturbances
         cfg = with_overrides(model_config(model_cfg), reference={"profile": "csv", "csv": {"path": str(path)}},
                              **overrides)
         from ankle_rt.daemon import run_lockstep
@@ -250,19 +261,26 @@ def run_step_check(cfg: Config, repeats: int = 1) -> Recording:
 
 
 def run_checks(cfg: Config, model_cfg: Config, checks: tuple[str, ...],
-               frequencies: tuple[float, ...] = SINE_FREQUENCIES_HZ) -> list[Comparison]:
-    """Run ``checks`` ("sine", "step") on ``cfg``'s backend and compare each with ``model_cfg``'s simulation."""
-    out = []
+               frequencies: tuple[float, ...] = SINE_FREQUENCIES_HZ,
+               progress: Callable[[float, float, str], None] | None = None) -> list[Comparison]:
+    """Run ``checks`` ("sine", "step") on ``cfg``'s backend and compare each with ``model_cfg``'s simulation.
+    ``progress(done, total, what)`` is called before each check and at the end, counting checks."""
+    out: list[Comparison] = []
+    total = ("step" in checks) + ("sine" in checks) * len(frequencies)
+    report = progress or (lambda done, total, what: None)
     if "step" in checks:
+        report(0, total, "torque steps")
         rec = run_step_check(cfg)
         out.append(validate_recording(rec, actuator_config(model_config(model_cfg))[0], "input",
                                       f"Fig. 6 torque steps of {STEP_TORQUE:g} N m, motors off the cables"))
     if "sine" in checks:
         for f in frequencies:
+            report(len(out), total, f"sine {f:g} Hz")
             rec = run_sine_check(cfg, f)
             out.append(validate_recording(rec, model_cfg, "reference",
                                           f"Fig. 7 IE sine {math.degrees(SINE_AMPLITUDE_IE):g} deg at {f:g} Hz, PD kp/kd "
                                           f"{cfg['controller']['validation_gains']['kp']:g}/{cfg['controller']['validation_gains']['kd']:g}"))
+    report(total, total, "done")
     return out
 
 

@@ -109,11 +109,15 @@ def format_summary(s: dict[str, Any]) -> str:
     if "tracking_error" in s:
         lines.append(f"tracking error |ankle - reference|, deg (ankle from {s['ankle_source']}):")
         lines.append("        rms      max   settled mean   settled max   final")
+        never_settled = False
         for axis, e in s["tracking_error"].items():
-            lines.append(f"  {axis}  {e['rms_deg']:6.3f}  {e['max_abs_deg']:7.3f}  {e['settled_mean_abs_deg']:13.4f}  "
-                         f"{e['settled_max_abs_deg']:12.4f}  {e['final_abs_deg']:6.4f}")
-        lines.append(f"  (settled: the reference unchanged for >= {SETTLE_S} s, disturbances included; "
-                     f"final: mean over the last {STEADY_WINDOW_S} s)")
+            mean, peak = e["settled_mean_abs_deg"], e["settled_max_abs_deg"]
+            never_settled |= math.isnan(mean)
+            lines.append(f"  {axis}  {e['rms_deg']:6.3f}  {e['max_abs_deg']:7.3f}  {_or_dash(mean, 13, '.4f')}  "
+                         f"{_or_dash(peak, 12, '.4f')}  {e['final_abs_deg']:6.4f}")
+        lines.append(f"  (settled: the reference unchanged for >= {SETTLE_S} s, disturbances included"
+                     + (" - never, in this run" if never_settled else "")
+                     + f"; final: mean over the last {STEADY_WINDOW_S} s)")
     pk, rms = s["peak_current_a"], s["rms_current_a"]
     lines.append(f"current: peak {pk[0]:.2f} / {pk[1]:.2f} A, rms while active {rms[0]:.2f} / {rms[1]:.2f} A")
     lp = s["loop"]
@@ -128,6 +132,11 @@ def format_summary(s: dict[str, Any]) -> str:
                  f"{la['p99.9']:.1f} / {la['max']:.1f} us; overruns {lp['overruns']}, "
                  f"late cycles (> 2 periods) {lp['late_cycles']}")
     return "\n".join(lines)
+
+
+def _or_dash(value: float, width: int, spec: str) -> str:
+    """``value`` formatted, or a right-aligned '-' where there is none (NaN)."""
+    return f"{'-':>{width}}" if math.isnan(value) else f"{value:{width}{spec}}"
 
 
 def plot_run(records: np.ndarray, torque_constant: float, out_png: str) -> str:

@@ -31,6 +31,7 @@ import can
 import canopen
 
 from ankle_rt.config import Config
+from hardware.can_hints import describe_open_error
 from hardware.canopen_pdo import (COUNTER_1, COUNTER_2, DIGITAL_IN, DIGITAL_OUT, ENABLE_BITS, HEARTBEAT_BASE,
                                   READY_BITS, SET_VALUE_1, SET_VALUE_2, STRAIN_1, STRAIN_2, SYNC_COB_ID,
                                   ANALOG_CODE_SHIFT, PdoLayout, analog_codec, compile_pdo, counter_bits)
@@ -388,7 +389,8 @@ def run_standalone(cfg: Config, args: argparse.Namespace) -> int:
     try:
         bus = can.Bus(interface=interface, channel=channel, bitrate=co["bitrate"])
     except (can.CanError, OSError, ValueError, ImportError) as exc:
-        print(f"ankle-rt emulate: cannot open {interface}:{channel}: {exc}", file=sys.stderr)
+        print(f"ankle-rt emulate: cannot open {interface}:{channel}: {describe_open_error(exc, interface, channel)}",
+              file=sys.stderr)
         return 1
     emulator = CanopenEmulator(cfg, bus, str(eds_path(cfg)), realtime=True)
     emulator.schedule = schedule

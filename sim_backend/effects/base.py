@@ -48,7 +48,7 @@ def register_effect(name: str):
 class Effect:
     name: ClassVar[str] = ""
     PARAMS: ClassVar[Section] = Section({})
-    #: the vocabulary word of DESIGN.md this effect stands for (used by the diagnosis)
+    #: the vocabulary word of docs/design.md this effect stands for (used by the diagnosis)
     cause: ClassVar[str] = "unknown"
     #: integration substeps per control tick this effect needs to stay accurate; the model raises
     #: its substeps to the largest minimum of its effects (cable-side laws act on the stiff cable modes)

@@ -1,0 +1,88 @@
+"""The base class of controllers, built-in and plugged in (see :mod:`ankle_rt.control.plugins`).
+
+A controller is one step of the fixed-rate cycle::
+
+    backend.read -> estimate -> reference -> controller.update -> safety -> backend.write
+
+**Inputs**, every cycle: the :class:`~ankle_rt.estimation.Estimate` ``est`` (SI, motor side at the
+gearbox output: ``t`` s; ``motor_pos`` rad, ``motor_vel`` rad/s (2,); ``ankle_pos`` rad,
+``ankle_vel`` rad/s [DP, IE]; ``sg_torque`` N m [DP, IE], tared; ``joint_pos`` rad [DP, IE] or NaN
+without joint encoders) and the ankle reference ``context.ref`` (rad [DP, IE]; the loop refreshes
+this array in place before each ``update``: keep the reference to the array, not its values).
+
+**Output**: the two motor torques, N m at the gearbox output, written into ``out_torque[0:2]``.
+
+**Limits**: the safety layer always sits after the controller, whatever it is. Torques are divided
+by ``context.torque_constant``; a current beyond ``amplifier.current_limit_peak`` is clamped to it
+(``context.torque_limit`` N m per motor), the I^2 t budget faults OVERCURRENT, a NaN or inf faults
+OUTPUT_INVALID, and the ankle range (``context.ankle_limit`` rad), sensor checks and deadlines fault
+as for any controller. ``update`` is called only while ACTIVE; in every other state the set values
+are zero. An exception raised by ``update`` ends the run, and the daemon goes safe (amplifiers off).
+
+**Real time**: ``update`` runs at ``controller.rate_hz`` (1 kHz) inside the loop: allocate nothing
+(prefer plain floats and preallocated arrays), never block, no I/O.
+"""
+
+from __future__ import annotations
+
+import abc
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from ankle_rt.control.friction import FrictionFeedForward
+from ankle_rt.estimation import Estimate
+from ankle_rt.kinematics import Kinematics
+
+if TYPE_CHECKING:
+    from ankle_rt.config import Config
+
+
+@dataclass(frozen=True)
+class ControllerContext:
+    """What a controller is built from, once, before the run (not per cycle).
+
+    ``params`` is the config's free-form ``controller.params`` mapping (the plugin validates it and
+    raises ValueError naming the key on bad input). The limits are those the safety layer enforces.
+    """
+
+    cfg: "Config"               # the whole validated configuration
+    params: dict[str, Any]      # controller.params
+    kin: Kinematics             # R (theta_m = R theta), R_inv, R_inv_T (tau_m = R^-T tau_ankle), K (N m/rad)
+    ref: np.ndarray             # rad (2,) [DP, IE], refreshed in place every cycle
+    dt: float                   # s, the control period
+    torque_constant: float      # N m/A at the gearbox output
+    torque_limit: float         # N m per motor: torque_constant * current_limit_peak (clamped beyond)
+    ankle_limit: float          # rad, |DP| and |IE| beyond this fault ANKLE_RANGE
+    friction: FrictionFeedForward = field(repr=False)   # the config's identified friction feed-forward
+
+    @classmethod
+    def from_config(cls, cfg: "Config", kin: Kinematics, ref: np.ndarray) -> "ControllerContext":
+        import math
+
+        c, kt = cfg["controller"], cfg["actuator"]["torque_constant"]
+        return cls(cfg=cfg, params=dict(c["params"]), kin=kin, ref=ref, dt=1.0 / c["rate_hz"],
+                   torque_constant=kt, torque_limit=kt * cfg["amplifier"]["current_limit_peak"],
+                   ankle_limit=math.radians(cfg["limits"]["ankle_range_deg"]),
+                   friction=FrictionFeedForward.from_config(cfg))
+
+
+class Controller(abc.ABC):
+    """Subclass this for a controller plugin; register the class under the entry-point group
+    ``ankle_rt.controllers`` (see the module docstring for the cycle's inputs, output and limits).
+
+    The daemon builds it with ``cls(context)``. Optional: ``set_gains(**gains)`` (the ``ctl gains``
+    command; raise ValueError for an unknown or bad gain) and a ``gains`` object with ``as_dict()``
+    (shown by ``ctl status``).
+    """
+
+    def __init__(self, context: ControllerContext):
+        self.context = context
+
+    def reset(self, est: Estimate) -> None:
+        """Called on each activation, with the current estimate (restart integrators, soft start)."""
+
+    @abc.abstractmethod
+    def update(self, est: Estimate, out_torque: np.ndarray) -> None:
+        """Write the motor torques (N m, gearbox output) into ``out_torque[0:2]``. No allocation."""

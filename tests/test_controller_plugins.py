@@ -1,0 +1,140 @@
+"""Controller plugins: found through the entry-point group ``ankle_rt.controllers``, built from the
+config, run by the daemon in lockstep, and always followed by the safety layer.
+
+Entry points are made discoverable the way an installed package makes them: a ``*.dist-info``
+directory with ``entry_points.txt`` on ``sys.path``.
+"""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ankle_rt.config import ConfigError, load_config
+from ankle_rt.control.base import Controller
+from ankle_rt.control.plugins import BUILTIN_CONTROLLERS, ENTRY_POINT_GROUP, available_controllers
+from ankle_rt.daemon import run_lockstep
+from ankle_rt.safety import Fault, State
+
+ROOT = Path(__file__).resolve().parent.parent
+EXAMPLE = ROOT / "examples" / "ankle-rt-example-controller"
+
+
+class HugeCurrent(Controller):
+    """A broken plugin: asks for 1e9 A worth of torque."""
+
+    def update(self, est, out_torque):
+        out_torque[0] = 1e9 * self.context.torque_constant
+        out_torque[1] = -1e9 * self.context.torque_constant
+
+
+class NotANumber(Controller):
+    """A broken plugin: NaN after 0.2 s of simulated time."""
+
+    def update(self, est, out_torque):
+        out_torque[0] = math.nan if est.t > 0.2 else 0.0
+        out_torque[1] = 0.0
+
+
+def install_entry_points(where: Path, entries: dict[str, str]) -> str:
+    """Write a dist-info declaring ``entries`` in the controllers group under ``where``; return the
+    directory to put on sys.path / PYTHONPATH."""
+    dist = where / "ankle_rt_test_plugins-0.0.dist-info"
+    dist.mkdir(parents=True)
+    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: ankle-rt-test-plugins\nVersion: 0.0\n")
+    (dist / "entry_points.txt").write_text(f"[{ENTRY_POINT_GROUP}]\n"
+                                           + "".join(f"{name} = {value}\n" for name, value in entries.items()))
+    return str(where)
+
+
+@pytest.fixture
+def plugins(tmp_path, monkeypatch):
+    """The example plugin and the broken test plugins, discoverable as entry points."""
+    monkeypatch.syspath_prepend(str(EXAMPLE / "src"))
+    monkeypatch.syspath_prepend(install_entry_points(tmp_path / "site", {
+        "load_stiffening": "ankle_rt_example_controller:LoadStiffening",
+        "huge_current": "tests.test_controller_plugins:HugeCurrent",
+        "not_a_number": "tests.test_controller_plugins:NotANumber",
+        "missing_module": "no_such_module_xyz:Controller",
+    }))
+
+
+def plugin_config(tmp_path: Path, body: str) -> Path:
+    path = tmp_path / "plugin.yaml"
+    path.write_text(f"include: [{ROOT / 'config' / 'sim.yaml'}]\n" + body)
+    return path
+
+
+def test_builtins_are_registered_by_name_and_plugins_are_found(plugins):
+    import ankle_rt.control.impedance  # noqa: F401  (a submodule must not shadow its factory's name)
+    import ankle_rt.control.pd  # noqa: F401
+    from ankle_rt.control.plugins import load_controller_factory
+
+    for name in BUILTIN_CONTROLLERS:
+        assert callable(load_controller_factory(name))
+    found = available_controllers()
+    assert {"pd", "impedance"} <= set(found) and found["pd"] == BUILTIN_CONTROLLERS["pd"]
+    assert found["load_stiffening"] == "ankle_rt_example_controller:LoadStiffening"
+
+
+def test_example_plugin_runs_the_section7_experiment_through_the_daemon(plugins, tmp_path):
+    cfg = load_config(EXAMPLE / "run.yaml")
+    assert cfg["controller"]["type"] == "load_stiffening"
+    rec = run_lockstep(cfg, 2.0)
+    assert rec.summary["fault"] == "NONE"
+    t, ref, ankle = rec["t"], rec["ref_dp"], rec["est_ankle_dp"]
+    settled = (t > 1.5) & (t < 2.0)                           # 10 deg DP step at 0.5 s, disturbance from 2 s
+    assert ref[settled][0] == pytest.approx(math.radians(10.0), rel=1e-4)
+    assert np.max(np.abs(ankle[settled] - ref[settled])) < math.radians(1.0)
+    assert np.all(rec["state"][t > 0.5] == State.ACTIVE)
+
+
+def test_plugin_parameters_are_checked_before_the_run(plugins, tmp_path):
+    cfg = load_config(plugin_config(tmp_path, "controller: {type: load_stiffening, params: {stiffness: [60, -1], "
+                                              "damping: [1, 1]}}\n"))
+    with pytest.raises(ConfigError, match=r"controller.params.stiffness: expected \[DP, IE\]"):
+        run_lockstep(cfg, 0.1)
+    with pytest.raises(ConfigError, match="controller.type: unknown controller 'phase'.*load_stiffening"):
+        load_config(plugin_config(tmp_path, "controller: {type: phase}\n"))
+    cfg = load_config(plugin_config(tmp_path, "controller: {type: pd, params: {kp: 5}}\n"))
+    with pytest.raises(ConfigError, match=r"controller.params: controller 'pd': the built-in controller 'pd' takes no"):
+        run_lockstep(cfg, 0.1)
+    cfg = load_config(plugin_config(tmp_path, "controller: {type: missing_module}\n"))
+    with pytest.raises(ConfigError, match="cannot load no_such_module_xyz"):
+        run_lockstep(cfg, 0.1)
+
+
+def test_safety_clamps_a_plugin_asking_for_1e9_amperes(plugins, tmp_path):
+    cfg = load_config(plugin_config(tmp_path, "controller: {type: huge_current}\n"))
+    peak = cfg["amplifier"]["current_limit_peak"]
+    rec = run_lockstep(cfg, 1.0)
+    sent = np.concatenate([rec["current_cmd_1"], rec["current_cmd_2"]])
+    assert np.max(np.abs(sent)) == pytest.approx(peak)          # clamped, never beyond the peak
+    assert rec["torque_cmd_1"].max() > 1e8                       # what the plugin asked for is logged
+    assert rec.summary["fault"] != "NONE"          # the first check it breaks (I2t, ankle range, motor speed) stops it
+    after = rec["state"] == State.FAULT
+    assert after.any() and np.all(rec["current_cmd_1"][after] == 0.0)
+
+
+def test_safety_faults_a_plugin_returning_nan(plugins, tmp_path):
+    cfg = load_config(plugin_config(tmp_path, "controller: {type: not_a_number}\n"))
+    rec = run_lockstep(cfg, 0.5)
+    assert rec.summary["fault"] == Fault.OUTPUT_INVALID.name
+    k = int(np.flatnonzero(rec["state"] == State.FAULT)[0])
+    assert rec["t"][k] > 0.2 and rec["current_cmd_1"][k] == 0.0 and rec["current_cmd_2"][k] == 0.0
+    assert np.all(np.isfinite(rec["current_cmd_1"])) and np.all(rec["current_cmd_1"][k:] == 0.0)
+
+
+def test_cli_runs_a_plugin_found_on_the_python_path(tmp_path):
+    site = install_entry_points(tmp_path / "site", {"load_stiffening": "ankle_rt_example_controller:LoadStiffening"})
+    env = {"PYTHONPATH": f"{site}:{EXAMPLE / 'src'}:{ROOT}", "PATH": "/usr/bin:/bin"}
+    out = subprocess.run([sys.executable, "-m", "ankle_rt.cli", "run", "--fast", "--duration", "1", "--no-plot",
+                          "--no-log", "--config", str(EXAMPLE / "run.yaml")],
+                         capture_output=True, text=True, env=env, timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert "controller load_stiffening" in out.stdout and "stopped after 1000 cycles" in out.stdout, out.stdout
