@@ -312,3 +312,161 @@ def analyze(p: PlantParams, *, freqs_hz: np.ndarray = FREQS_HZ, with_bodes: bool
                                         "joint torque", "N m / N m", freqs_hz),
         }
     return result
+
+
+# -- the impedance controller's closed loop (joint-torque feedback) -------------------------------
+# The sampled loop: the plant discretised exactly with a zero-order hold, the estimator (motor
+# velocity: backward difference + first-order low-pass; ankle angle from motors and strain gauges),
+# the impedance law, the joint-torque loop and ``delay_cycles`` cycles of transport delay. Coulomb
+# friction is not linear: the friction range enters as the viscous friction D (scaled) and as the
+# load-dependent (Bowden) friction while sliding, mu |tc| sign(v), which is linear in the cable torque
+# with slope +mu or -mu depending on the direction of sliding against the load.
+STIFFNESS_FACTORS = (0.7, 1.0, 1.3)         # cable stiffness +/- 30 % (pretension varies)
+VISCOUS_FACTORS = (0.5, 1.0, 2.0)           # identified viscous friction range
+FOOT_CONDITIONS = ("free", "grounded")      # swing (foot free) and stance (ankle angle held)
+GROUND_STIFFNESS = 1e5                      # N m/rad holding the ankle in the grounded condition
+MAX_GAIN_MARGIN = 100.0                     # search limit (40 dB)
+
+
+@dataclass(frozen=True)
+class ImpedanceLoop:
+    """What the closed-loop analysis needs of the impedance controller (ankle coordinates, [DP, IE])."""
+
+    stiffness: tuple[float, float]          # N m/rad, commanded
+    damping: tuple[float, float]            # N m s/rad, commanded
+    kp: tuple[float, float] = (0.0, 0.0)    # torque loop (all zero: open loop)
+    ki: tuple[float, float] = (0.0, 0.0)    # 1/s
+    torque_rate_gain: tuple[float, float] = (0.0, 0.0)   # s, on the filtered measured torque's rate
+    cutoff_hz: float = 30.0
+    velocity_cutoff_hz: float = 100.0       # estimation.velocity_cutoff_hz
+    dt: float = 1e-3
+    delay_cycles: int = 1
+
+
+def _plant(p: PlantParams, *, foot: str, load_slope: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(A, B_motor 8x2, C_y 4x8) of the continuous plant: outputs [theta_m (2), tau_j (2)].
+    ``load_slope``: +-mu, load-dependent friction linearised while sliding."""
+    lm = LinearModel.from_params(p)
+    Kq, Dq = lm.Kq.copy(), lm.Dq.copy()
+    beta = p.transmission.stiffness_proportional_damping
+    Kq[2:4] += load_slope * lm.cable_Kq[2:4]
+    Dq[2:4] += load_slope * beta * lm.cable_Kq[2:4]
+    if foot == "grounded":
+        Kq[0, 0] += GROUND_STIFFNESS
+        Kq[1, 1] += GROUND_STIFFNESS
+    Mi = np.linalg.inv(lm.Mq)
+    A = np.zeros((N_X, N_X))
+    A[0:4, 4:8] = np.eye(4)
+    A[4:8, 0:4] = -Mi @ Kq
+    A[4:8, 4:8] = -Mi @ Dq
+    Bm = np.zeros((N_X, 2))
+    Bm[4:8] = Mi[:, 2:4]
+    C = np.vstack([np.eye(N_X)[2:4], lm.joint_torque_rows(beta)])
+    return A, Bm, C
+
+
+def _controller(lm_kin, K_cable: np.ndarray, c: ImpedanceLoop) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(Ac, Bc, Cc, Dc): states w = [theta_m prev (2), v (2), tau filter (2), integrator (2)],
+    w_k = Ac w_{k-1} + Bc y_k, motor torques u_k = Cc w_{k-1} + Dc y_k (reference 0)."""
+    n = 8 + 4   # affine maps over [w_{k-1} (8); y_k (4)]
+    e = np.eye(n)
+    th_prev, v_prev, f_prev, i_prev = e[0:2], e[2:4], e[4:6], e[6:8]
+    th, tau = e[8:10], e[10:12]
+    a_v = 1.0 - math.exp(-2.0 * math.pi * c.velocity_cutoff_hz * c.dt)
+    a_f = 1.0 - math.exp(-2.0 * math.pi * c.cutoff_hz * c.dt)
+    v = (1.0 - a_v) * v_prev + (a_v / c.dt) * (th - th_prev)
+    f = (1.0 - a_f) * f_prev + a_f * tau
+    Ri = lm_kin.R_inv
+    ankle = Ri @ th - np.linalg.inv(K_cable) @ tau
+    rate = Ri @ v
+    Ks, Bs = np.diag(c.stiffness), np.diag(c.damping)
+    tau_des = -Ks @ ankle - Bs @ rate
+    err = tau_des - f
+    # an axis without integral gain has no integrator (held at zero, not a marginal mode at z = 1)
+    integ = np.diag([1.0 if k > 0.0 else 0.0 for k in c.ki]) @ i_prev + np.diag(c.ki) @ err * c.dt
+    u_ankle = tau_des + np.diag(c.kp) @ err + integ - np.diag(c.torque_rate_gain) @ (f - f_prev) / c.dt
+    u = lm_kin.R_inv_T @ u_ankle
+    W = np.vstack([th, v, f, integ])
+    return W[:, :8], W[:, 8:], u[:, :8], u[:, 8:]
+
+
+def closed_loop_matrix(p: PlantParams, c: ImpedanceLoop, *, foot: str = "free", load_slope: float = 0.0,
+                       gain: float = 1.0) -> np.ndarray:
+    """The sampled closed loop's transition matrix, with the controller output scaled by ``gain``
+    (the loop broken at both motor torque inputs at once)."""
+    from ankle_rt.discretize import zoh
+
+    A, Bm, Cy = _plant(p, foot=foot, load_slope=load_slope)
+    Ad, Bd = zoh(A, Bm, c.dt)
+    lm = LinearModel.from_params(p)
+    Ac, Bc, Cc, Dc = _controller(lm.kin, lm.kin.K, c)
+    nx, nw, d = N_X, Ac.shape[0], c.delay_cycles
+    n = nx + nw + 2 * d
+    T = np.zeros((n, n))
+    # z_k = [x_k, w_{k-1}, u_{k-1}, ..., u_{k-d}]; u_k = Cc w_{k-1} + Dc Cy x_k
+    u_x, u_w = gain * Dc @ Cy, gain * Cc
+    T[nx:nx + nw, :nx] = Bc @ Cy
+    T[nx:nx + nw, nx:nx + nw] = Ac
+    if d == 0:
+        T[:nx, :nx] = Ad + Bd @ u_x
+        T[:nx, nx:nx + nw] = Bd @ u_w
+    else:
+        T[:nx, :nx] = Ad
+        T[:nx, n - 2:n] = Bd                       # u_{k-d} acts now
+        T[nx + nw:nx + nw + 2, :nx] = u_x          # the newest command enters the delay line
+        T[nx + nw:nx + nw + 2, nx:nx + nw] = u_w
+        for j in range(1, d):
+            T[nx + nw + 2 * j:nx + nw + 2 * j + 2, nx + nw + 2 * (j - 1):nx + nw + 2 * j] = np.eye(2)
+    return T
+
+
+def spectral_radius(T: np.ndarray) -> float:
+    return float(np.max(np.abs(np.linalg.eigvals(T))))
+
+
+def gain_margin_db(p: PlantParams, c: ImpedanceLoop, *, foot: str = "free", load_slope: float = 0.0) -> float:
+    """dB by which the whole controller output may grow before the sampled loop goes unstable
+    (-inf when it already is; 20 log10(MAX_GAIN_MARGIN) when it stays stable that far)."""
+    stable = lambda g: spectral_radius(closed_loop_matrix(p, c, foot=foot, load_slope=load_slope, gain=g)) < 1.0  # noqa: E731
+    if not stable(1.0):
+        return -math.inf
+    grid = np.logspace(0.0, math.log10(MAX_GAIN_MARGIN), 41)
+    lo = 1.0
+    for g in grid[1:]:
+        if not stable(g):
+            hi = g
+            break
+        lo = g
+    else:
+        return 20.0 * math.log10(MAX_GAIN_MARGIN)
+    for _ in range(20):
+        mid = math.sqrt(lo * hi)
+        lo, hi = (mid, hi) if stable(mid) else (lo, mid)
+    return 20.0 * math.log10(lo)
+
+
+@dataclass(frozen=True)
+class MarginCase:
+    stiffness_factor: float
+    viscous_factor: float
+    load_slope: float
+    foot: str
+    gain_margin_db: float
+    spectral_radius: float     # of the nominal-gain loop (< 1: stable)
+
+
+def torque_loop_margins(p: PlantParams, c: ImpedanceLoop, *, load_coefficient: float = 0.12,
+                        stiffness_factors=STIFFNESS_FACTORS, viscous_factors=VISCOUS_FACTORS,
+                        feet=FOOT_CONDITIONS) -> list[MarginCase]:
+    """Gain margins of the impedance loop over cable stiffness, viscous friction, load-dependent
+    friction (sliding with or against the load, slope +-``load_coefficient``) and foot condition."""
+    cases = []
+    for kf in stiffness_factors:
+        for vf in viscous_factors:
+            pp = with_transmission(p, cable_stiffness=p.transmission.cable_stiffness * kf)
+            pp = dataclasses.replace(pp, actuator=dataclasses.replace(pp.actuator, damping=pp.actuator.damping * vf))
+            for slope in sorted({-load_coefficient, 0.0, load_coefficient}):
+                for foot in feet:
+                    rho = spectral_radius(closed_loop_matrix(pp, c, foot=foot, load_slope=slope))
+                    cases.append(MarginCase(kf, vf, slope, foot, gain_margin_db(pp, c, foot=foot, load_slope=slope), rho))
+    return cases

@@ -2,9 +2,14 @@
 
 ``tau_ankle = Ks (theta_0 - theta) - Bs dtheta`` uses the *estimated* ankle angles
 ``theta = R^-1 theta_m - K^-1 tau_j`` (so the cables' series compliance is measured, not added to the
-commanded compliance) and the rigid-cable ankle rate ``R^-1 dtheta_m``. The motor torques that
-produce it through the cables are ``tau_m = R^-T tau_ankle``. The equilibrium ``theta_0`` is the
-loop's ankle reference. Optional friction feed-forward is added per motor.
+commanded compliance) and the rigid-cable ankle rate ``R^-1 dtheta_m``. The equilibrium ``theta_0``
+is the loop's ankle reference.
+
+With a :class:`~ankle_rt.control.torque_loop.JointTorqueLoop` (the default when strain gauges are
+configured) ``tau_ankle`` is the *desired joint torque*: the loop drives the strain-gauge torque to
+it, so friction and reflected inertia between motor and ankle leave the rendered impedance. Without
+one (open loop) ``tau_ankle`` is sent as is. Either way the motor torques are ``tau_m = R^-T u`` plus
+the per-motor friction feed-forward, which sees the cable torque each motor feels (``R^-T tau_sg``).
 """
 
 from __future__ import annotations
@@ -15,18 +20,27 @@ import numpy as np
 
 from ankle_rt.control.friction import FrictionFeedForward
 from ankle_rt.control.gains import RampedGainController
+from ankle_rt.control.torque_loop import JointTorqueLoop
 from ankle_rt.estimation import Estimate
 from ankle_rt.kinematics import Kinematics
 
 
 class ImpedanceController(RampedGainController):
     def __init__(self, kin: Kinematics, ref: np.ndarray, gains: Mapping[str, float], *, dt: float,
-                 ramp_s: float = 0.0, soft_start_s: float = 0.0, friction: FrictionFeedForward | None = None):
-        """``gains``: stiffness_dp/ie (N m/rad), damping_dp/ie (N m s/rad). ``ref``: rad [DP, IE]."""
+                 ramp_s: float = 0.0, soft_start_s: float = 0.0, friction: FrictionFeedForward | None = None,
+                 torque_loop: JointTorqueLoop | None = None):
+        """``gains``: stiffness_dp/ie (N m/rad), damping_dp/ie (N m s/rad). ``ref``: rad [DP, IE].
+        ``torque_loop``: closes the joint-torque loop on the strain gauges; None: open loop."""
         super().__init__({k: gains[k] for k in ("stiffness_dp", "stiffness_ie", "damping_dp", "damping_ie")},
                          dt=dt, ramp_s=ramp_s, soft_start_s=soft_start_s, friction=friction)
         self.RiT = kin.R_inv_T.ravel().tolist()
         self.ref = ref
+        self.torque_loop = torque_loop
+
+    def reset(self, est: Estimate) -> None:
+        super().reset(est)
+        if self.torque_loop is not None:
+            self.torque_loop.reset_state(est.sg_torque.item(0), est.sg_torque.item(1))
 
     def update(self, est: Estimate, out_torque: np.ndarray) -> None:
         g = self.gains
@@ -36,7 +50,15 @@ class ImpedanceController(RampedGainController):
         ref, pos, vel = self.ref, est.ankle_pos, est.ankle_vel
         t0 = k0 * (ref.item(0) - pos.item(0)) - b0 * vel.item(0)
         t1 = k1 * (ref.item(1) - pos.item(1)) - b1 * vel.item(1)
+        loop = self.torque_loop
+        if loop is not None:
+            loop.update(t0, t1, est, s >= 1.0)
+            t0, t1 = loop.out[0], loop.out[1]
         RiT = self.RiT
         ff = self.friction
-        out_torque[0] = s * (RiT[0] * t0 + RiT[1] * t1 + ff.torque(est.motor_vel.item(0)))
-        out_torque[1] = s * (RiT[2] * t0 + RiT[3] * t1 + ff.torque(est.motor_vel.item(1)))
+        sg = est.sg_torque
+        j0, j1 = sg.item(0), sg.item(1)
+        out_torque[0] = s * (RiT[0] * t0 + RiT[1] * t1
+                             + ff.torque(est.motor_vel.item(0), RiT[0] * j0 + RiT[1] * j1))
+        out_torque[1] = s * (RiT[2] * t0 + RiT[3] * t1
+                             + ff.torque(est.motor_vel.item(1), RiT[2] * j0 + RiT[3] * j1))

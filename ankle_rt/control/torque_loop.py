@@ -1,0 +1,98 @@
+"""Joint-torque feedback from the strain gauges: what makes the rendered impedance the commanded one.
+
+Open loop, everything between the motor and the ankle (reflected motor inertia 1.9 / 0.6 kg m^2,
+gearbox and Bowden-cable friction of several N m at the ankle, load-dependent cable friction) is felt
+by the wearer on top of the commanded impedance. The strain gauges measure the joint torque the cables
+deliver, so per ankle axis this loop drives the measured torque to the desired one:
+
+    u = tau_des + kp e + ki integral(e) - kd d/dt LP(tau_sg)      e = tau_des - LP(tau_sg)
+
+- ``tau_des`` (feed-forward) is the impedance law's joint torque; ``u`` is the ankle-side motor torque
+  (mapped to the motors with R^-T by the caller).
+- The integral removes the static error friction leaves (the rendered stiffness at standstill is then
+  the commanded one); it is clamped, and so is the whole correction, to ``max_correction_nm``: a
+  wrong or frozen torque reading can add at most that torque (sensor faults that the safety layer
+  sees -- rail, stale, jumps, NaN -- put the daemon into the safe state; see docs/daemon.md).
+- ``kd`` on the rate of the measured torque damps the motor-on-cable mode (5-10 Hz with the foot held,
+  as in stance), which the plain proportional loop makes unstable with a cycle of delay. It acts on
+  the cable's stretch rate, not the motor velocity, so it adds no damping to the free motion the
+  wearer feels. The integral is kept slow (``ki``): a fast one turns the reflected motor inertia into
+  negative damping (the loop would not be passive).
+- The measured torque is low-passed (first order at ``cutoff_hz``) so the loop rolls off well below
+  the 77-98 Hz cable modes, whose damping ratio (~0.02) it must not eat.
+
+Stability margins across cable stiffness +/- 30 % and the friction range come from the linear model:
+:func:`ankle_rt.analysis.torque_loop_margins`. Everything per cycle is plain floats (no allocation).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+from ankle_rt.estimation import Estimate
+
+
+@dataclass(frozen=True)
+class TorqueLoopGains:
+    """Per-axis gains [DP, IE] of the joint-torque loop (ankle coordinates)."""
+
+    kp: tuple[float, float]                  # N m per N m of torque error
+    ki: tuple[float, float]                  # 1/s, integral of the torque error
+    torque_rate: tuple[float, float]         # s, kd on the rate of the filtered measured torque
+    cutoff_hz: float                         # first-order low-pass of the measured joint torque
+    max_correction_nm: tuple[float, float]   # |kp e + ki int e| at most this (anti-windup, fault bound)
+
+    @classmethod
+    def from_config(cls, c: Mapping[str, Any]) -> "TorqueLoopGains":
+        """From ``controller.torque_loop``."""
+        pair = lambda key: (float(c[key + "_dp"]), float(c[key + "_ie"]))  # noqa: E731
+        return cls(kp=pair("kp"), ki=pair("ki"), torque_rate=pair("torque_rate"),
+                   cutoff_hz=float(c["cutoff_hz"]), max_correction_nm=pair("max_correction"))
+
+
+class JointTorqueLoop:
+    """The loop of the module docstring for both ankle axes; :meth:`update` writes ``out[0:2]``."""
+
+    def __init__(self, gains: TorqueLoopGains, dt: float):
+        self.gains = gains
+        self.dt = dt
+        self.kp0, self.kp1 = gains.kp
+        self.kidt0, self.kidt1 = gains.ki[0] * dt, gains.ki[1] * dt
+        self.kdr0, self.kdr1 = gains.torque_rate[0] / dt, gains.torque_rate[1] / dt
+        self.lim0, self.lim1 = gains.max_correction_nm
+        self.alpha = 1.0 - math.exp(-2.0 * math.pi * gains.cutoff_hz * dt)
+        self.out = [0.0, 0.0]   # N m [DP, IE], ankle-side motor torque
+        self.reset_state(0.0, 0.0)
+
+    def reset_state(self, tau_dp: float, tau_ie: float) -> None:
+        """Start from the measured torques (N m) with an empty integrator (on activation)."""
+        self.f0, self.f1 = tau_dp, tau_ie
+        self.i0 = self.i1 = 0.0
+
+    def update(self, tau_dp: float, tau_ie: float, est: Estimate, integrate: bool) -> None:
+        """Desired joint torques (N m) in, ankle-side motor torques out (``self.out``). ``integrate``
+        False holds the integrator (during the soft start)."""
+        a = self.alpha
+        sg = est.sg_torque
+        p0, p1 = self.f0, self.f1
+        f0 = p0 + a * (sg.item(0) - p0)
+        f1 = p1 + a * (sg.item(1) - p1)
+        self.f0, self.f1 = f0, f1
+        e0, e1 = tau_dp - f0, tau_ie - f1
+        lim0, lim1 = self.lim0, self.lim1
+        i0, i1 = self.i0, self.i1
+        if integrate:
+            i0 += self.kidt0 * e0
+            i1 += self.kidt1 * e1
+            i0 = lim0 if i0 > lim0 else (-lim0 if i0 < -lim0 else i0)
+            i1 = lim1 if i1 > lim1 else (-lim1 if i1 < -lim1 else i1)
+            self.i0, self.i1 = i0, i1
+        c0 = self.kp0 * e0 + i0
+        c1 = self.kp1 * e1 + i1
+        c0 = lim0 if c0 > lim0 else (-lim0 if c0 < -lim0 else c0)
+        c1 = lim1 if c1 > lim1 else (-lim1 if c1 < -lim1 else c1)
+        out = self.out
+        out[0] = tau_dp + c0 - self.kdr0 * (f0 - p0)
+        out[1] = tau_ie + c1 - self.kdr1 * (f1 - p1)
