@@ -342,6 +342,17 @@ class ImpedanceLoop:
     dt: float = 1e-3
     delay_cycles: int = 1
 
+    @classmethod
+    def from_config(cls, cfg: dict, *, closed: bool, delay_cycles: int = 1) -> "ImpedanceLoop":
+        """The config's impedance gains and (``closed``) torque-loop gains."""
+        c = cfg["controller"]
+        imp, tl = c["impedance"], c["torque_loop"]
+        pair = lambda sec, key: (float(sec[key + "_dp"]), float(sec[key + "_ie"])) if closed else (0.0, 0.0)  # noqa: E731
+        return cls(stiffness=(imp["stiffness_dp"], imp["stiffness_ie"]), damping=(imp["damping_dp"], imp["damping_ie"]),
+                   kp=pair(tl, "kp"), ki=pair(tl, "ki"), torque_rate_gain=pair(tl, "torque_rate"),
+                   cutoff_hz=tl["cutoff_hz"], velocity_cutoff_hz=cfg["estimation"]["velocity_cutoff_hz"],
+                   dt=1.0 / c["rate_hz"], delay_cycles=delay_cycles)
+
 
 def _plant(p: PlantParams, *, foot: str, load_slope: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(A, B_motor 8x2, C_y 4x8) of the continuous plant: outputs [theta_m (2), tau_j (2)].
@@ -447,12 +458,17 @@ def gain_margin_db(p: PlantParams, c: ImpedanceLoop, *, foot: str = "free", load
 
 @dataclass(frozen=True)
 class MarginCase:
+    """One plant variant of the margin sweep and the loop's gain margin on it."""
+
     stiffness_factor: float
     viscous_factor: float
     load_slope: float
     foot: str
     gain_margin_db: float
     spectral_radius: float     # of the nominal-gain loop (< 1: stable)
+
+    def to_json(self) -> dict:
+        return dataclasses.asdict(self)
 
 
 def torque_loop_margins(p: PlantParams, c: ImpedanceLoop, *, load_coefficient: float = 0.12,
