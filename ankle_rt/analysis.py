@@ -354,17 +354,23 @@ class ImpedanceLoop:
                    dt=1.0 / c["rate_hz"], delay_cycles=delay_cycles)
 
 
-def _plant(p: PlantParams, *, foot: str, load_slope: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _plant(p: PlantParams, *, foot: str, load_slope: float,
+           ground: tuple[tuple[float, float], float] = ((GROUND_STIFFNESS, GROUND_STIFFNESS), 0.0),
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(A, B_motor 8x2, C_y 4x8) of the continuous plant: outputs [theta_m (2), tau_j (2)].
-    ``load_slope``: +-mu, load-dependent friction linearised while sliding."""
+    ``load_slope``: +-mu, load-dependent friction linearised while sliding. ``ground``: ((K_dp, K_ie)
+    N m/rad, B N m s/rad) holding the foot when ``foot`` is "grounded"."""
     lm = LinearModel.from_params(p)
     Kq, Dq = lm.Kq.copy(), lm.Dq.copy()
     beta = p.transmission.stiffness_proportional_damping
     Kq[2:4] += load_slope * lm.cable_Kq[2:4]
     Dq[2:4] += load_slope * beta * lm.cable_Kq[2:4]
     if foot == "grounded":
-        Kq[0, 0] += GROUND_STIFFNESS
-        Kq[1, 1] += GROUND_STIFFNESS
+        (k0, k1), b = ground
+        Kq[0, 0] += k0
+        Kq[1, 1] += k1
+        Dq[0, 0] += b
+        Dq[1, 1] += b
     Mi = np.linalg.inv(lm.Mq)
     A = np.zeros((N_X, N_X))
     A[0:4, 4:8] = np.eye(4)
@@ -376,13 +382,13 @@ def _plant(p: PlantParams, *, foot: str, load_slope: float) -> tuple[np.ndarray,
     return A, Bm, C
 
 
-def _controller(lm_kin, K_cable: np.ndarray, c: ImpedanceLoop) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """(Ac, Bc, Cc, Dc): states w = [theta_m prev (2), v (2), tau filter (2), integrator (2)],
-    w_k = Ac w_{k-1} + Bc y_k, motor torques u_k = Cc w_{k-1} + Dc y_k (reference 0)."""
-    n = 8 + 4   # affine maps over [w_{k-1} (8); y_k (4)]
-    e = np.eye(n)
+def _controller(lm_kin, K_cable: np.ndarray, c: ImpedanceLoop) -> tuple[np.ndarray, np.ndarray]:
+    """(W, U) over [w_{k-1} (8); y_k (4); r (2)]: the controller states w = [theta_m prev (2), v (2),
+    tau filter (2), integrator (2)] are w_k = W @ [...], the motor torques u_k = U @ [...]; y =
+    [theta_m, tau_j] measured, r a desired joint torque added to the impedance law's (reference 0)."""
+    e = np.eye(14)
     th_prev, v_prev, f_prev, i_prev = e[0:2], e[2:4], e[4:6], e[6:8]
-    th, tau = e[8:10], e[10:12]
+    th, tau, r = e[8:10], e[10:12], e[12:14]
     a_v = 1.0 - math.exp(-2.0 * math.pi * c.velocity_cutoff_hz * c.dt)
     a_f = 1.0 - math.exp(-2.0 * math.pi * c.cutoff_hz * c.dt)
     v = (1.0 - a_v) * v_prev + (a_v / c.dt) * (th - th_prev)
@@ -390,45 +396,64 @@ def _controller(lm_kin, K_cable: np.ndarray, c: ImpedanceLoop) -> tuple[np.ndarr
     Ri = lm_kin.R_inv
     ankle = Ri @ th - np.linalg.inv(K_cable) @ tau
     rate = Ri @ v
-    Ks, Bs = np.diag(c.stiffness), np.diag(c.damping)
-    tau_des = -Ks @ ankle - Bs @ rate
+    tau_des = -np.diag(c.stiffness) @ ankle - np.diag(c.damping) @ rate + r
     err = tau_des - f
     # an axis without integral gain has no integrator (held at zero, not a marginal mode at z = 1)
     integ = np.diag([1.0 if k > 0.0 else 0.0 for k in c.ki]) @ i_prev + np.diag(c.ki) @ err * c.dt
     u_ankle = tau_des + np.diag(c.kp) @ err + integ - np.diag(c.torque_rate_gain) @ (f - f_prev) / c.dt
-    u = lm_kin.R_inv_T @ u_ankle
-    W = np.vstack([th, v, f, integ])
-    return W[:, :8], W[:, 8:], u[:, :8], u[:, 8:]
+    return np.vstack([th, v, f, integ]), lm_kin.R_inv_T @ u_ankle
+
+
+def closed_loop(p: PlantParams, c: ImpedanceLoop, *, foot: str = "free", load_slope: float = 0.0,
+                gain: float = 1.0, ground: tuple[tuple[float, float], float] | None = None,
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The sampled closed loop z_{k+1} = T z_k + G r with the controller output scaled by ``gain``
+    (the loop broken at both motor torque inputs at once); returns (T, G, C_tau), C_tau giving the
+    measured joint torque at z_k. z_k = [x_k, w_{k-1}, u_{k-1}, ..., u_{k-d}]."""
+    from ankle_rt.discretize import zoh
+
+    A, Bm, Cy = _plant(p, foot=foot, load_slope=load_slope, **({} if ground is None else {"ground": ground}))
+    Ad, Bd = zoh(A, Bm, c.dt)
+    lm = LinearModel.from_params(p)
+    W, U = _controller(lm.kin, lm.kin.K, c)
+    U = gain * U
+    nx, nw, d = N_X, 8, c.delay_cycles
+    n = nx + nw + 2 * d
+    # controller rows over z_k and r: [w_{k-1}, y_k = Cy x_k, r]
+    Wz, Wr = np.hstack([W[:, 8:12] @ Cy, W[:, 0:8]]), W[:, 12:14]
+    Uz, Ur = np.hstack([U[:, 8:12] @ Cy, U[:, 0:8]]), U[:, 12:14]
+    T, G = np.zeros((n, n)), np.zeros((n, 2))
+    T[nx:nx + nw, :nx + nw], G[nx:nx + nw] = Wz, Wr
+    if d == 0:
+        T[:nx, :nx + nw], G[:nx] = Bd @ Uz, Bd @ Ur
+        T[:nx, :nx] += Ad
+    else:
+        T[:nx, :nx] = Ad
+        T[:nx, n - 2:n] = Bd                       # u_{k-d} acts now
+        T[nx + nw:nx + nw + 2, :nx + nw], G[nx + nw:nx + nw + 2] = Uz, Ur   # the newest command
+        for j in range(1, d):
+            T[nx + nw + 2 * j:nx + nw + 2 * j + 2, nx + nw + 2 * (j - 1):nx + nw + 2 * j] = np.eye(2)
+    C_tau = np.zeros((2, n))
+    C_tau[:, :nx] = Cy[2:4]
+    return T, G, C_tau
 
 
 def closed_loop_matrix(p: PlantParams, c: ImpedanceLoop, *, foot: str = "free", load_slope: float = 0.0,
                        gain: float = 1.0) -> np.ndarray:
-    """The sampled closed loop's transition matrix, with the controller output scaled by ``gain``
-    (the loop broken at both motor torque inputs at once)."""
-    from ankle_rt.discretize import zoh
+    """The transition matrix T of :func:`closed_loop`."""
+    return closed_loop(p, c, foot=foot, load_slope=load_slope, gain=gain)[0]
 
-    A, Bm, Cy = _plant(p, foot=foot, load_slope=load_slope)
-    Ad, Bd = zoh(A, Bm, c.dt)
-    lm = LinearModel.from_params(p)
-    Ac, Bc, Cc, Dc = _controller(lm.kin, lm.kin.K, c)
-    nx, nw, d = N_X, Ac.shape[0], c.delay_cycles
-    n = nx + nw + 2 * d
-    T = np.zeros((n, n))
-    # z_k = [x_k, w_{k-1}, u_{k-1}, ..., u_{k-d}]; u_k = Cc w_{k-1} + Dc Cy x_k
-    u_x, u_w = gain * Dc @ Cy, gain * Cc
-    T[nx:nx + nw, :nx] = Bc @ Cy
-    T[nx:nx + nw, nx:nx + nw] = Ac
-    if d == 0:
-        T[:nx, :nx] = Ad + Bd @ u_x
-        T[:nx, nx:nx + nw] = Bd @ u_w
-    else:
-        T[:nx, :nx] = Ad
-        T[:nx, n - 2:n] = Bd                       # u_{k-d} acts now
-        T[nx + nw:nx + nw + 2, :nx] = u_x          # the newest command enters the delay line
-        T[nx + nw:nx + nw + 2, nx:nx + nw] = u_w
-        for j in range(1, d):
-            T[nx + nw + 2 * j:nx + nw + 2 * j + 2, nx + nw + 2 * (j - 1):nx + nw + 2 * j] = np.eye(2)
-    return T
+
+def torque_step_response(p: PlantParams, c: ImpedanceLoop, step_nm: tuple[float, float], n: int, *,
+                         ground: tuple[tuple[float, float], float]) -> np.ndarray:
+    """(n, 2) N m: the measured joint torque after a desired joint-torque step ``step_nm`` at sample 0,
+    foot held by ``ground`` ((K_dp, K_ie) N m/rad, B N m s/rad): what the loop is designed to do."""
+    T, G, C = closed_loop(p, c, foot="grounded", ground=ground)
+    z, r, out = np.zeros(T.shape[0]), np.asarray(step_nm, dtype=float), np.zeros((n, 2))
+    for k in range(n):
+        out[k] = C @ z
+        z = T @ z + G @ r
+    return out
 
 
 def spectral_radius(T: np.ndarray) -> float:

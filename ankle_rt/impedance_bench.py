@@ -82,12 +82,13 @@ def torque_at(segs: Sequence[Segment], t: float) -> tuple[float, float]:
 
 
 class TorqueProgramBackend(Backend):
-    """Wraps the simulated backend and sets its plant's ankle disturbance from the programme before
-    each tick (the tick's mid-point value, so the held torque has no half-tick lag)."""
+    """Wraps the simulated backend and sets its plant's ankle disturbance before each tick from
+    ``torque(t, x)``: t the tick's mid-point (so the held torque has no half-tick lag), x the plant
+    state [theta (2), theta_m (2), rates (4)] (an environment may depend on it)."""
 
     name = "sim+torque-programme"
 
-    def __init__(self, inner: Backend, torque: Callable[[float], tuple[float, float]]):
+    def __init__(self, inner: Backend, torque: Callable[[float, np.ndarray], tuple[float, float]]):
         super().__init__(inner.cfg, inner.clock)
         self.inner = inner
         self.torque = torque
@@ -105,7 +106,7 @@ class TorqueProgramBackend(Backend):
 
     def read(self, frame: SensorFrame) -> None:
         plant = self.plant
-        plant.extra_disturbance[0], plant.extra_disturbance[1] = self.torque(plant.t + self.half_dt)
+        plant.extra_disturbance[0], plant.extra_disturbance[1] = self.torque(plant.t + self.half_dt, plant.model.x)
         self.inner.read(frame)
 
     def close(self) -> None:
@@ -120,6 +121,7 @@ class ImpedanceResult:
     pulses: list[dict[str, Any]] = field(default_factory=list)
     sines: list[dict[str, Any]] = field(default_factory=list)
     fault: str = "NONE"
+    final_offset_rad: float = math.nan   # max |ankle angle| over the last 0.1 s (back at the equilibrium?)
     loops: list[dict[str, np.ndarray]] = field(default_factory=list)   # torque-angle loops for the plot
 
     def stiffness_error_max_pct(self, min_torque: float = 3.0) -> float:
@@ -171,17 +173,20 @@ def bench_config(cfg: Config, *, stiffness: tuple[float, float], damping: tuple[
     return c
 
 
-def run_impedance(cfg: Config, exp: Experiment, *, keep_loops: bool = False) -> ImpedanceResult:
-    """Run the programme on the simulator in lockstep with the config's impedance controller."""
+def run_impedance(cfg: Config, exp: Experiment, *, plant_cfg: Config | None = None,
+                  keep_loops: bool = False) -> ImpedanceResult:
+    """Run the programme on the simulator in lockstep with the config's impedance controller;
+    ``plant_cfg``: a different config for the simulated plant (a plant the controller's model
+    does not match), default ``cfg``."""
     from ankle_rt.backend import open_backend
     from ankle_rt.clock import SimClock
     from ankle_rt.daemon import run_lockstep
 
     segs, duration = schedule(exp)
-    inner = open_backend(cfg, SimClock())
+    inner = open_backend(cfg if plant_cfg is None else plant_cfg, SimClock())
     if not hasattr(inner, "plant"):
         raise ValueError("the impedance bench needs the simulated backend (backend: sim)")
-    backend = TorqueProgramBackend(inner, lambda t: torque_at(segs, t))
+    backend = TorqueProgramBackend(inner, lambda t, x: torque_at(segs, t))
     try:
         run = run_lockstep(cfg, duration, backend=backend)
     finally:
@@ -193,6 +198,7 @@ def run_impedance(cfg: Config, exp: Experiment, *, keep_loops: bool = False) -> 
                                      "damping_ie": B[1]}, fault=run.summary["fault"])
     t = run["t"]
     angle = (run["ankle_dp"], run["ankle_ie"])
+    res.final_offset_rad = float(max(np.max(np.abs(a[t >= duration - 0.1])) for a in angle))
     desired = _desired_torque(cfg, run)
     measured = (run["sg_torque_dp"], run["sg_torque_ie"])
     for s in segs:

@@ -10,9 +10,10 @@ deliver, so per ankle axis this loop drives the measured torque to the desired o
 - ``tau_des`` (feed-forward) is the impedance law's joint torque; ``u`` is the ankle-side motor torque
   (mapped to the motors with R^-T by the caller).
 - The integral removes the static error friction leaves (the rendered stiffness at standstill is then
-  the commanded one); it is clamped, and so is the whole correction, to ``max_correction_nm``: a
-  wrong or frozen torque reading can add at most that torque (sensor faults that the safety layer
-  sees -- rail, stale, jumps, NaN -- put the daemon into the safe state; see docs/daemon.md).
+  the commanded one); it is clamped, and so is the whole correction ``kp e + ki int(e) - kd d/dt
+  LP(tau_sg)``, to ``max_correction_nm``: a wrong, frozen or glitching torque reading can add at
+  most that torque (sensor faults that the safety layer sees -- rail, stale, jumps, NaN -- put the
+  daemon into the safe state; see docs/daemon.md).
 - ``kd`` on the rate of the measured torque damps the motor-on-cable mode (5-10 Hz with the foot held,
   as in stance), which the plain proportional loop makes unstable with a cycle of delay. It acts on
   the cable's stretch rate, not the motor velocity, so it adds no damping to the free motion the
@@ -42,7 +43,7 @@ class TorqueLoopGains:
     ki: tuple[float, float]                  # 1/s, integral of the torque error
     torque_rate: tuple[float, float]         # s, kd on the rate of the filtered measured torque
     cutoff_hz: float                         # first-order low-pass of the measured joint torque
-    max_correction_nm: tuple[float, float]   # |kp e + ki int e| at most this (anti-windup, fault bound)
+    max_correction_nm: tuple[float, float]   # |kp e + ki int e - kd rate| at most this (anti-windup, fault bound)
 
     @classmethod
     def from_config(cls, c: Mapping[str, Any]) -> "TorqueLoopGains":
@@ -89,10 +90,10 @@ class JointTorqueLoop:
             i0 = lim0 if i0 > lim0 else (-lim0 if i0 < -lim0 else i0)
             i1 = lim1 if i1 > lim1 else (-lim1 if i1 < -lim1 else i1)
             self.i0, self.i1 = i0, i1
-        c0 = self.kp0 * e0 + i0
-        c1 = self.kp1 * e1 + i1
+        c0 = self.kp0 * e0 + i0 - self.kdr0 * (f0 - p0)
+        c1 = self.kp1 * e1 + i1 - self.kdr1 * (f1 - p1)
         c0 = lim0 if c0 > lim0 else (-lim0 if c0 < -lim0 else c0)
         c1 = lim1 if c1 > lim1 else (-lim1 if c1 < -lim1 else c1)
         out = self.out
-        out[0] = tau_dp + c0 - self.kdr0 * (f0 - p0)
-        out[1] = tau_ie + c1 - self.kdr1 * (f1 - p1)
+        out[0] = tau_dp + c0
+        out[1] = tau_ie + c1
