@@ -95,6 +95,14 @@ def test_bad_model_file_names_the_key(tmp_path):
         "include": [str(base)], "controller": {"friction_ff": {"model": "stribeck_only"}}}))
     with pytest.raises(ConfigError, match=r"controller\.friction_ff\.model"):
         load_config(tmp_path / "run2.yaml")
+    (tmp_path / "model.yaml").write_text(yaml.safe_dump({
+        "include": [str(base)], "sim": {"effects": [{"type": "stribeck", "static_excess": 0.1,
+                                                     "stribeck_velocity": 0.0}]}}))
+    (tmp_path / "run3.yaml").write_text(yaml.safe_dump({
+        "include": [str(base)], "controller": {"friction_ff": {"enabled": True, "model": "identified",
+                                                               "model_file": "model.yaml"}}}))
+    with pytest.raises(ConfigError, match=r"model\.yaml: sim\.effects\.0\.stribeck_velocity: expected a finite number > 0"):
+        FrictionFeedForward.from_config(load_config(tmp_path / "run3.yaml"))
 
 
 def test_torque_loop_leaves_the_viscous_compensation_out(cfg):

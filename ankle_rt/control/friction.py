@@ -53,12 +53,12 @@ class FrictionFeedForward:
         ``model_file`` (a config such as ``diagnose --write-model`` writes; empty: this config's own
         ``actuator`` and ``sim.effects``)."""
         f = cfg["controller"]["friction_ff"]
-        a, effects = cfg["actuator"], ()
+        a, effects, source = cfg["actuator"], (), getattr(cfg, "source", None)
         if f["model"] == "identified":
-            a, effects = identified_model(cfg, f["model_file"])
+            a, effects, source = identified_model(cfg, f["model_file"])
         kc = a["coulomb"] if f["coulomb"] is None else f["coulomb"]
         d = a["damping"] if f["viscous"] is None else f["viscous"]
-        return cls(kc, d, f["velocity_band"], f["enabled"], **effect_terms(effects))
+        return cls(kc, d, f["velocity_band"], f["enabled"], **effect_terms(effects, source))
 
     def without_viscous(self) -> "FrictionFeedForward":
         """A copy without the viscous terms (D, dv): under the joint-torque loop the motors' viscous
@@ -78,29 +78,46 @@ class FrictionFeedForward:
         return s * sliding + self.dc * abs(s) + self.d * v + self.dv * abs(v)
 
 
-def effect_terms(effects: Iterable[Mapping[str, Any]]) -> dict[str, float]:
+# the friction effects' parameters the feed-forward reads: name -> (keyword, must be > 0)
+EFFECT_PARAMS = {
+    "stribeck": {"static_excess": ("stribeck_excess", False), "stribeck_velocity": ("stribeck_velocity", True)},
+    "asymmetric_friction": {"coulomb_asymmetry": ("coulomb_asymmetry", False),
+                            "viscous_asymmetry": ("viscous_asymmetry", False)},
+    "load_dependent_friction": {"coefficient": ("load_coefficient", False)},
+}
+OPTIONAL = {"viscous_asymmetry"}
+
+
+def effect_terms(effects: Iterable[Mapping[str, Any]], source: str | None = None) -> dict[str, float]:
     """Keyword arguments of :class:`FrictionFeedForward` from ``sim.effects`` entries (the friction
-    ones; other effects are not friction and are ignored)."""
+    ones; other effects are not friction and are ignored). Raises ConfigError naming a missing or
+    bad parameter (``sim.effects.N.key`` of ``source``)."""
+    from ankle_rt.config import ConfigError
+
     out: dict[str, float] = {}
-    for e in effects:
-        if e["type"] == "stribeck":
-            out["stribeck_excess"] = float(e["static_excess"])
-            out["stribeck_velocity"] = float(e["stribeck_velocity"])
-        elif e["type"] == "asymmetric_friction":
-            out["coulomb_asymmetry"] = float(e["coulomb_asymmetry"])
-            out["viscous_asymmetry"] = float(e.get("viscous_asymmetry", 0.0))
-        elif e["type"] == "load_dependent_friction":
-            out["load_coefficient"] = float(e["coefficient"])
+    for i, e in enumerate(effects):
+        for key, (kw, positive) in EFFECT_PARAMS.get(e.get("type"), {}).items():
+            where = f"sim.effects.{i}.{key}"
+            if key not in e:
+                if key in OPTIONAL:
+                    continue
+                raise ConfigError("missing (the friction feed-forward needs it)", source, where)
+            value = e[key]
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
+                    or (positive and value <= 0.0):
+                raise ConfigError(f"expected a finite number{' > 0' if positive else ''}, got {value!r}", source, where)
+            out[kw] = float(value)
     return out
 
 
-def identified_model(cfg: "Config", model_file: str) -> tuple[Mapping[str, Any], list]:
-    """(actuator section, sim.effects) of the identified model: ``model_file`` (relative paths are
-    relative to the config file) or, when empty, ``cfg`` itself. Raises ConfigError naming the key."""
+def identified_model(cfg: "Config", model_file: str) -> tuple[Mapping[str, Any], list, str | None]:
+    """(actuator section, sim.effects, source file) of the identified model: ``model_file`` (relative
+    paths are relative to the config file) or, when empty, ``cfg`` itself. Raises ConfigError naming
+    the key."""
     from ankle_rt.config import ConfigError, load_config
 
     if not model_file:
-        return cfg["actuator"], list(cfg["sim"]["effects"])
+        return cfg["actuator"], list(cfg["sim"]["effects"]), getattr(cfg, "source", None)
     path = Path(model_file)
     if not path.is_absolute() and getattr(cfg, "source", "<memory>") != "<memory>":
         path = Path(cfg.source).parent / path
@@ -109,4 +126,4 @@ def identified_model(cfg: "Config", model_file: str) -> tuple[Mapping[str, Any],
     except (OSError, ConfigError) as exc:
         raise ConfigError(f"cannot load the friction model: {exc}", getattr(cfg, "source", None),
                           "controller.friction_ff.model_file") from None
-    return model["actuator"], list(model["sim"]["effects"])
+    return model["actuator"], list(model["sim"]["effects"]), str(path)
