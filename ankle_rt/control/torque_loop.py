@@ -58,7 +58,6 @@ class JointTorqueLoop:
 
     def __init__(self, gains: TorqueLoopGains, dt: float):
         self.gains = gains
-        self.dt = dt
         self.kp0, self.kp1 = gains.kp
         self.kidt0, self.kidt1 = gains.ki[0] * dt, gains.ki[1] * dt
         self.kdr0, self.kdr1 = gains.torque_rate[0] / dt, gains.torque_rate[1] / dt
