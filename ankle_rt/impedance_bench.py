@@ -129,7 +129,8 @@ class ImpedanceResult:
         return max(errs) if errs else math.nan
 
     def damping_error_max_pct(self) -> float:
-        return max((abs(s["damping_error_pct"]) for s in self.sines), default=math.nan)
+        errs = [abs(s["damping_error_pct"]) for s in self.sines if not math.isnan(s["damping_error_pct"])]
+        return max(errs, default=math.nan)
 
     def hysteresis_j_per_cycle(self) -> float:
         """Worst excess dissipation per cycle at the lowest sine frequency (quasi-static hysteresis)."""

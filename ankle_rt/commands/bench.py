@@ -11,6 +11,7 @@ Lockstep: the same daemon on a SimClock; real-time factor = simulated s / wall-c
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 
 GOALS = {"late_cycles": 0, "period_error_p99_us": 100.0, "compute_p99_us": 250.0, "lockstep_realtime_factor": 20.0}
@@ -131,18 +132,31 @@ SUMMARY_KEYS = ("stiffness_error_max_pct", "damping_error_max_pct", "hysteresis_
                 "torque_tracking_rms_nm")
 
 
+def _number(low: float, strict: bool):
+    """argparse type: a finite float >= low (> low when ``strict``)."""
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+        if not (value > low if strict else value >= low) or value == float("inf"):
+            raise argparse.ArgumentTypeError(f"must be {'>' if strict else '>='} {low:g} and finite, got {text}")
+        return value
+    return parse
+
+
 def register_impedance(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("impedance", help="rendered stiffness, damping and hysteresis of the impedance controller",
                        description=IMPEDANCE_DOC, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--config", metavar="FILE", help="configuration (default: the shipped config/sim.yaml)")
-    p.add_argument("--stiffness", type=float, nargs="+", default=[50.0, 200.0], metavar="K",
+    p.add_argument("--stiffness", type=_number(0.0, True), nargs="+", default=[50.0, 200.0], metavar="K",
                    help="commanded DP stiffness(es), N m/rad (default 50 200)")
-    p.add_argument("--stiffness-ie", type=float, metavar="K", help="IE stiffness, N m/rad (default: half of DP)")
-    p.add_argument("--damping", type=float, nargs=2, default=[0.5, 0.25], metavar=("B_DP", "B_IE"),
+    p.add_argument("--stiffness-ie", type=_number(0.0, True), metavar="K", help="IE stiffness, N m/rad (default: half of DP)")
+    p.add_argument("--damping", type=_number(0.0, False), nargs=2, default=[0.5, 0.25], metavar=("B_DP", "B_IE"),
                    help="commanded damping, N m s/rad (default 0.5 0.25)")
-    p.add_argument("--load-friction", type=float, default=0.12, metavar="MU",
+    p.add_argument("--load-friction", type=_number(0.0, False), default=0.12, metavar="MU",
                    help="load-dependent cable friction coefficient in the plant (0: off; default 0.12)")
-    p.add_argument("--stribeck", type=float, nargs=2, default=[0.15, 0.1], metavar=("A", "VS"),
+    p.add_argument("--stribeck", type=_number(0.0, False), nargs=2, default=[0.15, 0.1], metavar=("A", "VS"),
                    help="Stribeck excess N m and velocity rad/s in the plant (A 0: off; default 0.15 0.1)")
     p.add_argument("--friction-ff", choices=("off", "coulomb_viscous", "identified"), default="off",
                    help="friction feed-forward of both controllers (identified: the plant's own friction model)")
@@ -232,6 +246,17 @@ def plot_loops(variants: dict[str, dict], png: str) -> str:
     return f"plot: {png}"
 
 
+def _finite_or_null(x):
+    """JSON has no NaN / inf: undefined figures (e.g. a damping error for zero commanded damping) -> null."""
+    if isinstance(x, float):
+        return x if math.isfinite(x) else None
+    if isinstance(x, dict):
+        return {k: _finite_or_null(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_finite_or_null(v) for v in x]
+    return x
+
+
 def bench_impedance(args: argparse.Namespace) -> int:
     import json
 
@@ -239,6 +264,8 @@ def bench_impedance(args: argparse.Namespace) -> int:
     from ankle_rt.impedance_bench import Experiment
     from ankle_rt.paths import default_config_path
 
+    if args.stribeck[0] > 0.0 and args.stribeck[1] <= 0.0:
+        raise SystemExit("ankle-rt bench impedance: --stribeck: the velocity VS must be > 0")
     cfg = load_config(Path(args.config) if args.config else default_config_path())
     effects = plant_effects(args.load_friction, tuple(args.stribeck))
     exp = Experiment(pulses_nm=((3.0, -3.0, 12.0, -12.0), (3.0, -3.0)), sine_hz=(0.5, 5.0), sine_cycles=3,
@@ -268,7 +295,7 @@ def bench_impedance(args: argparse.Namespace) -> int:
                             for name, v in variants.items()},
                   plot=note)
     if args.json:
-        print(json.dumps(result))
+        print(json.dumps(_finite_or_null(result)))
         return 0
     print(f"plant: nominal + {', '.join(e['type'] for e in effects) or 'no extra effects'}; "
           f"commanded K_dp {', '.join(f'{k:g}' for k in args.stiffness)} N m/rad, damping {args.damping[0]:g} / "
