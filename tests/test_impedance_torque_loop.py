@@ -12,10 +12,11 @@ import pytest
 from ankle_rt.analysis import ImpedanceLoop, torque_loop_margins, torque_step_response
 from ankle_rt.backend import BackendFault, open_backend
 from ankle_rt.clock import SimClock
-from ankle_rt.config import load_config
+from ankle_rt.config import ConfigError, load_config
 from ankle_rt.control import build_controller, torque_feedback
 from ankle_rt.control.impedance import ImpedanceController
-from ankle_rt.control.torque_loop import JointTorqueLoop, TorqueLoopGains
+from ankle_rt.control.gains import GainError
+from ankle_rt.control.torque_loop import ImpedanceLimits, JointTorqueLoop, TorqueLoopGains
 from ankle_rt.daemon import run_lockstep
 from ankle_rt.estimation import Estimate
 from ankle_rt.impedance_bench import Experiment, TorqueProgramBackend, bench_config, run_impedance
@@ -218,3 +219,37 @@ def test_a_frozen_strain_gauge_cannot_run_the_loop_away(base):
     assert np.all(np.abs(ankle_torque[0]) <= desired + tl["max_correction_dp"] + 0.5)
     assert run.summary["fault"] in ("NONE", "ANKLE_RANGE")
     assert np.max(np.abs(run["ankle_dp"])) < math.radians(cfg["limits"]["ankle_range_deg"]) + 0.05
+
+
+def test_the_stable_set_of_impedances_is_stable_at_its_boundary(base):
+    """ImpedanceLimits' least damping and largest stiffness, checked with the linear model at their
+    corners over the whole sweep (cable stiffness +-30 %, viscous friction x0.5 .. x2, load-dependent
+    friction, foot free or held): >= 6 dB of gain margin."""
+    cfg = impedance_cfg(base)
+    lim = ImpedanceLimits.from_config(cfg)
+    p = PlantParams.from_config(cfg)
+    loop = ImpedanceLoop.from_config(cfg, closed=True)
+    for k in ((5.0, 2.0), lim.max_stiffness):
+        c = dataclasses.replace(loop, stiffness=k, damping=(lim.min_damping(0, k[0]), lim.min_damping(1, k[1])))
+        assert min(m.gain_margin_db for m in torque_loop_margins(p, c)) >= 6.0, k
+    # and the damping floor is needed: without damping the integral destabilises the free foot
+    c = dataclasses.replace(loop, stiffness=(50.0, 25.0), damping=(0.0, 0.0))
+    assert min(m.gain_margin_db for m in torque_loop_margins(p, c, feet=("free",))) < 0.0
+
+
+def test_impedances_outside_the_stable_set_are_refused(base):
+    kin = Kinematics.from_params(TransmissionParams(**base["transmission"]))
+    cfg = impedance_cfg(base)
+    cfg["controller"]["impedance"]["damping_dp"] = 0.1
+    with pytest.raises(ConfigError, match=r"controller\.impedance\.damping_dp: damping_dp 0\.1 N m s/rad is below"):
+        build_controller(cfg, kin, np.zeros(2))
+    cfg["controller"]["impedance"]["torque_feedback"] = "off"      # open loop has no such limit
+    assert build_controller(cfg, kin, np.zeros(2)).torque_loop is None
+    ctl = build_controller(impedance_cfg(base), kin, np.zeros(2))
+    with pytest.raises(GainError, match="stiffness_ie 200 N m/rad is above 66"):
+        ctl.set_gains(stiffness_ie=200.0)
+    with pytest.raises(GainError) as exc:
+        ctl.set_gains(stiffness_dp=400.0)               # needs more damping than the 0.5 it has
+    assert exc.value.gain == "damping_dp"
+    ctl.set_gains(stiffness_dp=400.0, damping_dp=0.8)
+    assert ctl.gains.targets[0] == 400.0

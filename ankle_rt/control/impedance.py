@@ -19,8 +19,8 @@ from typing import Mapping
 import numpy as np
 
 from ankle_rt.control.friction import FrictionFeedForward
-from ankle_rt.control.gains import RampedGainController
-from ankle_rt.control.torque_loop import JointTorqueLoop
+from ankle_rt.control.gains import GainError, RampedGainController
+from ankle_rt.control.torque_loop import ImpedanceLimits, JointTorqueLoop
 from ankle_rt.estimation import Estimate
 from ankle_rt.kinematics import Kinematics
 
@@ -28,14 +28,32 @@ from ankle_rt.kinematics import Kinematics
 class ImpedanceController(RampedGainController):
     def __init__(self, kin: Kinematics, ref: np.ndarray, gains: Mapping[str, float], *, dt: float,
                  ramp_s: float = 0.0, soft_start_s: float = 0.0, friction: FrictionFeedForward | None = None,
-                 torque_loop: JointTorqueLoop | None = None):
+                 torque_loop: JointTorqueLoop | None = None, limits: ImpedanceLimits | None = None):
         """``gains``: stiffness_dp/ie (N m/rad), damping_dp/ie (N m s/rad). ``ref``: rad [DP, IE].
-        ``torque_loop``: closes the joint-torque loop on the strain gauges; None: open loop."""
+        ``torque_loop``: closes the joint-torque loop on the strain gauges; None: open loop.
+        ``limits``: gains outside them are refused (GainError), here and in :meth:`set_gains`."""
+        if limits is not None:
+            self._check(limits, gains)
         super().__init__({k: gains[k] for k in ("stiffness_dp", "stiffness_ie", "damping_dp", "damping_ie")},
                          dt=dt, ramp_s=ramp_s, soft_start_s=soft_start_s, friction=friction)
         self.RiT = kin.R_inv_T.ravel().tolist()
         self.ref = ref
         self.torque_loop = torque_loop
+        self.limits = limits
+
+    @staticmethod
+    def _check(limits: ImpedanceLimits, gains: Mapping[str, float]) -> None:
+        bad = limits.check(gains)
+        if bad is not None:
+            raise GainError(*bad)
+
+    def set_gains(self, **gains: float) -> None:
+        """Ramp to new gains; with limits, the resulting set must lie inside them (else GainError)."""
+        if self.limits is not None:
+            targets = dict(zip(self.gains.names, self.gains.targets))
+            targets.update({k: v for k, v in gains.items() if k in targets})
+            self._check(self.limits, targets)
+        super().set_gains(**gains)
 
     def reset(self, est: Estimate) -> None:
         super().reset(est)

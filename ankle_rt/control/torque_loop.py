@@ -30,9 +30,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import TYPE_CHECKING, Any, Mapping
 
 from ankle_rt.estimation import Estimate
+
+if TYPE_CHECKING:
+    from ankle_rt.config import Config
+
+MIN_DAMPING_RATIO = 0.05        # of the rendered impedance against the reflected inertia / (1 + kp)
+MAX_STIFFNESS_FRACTION = 0.3    # of the cable stiffness at the ankle (a series-elastic loop cannot
+                                # render a stiffness near its spring's and stay passive)
 
 
 @dataclass(frozen=True)
@@ -96,3 +103,57 @@ class JointTorqueLoop:
         out = self.out
         out[0] = tau_dp + c0
         out[1] = tau_ie + c1
+
+
+@dataclass(frozen=True)
+class ImpedanceLimits:
+    """The impedances the closed loop renders stably, per ankle axis [DP, IE].
+
+    With the foot free the loop is the reflected inertia J / (1 + kp) on the commanded spring, damped
+    by B + D / (1 + kp), plus the integral. Two conditions keep it stable with a cycle of delay, half
+    the identified viscous friction D and cable stiffness +-30 % (checked at their boundary with the
+    linear model, tests/test_impedance_torque_loop.py):
+
+    - the integral: c (1 + kp) >= 2 J ki, c = D / 2 + (1 + kp) B (the Routh condition, factor 2);
+    - the rendered damping ratio (B + D / (2 (1 + kp))) / (2 sqrt(K J / (1 + kp))) >= MIN_DAMPING_RATIO;
+    - K <= MAX_STIFFNESS_FRACTION x the cable stiffness at the ankle.
+    """
+
+    inertia: tuple[float, float]          # kg m^2, reflected motor inertia R^T J R (diagonal)
+    viscous: tuple[float, float]          # N m s/rad, reflected viscous friction R^T D R
+    max_stiffness: tuple[float, float]    # N m/rad
+    kp: tuple[float, float]
+    ki: tuple[float, float]
+
+    @classmethod
+    def from_config(cls, cfg: "Config") -> "ImpedanceLimits":
+        from ankle_rt.kinematics import Kinematics
+        from ankle_rt.params import TransmissionParams
+
+        kin = Kinematics.from_params(TransmissionParams(**cfg["transmission"]))
+        col = [float(kin.R[0, a] ** 2 + kin.R[1, a] ** 2) for a in (0, 1)]
+        a, tl = cfg["actuator"], cfg["controller"]["torque_loop"]
+        return cls(inertia=(a["inertia"] * col[0], a["inertia"] * col[1]),
+                   viscous=(a["damping"] * col[0], a["damping"] * col[1]),
+                   max_stiffness=(MAX_STIFFNESS_FRACTION * float(kin.K[0, 0]), MAX_STIFFNESS_FRACTION * float(kin.K[1, 1])),
+                   kp=(tl["kp_dp"], tl["kp_ie"]), ki=(tl["ki_dp"], tl["ki_ie"]))
+
+    def min_damping(self, axis: int, stiffness: float) -> float:
+        """N m s/rad: the least commanded damping for ``stiffness`` N m/rad on ``axis`` (0 DP, 1 IE)."""
+        g, J, d = 1.0 + self.kp[axis], self.inertia[axis], self.viscous[axis] / (2.0 * (1.0 + self.kp[axis]))
+        integral = 2.0 * J * self.ki[axis] / g ** 2
+        ratio = 2.0 * MIN_DAMPING_RATIO * math.sqrt(stiffness * J / g)
+        return max(0.0, max(integral, ratio) - d)
+
+    def check(self, gains: Mapping[str, float]) -> tuple[str, str] | None:
+        """(gain name, reason) for the first impedance gain outside the stable set, None if all fit."""
+        for axis, name in enumerate(("dp", "ie")):
+            k, b = gains[f"stiffness_{name}"], gains[f"damping_{name}"]
+            if k > self.max_stiffness[axis]:
+                return (f"stiffness_{name}", f"stiffness_{name} {k:g} N m/rad is above {self.max_stiffness[axis]:.0f}, "
+                        f"the most the joint-torque loop renders stably ({MAX_STIFFNESS_FRACTION:g} x the cable stiffness)")
+            need = self.min_damping(axis, k)
+            if b < need:
+                return (f"damping_{name}", f"damping_{name} {b:g} N m s/rad is below {need:.3g}, the least the "
+                        f"joint-torque loop needs with stiffness_{name} {k:g} (docs/daemon.md)")
+        return None
