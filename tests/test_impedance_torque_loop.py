@@ -13,7 +13,8 @@ from ankle_rt.analysis import ImpedanceLoop, torque_loop_margins, torque_step_re
 from ankle_rt.backend import BackendFault, open_backend
 from ankle_rt.clock import SimClock
 from ankle_rt.config import ConfigError, load_config
-from ankle_rt.control import build_controller, torque_feedback
+from ankle_rt.control import build_controller
+from ankle_rt.control.torque_loop import torque_feedback
 from ankle_rt.control.impedance import ImpedanceController
 from ankle_rt.control.gains import GainError
 from ankle_rt.control.torque_loop import ImpedanceLimits, JointTorqueLoop, TorqueLoopGains

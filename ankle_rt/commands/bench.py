@@ -184,7 +184,7 @@ def impedance_variant(cfg, stiffness: list[float], stiffness_ie: float | None, d
                       keep_loops: bool = False) -> dict:
     """Run the bench for one controller variant over the commanded stiffnesses; its summary and runs."""
     from ankle_rt.analysis import ImpedanceLoop, torque_loop_margins
-    from ankle_rt.control import torque_feedback
+    from ankle_rt.control.torque_loop import torque_feedback
     from ankle_rt.impedance_bench import bench_config, run_impedance
     from ankle_rt.params import PlantParams
 

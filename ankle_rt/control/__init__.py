@@ -39,34 +39,12 @@ def build_controller(cfg: "Config", kin: "Kinematics", ref: np.ndarray) -> Cycle
     from ankle_rt.control.friction import FrictionFeedForward
     from ankle_rt.control.impedance import ImpedanceController
     from ankle_rt.control.pd import MotorPD
-    from ankle_rt.config import ConfigError
-    from ankle_rt.control.gains import GainError
-    from ankle_rt.control.torque_loop import ImpedanceLimits, JointTorqueLoop, TorqueLoopGains
 
     c = cfg["controller"]
     dt = 1.0 / c["rate_hz"]
     ff = FrictionFeedForward.from_config(cfg)
     if c["type"] == "impedance":
-        loop = limits = None
-        if torque_feedback(cfg):
-            loop = JointTorqueLoop(TorqueLoopGains.from_config(c["torque_loop"]), dt)
-            limits = ImpedanceLimits.from_config(cfg)
-            ff = ff.without_viscous()
-        try:
-            return ImpedanceController(kin, ref, c["impedance"], dt=dt, ramp_s=c["gain_ramp_s"],
-                                       soft_start_s=c["soft_start_s"], friction=ff, torque_loop=loop, limits=limits)
-        except GainError as exc:
-            raise ConfigError(str(exc), getattr(cfg, "source", None), f"controller.impedance.{exc.gain}") from None
+        return ImpedanceController.from_config(cfg, kin, ref, friction=ff)
     gains = c[c["pd_gains"] + "_gains"]
     return MotorPD(kin, ref, kp=gains["kp"], kd=gains["kd"], dt=dt, ramp_s=c["gain_ramp_s"],
                    soft_start_s=c["soft_start_s"], friction=ff)
-
-
-def torque_feedback(cfg: "Config") -> bool:
-    """Whether the impedance controller closes the joint-torque loop: ``controller.impedance.
-    torque_feedback`` on/off, or auto = when strain gauges are configured (the simulator's always
-    are; on hardware ``strain_gauges.matrix`` is given)."""
-    mode = cfg["controller"]["impedance"]["torque_feedback"]
-    if mode != "auto":
-        return mode == "on"
-    return cfg["backend"] == "sim" or cfg["strain_gauges"]["matrix"] is not None

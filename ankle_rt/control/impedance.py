@@ -14,15 +14,18 @@ the per-motor friction feed-forward, which sees the cable torque each motor feel
 
 from __future__ import annotations
 
-from typing import Mapping
+from typing import TYPE_CHECKING, Mapping
 
 import numpy as np
 
 from ankle_rt.control.friction import FrictionFeedForward
 from ankle_rt.control.gains import GainError, RampedGainController
-from ankle_rt.control.torque_loop import ImpedanceLimits, JointTorqueLoop
+from ankle_rt.control.torque_loop import ImpedanceLimits, JointTorqueLoop, TorqueLoopGains, torque_feedback
 from ankle_rt.estimation import Estimate
 from ankle_rt.kinematics import Kinematics
+
+if TYPE_CHECKING:
+    from ankle_rt.config import Config
 
 
 class ImpedanceController(RampedGainController):
@@ -40,6 +43,27 @@ class ImpedanceController(RampedGainController):
         self.ref = ref
         self.torque_loop = torque_loop
         self.limits = limits
+
+    @classmethod
+    def from_config(cls, cfg: "Config", kin: Kinematics, ref: np.ndarray,
+                    friction: FrictionFeedForward | None) -> "ImpedanceController":
+        """``controller.impedance`` with the joint-torque loop when :func:`torque_feedback` says so
+        (its limits enforced, the feed-forward's viscous terms left out). Raises ConfigError naming
+        a gain outside the limits."""
+        from ankle_rt.config import ConfigError
+
+        c = cfg["controller"]
+        dt = 1.0 / c["rate_hz"]
+        loop = limits = None
+        if torque_feedback(cfg):
+            loop = JointTorqueLoop(TorqueLoopGains.from_config(c["torque_loop"]), dt)
+            limits = ImpedanceLimits.from_config(cfg)
+            friction = friction.without_viscous() if friction is not None else None
+        try:
+            return cls(kin, ref, c["impedance"], dt=dt, ramp_s=c["gain_ramp_s"], soft_start_s=c["soft_start_s"],
+                       friction=friction, torque_loop=loop, limits=limits)
+        except GainError as exc:
+            raise ConfigError(str(exc), getattr(cfg, "source", None), f"controller.impedance.{exc.gain}") from None
 
     @staticmethod
     def _check(limits: ImpedanceLimits, gains: Mapping[str, float]) -> None:

@@ -105,6 +105,16 @@ class JointTorqueLoop:
         out[1] = tau_ie + c1
 
 
+def torque_feedback(cfg: "Config") -> bool:
+    """Whether the impedance controller closes the joint-torque loop: ``controller.impedance.
+    torque_feedback`` on/off, or auto = when strain gauges are configured (the simulator's always
+    are; on hardware ``strain_gauges.matrix`` is given)."""
+    mode = cfg["controller"]["impedance"]["torque_feedback"]
+    if mode != "auto":
+        return mode == "on"
+    return cfg["backend"] == "sim" or cfg["strain_gauges"]["matrix"] is not None
+
+
 @dataclass(frozen=True)
 class ImpedanceLimits:
     """The impedances the closed loop renders stably, per ankle axis [DP, IE].
