@@ -247,7 +247,7 @@ def test_impedances_outside_the_stable_set_are_refused(base):
     cfg["controller"]["impedance"]["torque_feedback"] = "off"      # open loop has no such limit
     assert build_controller(cfg, kin, np.zeros(2)).torque_loop is None
     ctl = build_controller(impedance_cfg(base), kin, np.zeros(2))
-    with pytest.raises(GainError, match="stiffness_ie 200 N m/rad is above 66"):
+    with pytest.raises(GainError, match="stiffness_ie 200 N m/rad is above 110"):
         ctl.set_gains(stiffness_ie=200.0)
     with pytest.raises(GainError) as exc:
         ctl.set_gains(stiffness_dp=400.0)               # needs more damping than the 0.5 it has
