@@ -254,3 +254,24 @@ def test_impedances_outside_the_stable_set_are_refused(base):
     assert exc.value.gain == "damping_dp"
     ctl.set_gains(stiffness_dp=400.0, damping_dp=0.8)
     assert ctl.gains.targets[0] == 400.0
+
+
+def test_bench_impedance_json(capsys, tmp_path):
+    """`ankle-rt bench impedance --quick --json`: one object with the issue's keys; the torque loop
+    meets the issue's figures on the smoke programme, open loop does not; the plot is written."""
+    import json
+
+    from ankle_rt.cli import main
+
+    png = tmp_path / "loops.png"
+    assert main(["bench", "impedance", "--quick", "--stiffness", "50", "--json", "--plot", str(png)]) == 0
+    out = json.loads(capsys.readouterr().out)
+    for key in ("stiffness_error_max_pct", "damping_error_max_pct", "hysteresis_j_per_cycle", "stability_margin_db"):
+        assert isinstance(out[key], float), key
+    assert out["torque_feedback"] is True and out["faults"] == ["NONE"]
+    assert out["stiffness_error_max_pct"] <= 10.0 and out["stability_margin_db"] >= 6.0
+    assert out["hysteresis_ratio_open_to_closed"] >= 5.0
+    assert out["variants"]["open loop"]["stiffness_error_max_pct"] > 100.0
+    assert png.exists() or "matplotlib is not installed" in out["plot"]
+    assert main(["bench", "impedance", "--stiffness", "50", "--stiffness-ie", "500", "--json"]) == 2
+    assert "controller.impedance.stiffness_ie" in capsys.readouterr().err
