@@ -275,3 +275,35 @@ def test_bench_impedance_json(capsys, tmp_path):
     assert png.exists() or "matplotlib is not installed" in out["plot"]
     assert main(["bench", "impedance", "--stiffness", "50", "--stiffness-ie", "500", "--json"]) == 2
     assert "controller.impedance.stiffness_ie" in capsys.readouterr().err
+
+
+def test_the_closed_loop_update_keeps_no_memory(base):
+    """The impedance law + torque loop + identified friction feed-forward per cycle: float
+    temporaries only (no growth in live blocks, a tiny peak)."""
+    import gc
+    import sys
+    import tracemalloc
+
+    cfg = impedance_cfg(base)
+    cfg["controller"]["friction_ff"].update(enabled=True, model="identified")
+    ctl = build_controller(cfg, Kinematics.from_params(TransmissionParams(**cfg["transmission"])), np.zeros(2))
+    est, out = Estimate(), np.zeros(2)
+    ctl.reset(est)
+
+    def cycles(n):
+        for k in range(n):
+            est.sg_torque[0] = 0.01 * (k % 7)
+            est.motor_vel[0] = 0.3 * ((k % 5) - 2)
+            ctl.update(est, out)
+
+    cycles(500)
+    gc.collect()
+    blocks = sys.getallocatedblocks()
+    tracemalloc.start()
+    try:
+        cycles(2000)
+        current, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert sys.getallocatedblocks() - blocks < 20
+    assert current < 1024 and peak < 4096
