@@ -312,3 +312,202 @@ def analyze(p: PlantParams, *, freqs_hz: np.ndarray = FREQS_HZ, with_bodes: bool
                                         "joint torque", "N m / N m", freqs_hz),
         }
     return result
+
+
+# -- the impedance controller's closed loop (joint-torque feedback) -------------------------------
+# The sampled loop: the plant discretised exactly with a zero-order hold, the estimator (motor
+# velocity: backward difference + first-order low-pass; ankle angle from motors and strain gauges),
+# the impedance law, the joint-torque loop and ``delay_cycles`` cycles of transport delay. Coulomb
+# friction is not linear: the friction range enters as the viscous friction D (scaled) and as the
+# load-dependent (Bowden) friction while sliding, mu |tc| sign(v), which is linear in the cable torque
+# with slope +mu or -mu depending on the direction of sliding against the load.
+STIFFNESS_FACTORS = (0.7, 1.0, 1.3)         # cable stiffness +/- 30 % (pretension varies)
+VISCOUS_FACTORS = (0.5, 1.0, 2.0)           # identified viscous friction range
+FOOT_CONDITIONS = ("free", "grounded")      # swing (foot free) and stance (ankle angle held)
+GROUND_STIFFNESS = 1e5                      # N m/rad holding the ankle in the grounded condition
+MAX_GAIN_MARGIN = 100.0                     # search limit (40 dB)
+
+
+@dataclass(frozen=True)
+class ImpedanceLoop:
+    """What the closed-loop analysis needs of the impedance controller (ankle coordinates, [DP, IE])."""
+
+    stiffness: tuple[float, float]          # N m/rad, commanded
+    damping: tuple[float, float]            # N m s/rad, commanded
+    kp: tuple[float, float] = (0.0, 0.0)    # torque loop (all zero: open loop)
+    ki: tuple[float, float] = (0.0, 0.0)    # 1/s
+    torque_rate_gain: tuple[float, float] = (0.0, 0.0)   # s, on the filtered measured torque's rate
+    cutoff_hz: float = 30.0
+    velocity_cutoff_hz: float = 100.0       # estimation.velocity_cutoff_hz
+    dt: float = 1e-3
+    delay_cycles: int = 1
+
+    @classmethod
+    def from_config(cls, cfg: dict, *, closed: bool, delay_cycles: int = 1) -> "ImpedanceLoop":
+        """The config's impedance gains and (``closed``) torque-loop gains."""
+        c = cfg["controller"]
+        imp, tl = c["impedance"], c["torque_loop"]
+        pair = lambda sec, key: (float(sec[key + "_dp"]), float(sec[key + "_ie"])) if closed else (0.0, 0.0)  # noqa: E731
+        return cls(stiffness=(imp["stiffness_dp"], imp["stiffness_ie"]), damping=(imp["damping_dp"], imp["damping_ie"]),
+                   kp=pair(tl, "kp"), ki=pair(tl, "ki"), torque_rate_gain=pair(tl, "torque_rate"),
+                   cutoff_hz=tl["cutoff_hz"], velocity_cutoff_hz=cfg["estimation"]["velocity_cutoff_hz"],
+                   dt=1.0 / c["rate_hz"], delay_cycles=delay_cycles)
+
+
+def _plant(p: PlantParams, *, foot: str, load_slope: float,
+           ground: tuple[tuple[float, float], float] = ((GROUND_STIFFNESS, GROUND_STIFFNESS), 0.0),
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(A, B_motor 8x2, C_y 4x8) of the continuous plant: outputs [theta_m (2), tau_j (2)].
+    ``load_slope``: +-mu, load-dependent friction linearised while sliding. ``ground``: ((K_dp, K_ie)
+    N m/rad, B N m s/rad) holding the foot when ``foot`` is "grounded"."""
+    lm = LinearModel.from_params(p)
+    Kq, Dq = lm.Kq.copy(), lm.Dq.copy()
+    beta = p.transmission.stiffness_proportional_damping
+    Kq[2:4] += load_slope * lm.cable_Kq[2:4]
+    Dq[2:4] += load_slope * beta * lm.cable_Kq[2:4]
+    if foot == "grounded":
+        (k0, k1), b = ground
+        Kq[0, 0] += k0
+        Kq[1, 1] += k1
+        Dq[0, 0] += b
+        Dq[1, 1] += b
+    Mi = np.linalg.inv(lm.Mq)
+    A = np.zeros((N_X, N_X))
+    A[0:4, 4:8] = np.eye(4)
+    A[4:8, 0:4] = -Mi @ Kq
+    A[4:8, 4:8] = -Mi @ Dq
+    Bm = np.zeros((N_X, 2))
+    Bm[4:8] = Mi[:, 2:4]
+    C = np.vstack([np.eye(N_X)[2:4], lm.joint_torque_rows(beta)])
+    return A, Bm, C
+
+
+def _controller(lm_kin, K_cable: np.ndarray, c: ImpedanceLoop) -> tuple[np.ndarray, np.ndarray]:
+    """(W, U) over [w_{k-1} (8); y_k (4); r (2)]: the controller states w = [theta_m prev (2), v (2),
+    tau filter (2), integrator (2)] are w_k = W @ [...], the motor torques u_k = U @ [...]; y =
+    [theta_m, tau_j] measured, r a desired joint torque added to the impedance law's (reference 0)."""
+    e = np.eye(14)
+    th_prev, v_prev, f_prev, i_prev = e[0:2], e[2:4], e[4:6], e[6:8]
+    th, tau, r = e[8:10], e[10:12], e[12:14]
+    a_v = 1.0 - math.exp(-2.0 * math.pi * c.velocity_cutoff_hz * c.dt)
+    a_f = 1.0 - math.exp(-2.0 * math.pi * c.cutoff_hz * c.dt)
+    v = (1.0 - a_v) * v_prev + (a_v / c.dt) * (th - th_prev)
+    f = (1.0 - a_f) * f_prev + a_f * tau
+    Ri = lm_kin.R_inv
+    ankle = Ri @ th - np.linalg.inv(K_cable) @ tau
+    rate = Ri @ v
+    tau_des = -np.diag(c.stiffness) @ ankle - np.diag(c.damping) @ rate + r
+    err = tau_des - f
+    # an axis without integral gain has no integrator (held at zero, not a marginal mode at z = 1)
+    integ = np.diag([1.0 if k > 0.0 else 0.0 for k in c.ki]) @ i_prev + np.diag(c.ki) @ err * c.dt
+    u_ankle = tau_des + np.diag(c.kp) @ err + integ - np.diag(c.torque_rate_gain) @ (f - f_prev) / c.dt
+    return np.vstack([th, v, f, integ]), lm_kin.R_inv_T @ u_ankle
+
+
+def closed_loop(p: PlantParams, c: ImpedanceLoop, *, foot: str = "free", load_slope: float = 0.0,
+                gain: float = 1.0, ground: tuple[tuple[float, float], float] | None = None,
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The sampled closed loop z_{k+1} = T z_k + G r with the controller output scaled by ``gain``
+    (the loop broken at both motor torque inputs at once); returns (T, G, C_tau), C_tau giving the
+    measured joint torque at z_k. z_k = [x_k, w_{k-1}, u_{k-1}, ..., u_{k-d}]."""
+    from ankle_rt.discretize import zoh
+
+    A, Bm, Cy = _plant(p, foot=foot, load_slope=load_slope, **({} if ground is None else {"ground": ground}))
+    Ad, Bd = zoh(A, Bm, c.dt)
+    lm = LinearModel.from_params(p)
+    W, U = _controller(lm.kin, lm.kin.K, c)
+    U = gain * U
+    nx, nw, d = N_X, 8, c.delay_cycles
+    n = nx + nw + 2 * d
+    # controller rows over z_k and r: [w_{k-1}, y_k = Cy x_k, r]
+    Wz, Wr = np.hstack([W[:, 8:12] @ Cy, W[:, 0:8]]), W[:, 12:14]
+    Uz, Ur = np.hstack([U[:, 8:12] @ Cy, U[:, 0:8]]), U[:, 12:14]
+    T, G = np.zeros((n, n)), np.zeros((n, 2))
+    T[nx:nx + nw, :nx + nw], G[nx:nx + nw] = Wz, Wr
+    if d == 0:
+        T[:nx, :nx + nw], G[:nx] = Bd @ Uz, Bd @ Ur
+        T[:nx, :nx] += Ad
+    else:
+        T[:nx, :nx] = Ad
+        T[:nx, n - 2:n] = Bd                       # u_{k-d} acts now
+        T[nx + nw:nx + nw + 2, :nx + nw], G[nx + nw:nx + nw + 2] = Uz, Ur   # the newest command
+        for j in range(1, d):
+            T[nx + nw + 2 * j:nx + nw + 2 * j + 2, nx + nw + 2 * (j - 1):nx + nw + 2 * j] = np.eye(2)
+    C_tau = np.zeros((2, n))
+    C_tau[:, :nx] = Cy[2:4]
+    return T, G, C_tau
+
+
+def closed_loop_matrix(p: PlantParams, c: ImpedanceLoop, *, foot: str = "free", load_slope: float = 0.0,
+                       gain: float = 1.0) -> np.ndarray:
+    """The transition matrix T of :func:`closed_loop`."""
+    return closed_loop(p, c, foot=foot, load_slope=load_slope, gain=gain)[0]
+
+
+def torque_step_response(p: PlantParams, c: ImpedanceLoop, step_nm: tuple[float, float], n: int, *,
+                         ground: tuple[tuple[float, float], float]) -> np.ndarray:
+    """(n, 2) N m: the measured joint torque after a desired joint-torque step ``step_nm`` at sample 0,
+    foot held by ``ground`` ((K_dp, K_ie) N m/rad, B N m s/rad): what the loop is designed to do."""
+    T, G, C = closed_loop(p, c, foot="grounded", ground=ground)
+    z, r, out = np.zeros(T.shape[0]), np.asarray(step_nm, dtype=float), np.zeros((n, 2))
+    for k in range(n):
+        out[k] = C @ z
+        z = T @ z + G @ r
+    return out
+
+
+def spectral_radius(T: np.ndarray) -> float:
+    return float(np.max(np.abs(np.linalg.eigvals(T))))
+
+
+def gain_margin_db(p: PlantParams, c: ImpedanceLoop, *, foot: str = "free", load_slope: float = 0.0) -> float:
+    """dB by which the whole controller output may grow before the sampled loop goes unstable
+    (-inf when it already is; 20 log10(MAX_GAIN_MARGIN) when it stays stable that far)."""
+    stable = lambda g: spectral_radius(closed_loop_matrix(p, c, foot=foot, load_slope=load_slope, gain=g)) < 1.0  # noqa: E731
+    if not stable(1.0):
+        return -math.inf
+    grid = np.logspace(0.0, math.log10(MAX_GAIN_MARGIN), 41)
+    lo = 1.0
+    for g in grid[1:]:
+        if not stable(g):
+            hi = g
+            break
+        lo = g
+    else:
+        return 20.0 * math.log10(MAX_GAIN_MARGIN)
+    for _ in range(20):
+        mid = math.sqrt(lo * hi)
+        lo, hi = (mid, hi) if stable(mid) else (lo, mid)
+    return 20.0 * math.log10(lo)
+
+
+@dataclass(frozen=True)
+class MarginCase:
+    """One plant variant of the margin sweep and the loop's gain margin on it."""
+
+    stiffness_factor: float
+    viscous_factor: float
+    load_slope: float
+    foot: str
+    gain_margin_db: float
+    spectral_radius: float     # of the nominal-gain loop (< 1: stable)
+
+    def to_json(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+def torque_loop_margins(p: PlantParams, c: ImpedanceLoop, *, load_coefficient: float = 0.12,
+                        stiffness_factors=STIFFNESS_FACTORS, viscous_factors=VISCOUS_FACTORS,
+                        feet=FOOT_CONDITIONS) -> list[MarginCase]:
+    """Gain margins of the impedance loop over cable stiffness, viscous friction, load-dependent
+    friction (sliding with or against the load, slope +-``load_coefficient``) and foot condition."""
+    cases = []
+    for kf in stiffness_factors:
+        for vf in viscous_factors:
+            pp = with_transmission(p, cable_stiffness=p.transmission.cable_stiffness * kf)
+            pp = dataclasses.replace(pp, actuator=dataclasses.replace(pp.actuator, damping=pp.actuator.damping * vf))
+            for slope in sorted({-load_coefficient, 0.0, load_coefficient}):
+                for foot in feet:
+                    rho = spectral_radius(closed_loop_matrix(pp, c, foot=foot, load_slope=slope))
+                    cases.append(MarginCase(kf, vf, slope, foot, gain_margin_db(pp, c, foot=foot, load_slope=slope), rho))
+    return cases

@@ -54,14 +54,41 @@ FRICTION_FF = Section({
     "viscous": Field(float, "N m s/rad; default: actuator.damping (the identified value)", default=None, low=0.0),
     "velocity_band": positive("rad/s; the Coulomb term fades linearly to zero inside +/- this band (no chatter)",
                               default=0.05),
+    "model": Field(str, "coulomb_viscous: Coulomb + viscous only; identified: also the Stribeck, asymmetric and "
+                        "load-dependent friction effects of model_file", default="coulomb_viscous",
+                   choices=("coulomb_viscous", "identified")),
+    "model_file": Field(str, "identified model: a config such as `diagnose --write-model` writes (relative to "
+                             "this file); empty: this config's actuator and sim.effects", default=""),
 }, optional=True)
+
+# The joint-torque loop's shipped gains (margins in docs/daemon.md, `ankle-rt bench impedance`).
+KP_DEFAULT, KI_DEFAULT, KD_DP_DEFAULT, KD_IE_DEFAULT = 6.0, 10.0, 0.03, 0.06
+CUTOFF_DEFAULT, MAX_CORRECTION_DEFAULT = 80.0, 20.0
 
 IMPEDANCE = Section({
     "stiffness_dp": non_negative("N m/rad at the ankle", default=20.0),
     "stiffness_ie": non_negative("N m/rad at the ankle", default=10.0),
     "damping_dp": non_negative("N m s/rad at the ankle", default=0.5),
     "damping_ie": non_negative("N m s/rad at the ankle", default=0.25),
+    "torque_feedback": Field(str, "joint-torque loop on the strain gauges (controller.torque_loop): auto = on when "
+                                  "strain gauges are configured (simulator, or strain_gauges.matrix); off = open loop",
+                             default="auto", choices=("auto", "on", "off")),
 }, optional=True)
+
+TORQUE_LOOP = Section({
+    "kp_dp": non_negative("N m per N m of joint-torque error, DP", default=KP_DEFAULT),
+    "kp_ie": non_negative("N m per N m of joint-torque error, IE", default=KP_DEFAULT),
+    "ki_dp": non_negative("1/s, integral gain on the DP torque error", default=KI_DEFAULT),
+    "ki_ie": non_negative("1/s, integral gain on the IE torque error", default=KI_DEFAULT),
+    "torque_rate_dp": non_negative("s, gain on the rate of the measured DP torque (damps the motor-on-cable mode)",
+                                   default=KD_DP_DEFAULT),
+    "torque_rate_ie": non_negative("s, gain on the rate of the measured IE torque", default=KD_IE_DEFAULT),
+    "cutoff_hz": Field(float, "Hz, first-order low-pass of the measured joint torque (below the 77-98 Hz cable modes)",
+                       default=CUTOFF_DEFAULT, low=1.0, high=400.0),
+    "max_correction_dp": positive("N m at the ankle the DP feedback may add (anti-windup; bounds a wrong reading)",
+                                  default=MAX_CORRECTION_DEFAULT),
+    "max_correction_ie": positive("N m at the ankle the IE feedback may add", default=MAX_CORRECTION_DEFAULT),
+}, optional=True, doc="joint-torque feedback of the impedance controller (docs/daemon.md)")
 
 CONTROLLER = Section({
     "rate_hz": Field(int, "control loop rate", low=250, high=2000),
@@ -74,6 +101,7 @@ CONTROLLER = Section({
     "pd_gains": Field(str, "which gain set the PD uses", default="step", choices=("step", "validation")),
     "impedance": IMPEDANCE,
     "friction_ff": FRICTION_FF,
+    "torque_loop": TORQUE_LOOP,
     "gain_ramp_s": non_negative("s; run-time gain changes ramp linearly over this time (bumpless)", default=0.2),
     "soft_start_s": non_negative("s; the controller output ramps in over this time after activation", default=0.2),
 })

@@ -18,7 +18,7 @@ import numpy as np
 
 from ankle_rt.linear_model import N_X, LinearModel
 from ankle_rt.params import PlantParams
-from sim_backend.discretize import zoh
+from ankle_rt.discretize import zoh
 from sim_backend.effects import Effect
 from sim_backend.effects.elementwise import sin
 from sim_backend.effects.friction import CoulombFriction

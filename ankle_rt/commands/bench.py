@@ -12,6 +12,7 @@ Lockstep: the same daemon on a SimClock; real-time factor = simulated s / wall-c
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 
 BATCH_GOAL = 1000.0   # aggregate real-time factor of 256 nominal plants under PD (issue 14)
@@ -40,6 +41,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     batch.add_argument("--sizes", default="1,16,256", metavar="N,N,...", help="batch sizes (default 1,16,256)")
     batch.add_argument("--json", action="store_true", help="print one JSON object")
     batch.set_defaults(handler=bench_batch)
+    register_impedance(sub)
 
 
 def realtime_run(cfg, duration_s: float, log_dir: Path) -> tuple[dict, list[str]]:
@@ -171,4 +173,208 @@ def bench_batch(args: argparse.Namespace) -> int:
         print(f"  {n:>5} plants: {f:8.0f}x real time in aggregate ({f / int(n):.1f}x per plant)")
     if "256" in factors:
         print(f"goal >= {BATCH_GOAL:g}x at 256 plants: {'ok' if result['goal_met'] else 'MISSED'}")
+
+
+# -- ankle-rt bench impedance -----------------------------------------------------------------------
+IMPEDANCE_DOC = """Rendered ankle impedance on the simulator (lockstep, simulated clock): the configured impedance
+controller (joint-torque feedback when strain gauges are configured) against open loop, for each
+commanded DP stiffness (IE: half unless --stiffness-ie). Per axis: static torque pulses of several
+sizes and both signs (secant stiffness at the pulse end), sinusoidal torques at 0.5-5 Hz (dynamic
+stiffness Re Z, damping Im Z / w, hysteresis = energy dissipated per cycle beyond the commanded
+damping's), and the stability margin of the sampled loop from the linear model (ZOH + one cycle of
+delay) over cable stiffness +/-30 %, viscous friction x0.5-x2, load-dependent friction sliding with
+or against the load, foot free or held. The plant: the config's effects plus --load-friction and
+--stribeck (defaults: load-dependent 0.12, Stribeck 0.15 N m at 0.1 rad/s)."""
+
+SUMMARY_KEYS = ("stiffness_error_max_pct", "damping_error_max_pct", "hysteresis_j_per_cycle", "stability_margin_db",
+                "torque_tracking_rms_nm")
+
+
+def _number(low: float, strict: bool):
+    """argparse type: a finite float >= low (> low when ``strict``)."""
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+        if not (value > low if strict else value >= low) or value == float("inf"):
+            raise argparse.ArgumentTypeError(f"must be {'>' if strict else '>='} {low:g} and finite, got {text}")
+        return value
+    return parse
+
+
+def register_impedance(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("impedance", help="rendered stiffness, damping and hysteresis of the impedance controller",
+                       description=IMPEDANCE_DOC, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--config", metavar="FILE", help="configuration (default: the shipped config/sim.yaml)")
+    p.add_argument("--stiffness", type=_number(0.0, True), nargs="+", default=[50.0, 200.0], metavar="K",
+                   help="commanded DP stiffness(es), N m/rad (default 50 200)")
+    p.add_argument("--stiffness-ie", type=_number(0.0, True), metavar="K", help="IE stiffness, N m/rad (default: half of DP)")
+    p.add_argument("--damping", type=_number(0.0, False), nargs=2, default=[0.5, 0.25], metavar=("B_DP", "B_IE"),
+                   help="commanded damping, N m s/rad (default 0.5 0.25)")
+    p.add_argument("--load-friction", type=_number(0.0, False), default=0.12, metavar="MU",
+                   help="load-dependent cable friction coefficient in the plant (0: off; default 0.12)")
+    p.add_argument("--stribeck", type=_number(0.0, False), nargs=2, default=[0.15, 0.1], metavar=("A", "VS"),
+                   help="Stribeck excess N m and velocity rad/s in the plant (A 0: off; default 0.15 0.1)")
+    p.add_argument("--friction-ff", choices=("off", "coulomb_viscous", "identified"), default="off",
+                   help="friction feed-forward of both controllers (identified: the plant's own friction model)")
+    p.add_argument("--friction-study", action="store_true",
+                   help="also run both controllers with each friction feed-forward (what the identified model buys)")
+    p.add_argument("--quick", action="store_true", help="fewer pulses and sines (a smoke run)")
+    p.add_argument("--plot", metavar="PNG", default="impedance-bench.png",
+                   help="torque-angle loops against the commanded line (default impedance-bench.png; needs matplotlib)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(handler=bench_impedance)
+
+
+def plant_effects(load_friction: float, stribeck: tuple[float, float]) -> list[dict]:
+    """The ``sim.effects`` entries of the bench's plant options."""
+    effects: list[dict] = []
+    if load_friction > 0.0:
+        effects.append({"type": "load_dependent_friction", "coefficient": load_friction})
+    if stribeck[0] > 0.0:
+        effects.append({"type": "stribeck", "static_excess": stribeck[0], "stribeck_velocity": stribeck[1]})
+    return effects
+
+
+def impedance_variant(cfg, stiffness: list[float], stiffness_ie: float | None, damping: tuple[float, float],
+                      effects: list[dict], *, feedback: str, friction_ff: str | None, experiment,
+                      keep_loops: bool = False) -> dict:
+    """Run the bench for one controller variant over the commanded stiffnesses; its summary and runs."""
+    from ankle_rt.analysis import ImpedanceLoop, torque_loop_margins
+    from ankle_rt.control.torque_loop import torque_feedback
+    from ankle_rt.impedance_bench import bench_config, run_impedance
+    from ankle_rt.params import PlantParams
+
+    runs, margins = [], []
+    for k in stiffness:
+        c = bench_config(cfg, stiffness=(k, k / 2.0 if stiffness_ie is None else stiffness_ie), damping=damping,
+                         torque_feedback=feedback, friction_ff=friction_ff, effects=effects)
+        closed = torque_feedback(c)
+        res = run_impedance(c, experiment, keep_loops=keep_loops)
+        mu = max([e["coefficient"] for e in c["sim"]["effects"] if e["type"] == "load_dependent_friction"] or [0.0])
+        cases = torque_loop_margins(PlantParams.from_config(c), ImpedanceLoop.from_config(c, closed=closed),
+                                    load_coefficient=mu)
+        worst = min(cases, key=lambda m: m.gain_margin_db)
+        margins.append(worst.gain_margin_db)
+        runs.append({**res.to_json(), "stability_margin_db": worst.gain_margin_db, "worst_margin_case": worst.to_json(),
+                     "_result": res})
+    summary = {
+        "torque_feedback": closed, "friction_ff": friction_ff or "off",
+        "stiffness_error_max_pct": max(r["stiffness_error_max_pct"] for r in runs),
+        "damping_error_max_pct": max(r["damping_error_max_pct"] for r in runs),
+        "hysteresis_j_per_cycle": max(r["hysteresis_j_per_cycle"] for r in runs),
+        "stability_margin_db": min(margins),
+        "torque_tracking_rms_nm": max(r["torque_tracking_rms_nm"] for r in runs),
+        "faults": sorted({r["fault"] for r in runs}),
+    }
+    return {"summary": summary, "runs": runs}
+
+
+def plot_loops(variants: dict[str, dict], png: str) -> str:
+    """Torque-angle loops of the first commanded stiffness, one panel per axis and frequency, each
+    variant against the commanded line tau = K theta. Returns a note."""
+    from ankle_rt.plotting import MISSING, pyplot
+
+    plt = pyplot()
+    if plt is None:
+        return f"plot skipped: {MISSING}"
+    import numpy as np
+
+    first = next(iter(variants.values()))["runs"][0]["_result"]
+    keys = [(lp["axis"], lp["freq_hz"]) for lp in first.loops]
+    fig, axes = plt.subplots(2, max(1, len(keys) // 2), figsize=(4 * max(1, len(keys) // 2), 7), squeeze=False)
+    for n, (axis, f) in enumerate(keys):
+        ax = axes.flat[n]
+        for i, (name, v) in enumerate(variants.items()):
+            res = v["runs"][0]["_result"]
+            lp = next(lp for lp in res.loops if lp["axis"] == axis and lp["freq_hz"] == f)
+            ax.plot(np.degrees(lp["angle"]), lp["torque"], f"C{i}", lw=0.8, label=name)
+        k = first.commanded[f"stiffness_{axis}"]
+        lim = np.array(ax.get_xlim())
+        ax.plot(lim, k * np.radians(lim), "k--", lw=0.8, label=f"commanded K = {k:g}")
+        ax.set_title(f"{axis.upper()} {f:g} Hz")
+        ax.set_xlabel("ankle angle (deg)")
+        ax.set_ylabel("external torque (N m)")
+        ax.grid(True, lw=0.3)
+    axes.flat[0].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(png, dpi=110)
+    plt.close(fig)
+    return f"plot: {png}"
+
+
+def _finite_or_null(x):
+    """JSON has no NaN / inf: undefined figures (e.g. a damping error for zero commanded damping) -> null."""
+    if isinstance(x, float):
+        return x if math.isfinite(x) else None
+    if isinstance(x, dict):
+        return {k: _finite_or_null(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_finite_or_null(v) for v in x]
+    return x
+
+
+def bench_impedance(args: argparse.Namespace) -> int:
+    import json
+
+    from ankle_rt.config import load_config
+    from ankle_rt.impedance_bench import Experiment
+    from ankle_rt.paths import default_config_path
+
+    if args.stribeck[0] > 0.0 and args.stribeck[1] <= 0.0:
+        raise SystemExit("ankle-rt bench impedance: --stribeck: the velocity VS must be > 0")
+    cfg = load_config(Path(args.config) if args.config else default_config_path())
+    effects = plant_effects(args.load_friction, tuple(args.stribeck))
+    exp = Experiment(pulses_nm=((3.0, -3.0, 12.0, -12.0), (3.0, -3.0)), sine_hz=(0.5, 5.0), sine_cycles=3,
+                     analysed_cycles=1) if args.quick else Experiment()
+    ff = None if args.friction_ff == "off" else args.friction_ff
+    plan = {"closed loop": ("auto", ff), "open loop": ("off", ff)}
+    if args.friction_study:
+        for name in ("coulomb_viscous", "identified"):
+            plan[f"closed loop, {name} ff"] = ("auto", name)
+            plan[f"open loop, {name} ff"] = ("off", name)
+    variants = {}
+    for name, (feedback, f) in plan.items():
+        if not args.json:
+            print(f"{name} ...", flush=True)
+        variants[name] = impedance_variant(cfg, args.stiffness, args.stiffness_ie, tuple(args.damping), effects,
+                                           feedback=feedback, friction_ff=f, experiment=exp, keep_loops=True)
+    note = plot_loops({k: variants[k] for k in ("closed loop", "open loop")}, args.plot) if args.plot else ""
+    main = variants["closed loop"]["summary"]
+    result = {key: main[key] for key in SUMMARY_KEYS}
+    # per commanded stiffness, open loop's hysteresis over the closed loop's; the smallest
+    result["hysteresis_ratio_open_to_closed"] = min(
+        o["hysteresis_j_per_cycle"] / c["hysteresis_j_per_cycle"]
+        for o, c in zip(variants["open loop"]["runs"], variants["closed loop"]["runs"]))
+    result.update(torque_feedback=main["torque_feedback"], faults=main["faults"],
+                  commanded_stiffness_dp=args.stiffness, damping=args.damping, plant_effects=effects,
+                  variants={name: {**v["summary"], "runs": [{k: r[k] for k in r if k != "_result"} for r in v["runs"]]}
+                            for name, v in variants.items()},
+                  plot=note)
+    if args.json:
+        print(json.dumps(_finite_or_null(result)))
+        return 0
+    print(f"plant: nominal + {', '.join(e['type'] for e in effects) or 'no extra effects'}; "
+          f"commanded K_dp {', '.join(f'{k:g}' for k in args.stiffness)} N m/rad, damping {args.damping[0]:g} / "
+          f"{args.damping[1]:g} N m s/rad")
+    print(f"{'variant':32s} {'K err max %':>11s} {'B err max %':>11s} {'hyst J/cyc':>10s} {'margin dB':>9s} "
+          f"{'torque err rms':>14s}  faults")
+    for name, v in variants.items():
+        s = v["summary"]
+        print(f"{name:32s} {s['stiffness_error_max_pct']:11.1f} {s['damping_error_max_pct']:11.0f} "
+              f"{s['hysteresis_j_per_cycle']:10.3f} {s['stability_margin_db']:9.1f} {s['torque_tracking_rms_nm']:14.2f}  "
+              f"{','.join(s['faults'])}")
+    for name in ("closed loop", "open loop"):
+        for run in variants[name]["runs"]:
+            c = run["commanded"]
+            print(f"{name}, K {c['stiffness_dp']:g} / {c['stiffness_ie']:g}: rendered K per pulse "
+                  + "; ".join(f"{p['axis']} {p['torque_nm']:+g}: {p['stiffness']:.0f}" for p in run["pulses"]))
+            print("   sines (axis Hz: K_dyn, B, hysteresis J): "
+                  + "; ".join(f"{s['axis']} {s['freq_hz']:g}: {s['dynamic_stiffness']:.0f}, {s['damping']:.2f}, "
+                              f"{s['hysteresis_j']:.3f}" for s in run["sines"]))
+    print(f"hysteresis open loop / closed loop (worst commanded stiffness): "
+          f"{result['hysteresis_ratio_open_to_closed']:.1f}x")
+    if note:
+        print(note)
     return 0

@@ -86,6 +86,4 @@ def impedance_controller(ctx: "ControllerContext") -> CycleController:
     from ankle_rt.control.impedance import ImpedanceController
 
     _no_params(ctx, "impedance", "controller.impedance")
-    c = ctx.cfg["controller"]
-    return ImpedanceController(ctx.kin, ctx.ref, c["impedance"], dt=ctx.dt, ramp_s=c["gain_ramp_s"],
-                               soft_start_s=c["soft_start_s"], friction=ctx.friction)
+    return ImpedanceController.from_config(ctx.cfg, ctx.kin, ctx.ref, friction=ctx.friction)

@@ -1,40 +1,129 @@
-"""Friction feed-forward: the identified Coulomb + viscous friction of each motor, added to the
-controller's motor torque so the position loop does not have to build up an error to overcome it.
+"""Friction feed-forward: the identified friction of each motor, added to the controller's motor torque
+so the loop does not have to build up an error to overcome it.
 
-``tau_ff = kc * sat(v / v_band) + D * v`` with the filtered motor velocity ``v`` (rad/s). Inside the
-band ``|v| < v_band`` the Coulomb term fades linearly to zero, so velocity noise around standstill
-(one encoder count per cycle is 0.054 rad/s) does not make the command chatter between +kc and -kc.
+Per motor, with the filtered motor velocity ``v`` (rad/s) and the cable torque the motor feels ``tc``
+(N m, ``R^-T`` of the measured joint torque):
+
+    tau_ff = s(v) (kc + a exp(-(v / vs)^2) + mu |tc|) + dc |s(v)| + D v + dv |v|
+
+- ``kc``, ``D``: Coulomb and viscous friction (``actuator.coulomb`` / ``actuator.damping``, or given);
+- ``a``, ``vs``: Stribeck excess and velocity; ``dc``, ``dv``: direction asymmetry (kc+- = kc +- dc,
+  D+- = D +- dv); ``mu``: load-dependent (Bowden-cable) friction per unit cable torque. These come from
+  the friction effects (``stribeck``, ``asymmetric_friction``, ``load_dependent_friction``) of an
+  identified model: what ``ankle-rt identify`` and ``ankle-rt diagnose --write-model`` write.
+- ``s(v) = sat(v / v_band)``: inside the standstill band ``|v| < v_band`` the direction-dependent
+  terms fade linearly to zero, so velocity noise at standstill (one encoder count per cycle is
+  0.054 rad/s) does not make the command chatter between +kc and -kc. At standstill the static
+  friction is the torque loop's job (its integrator), not the feed-forward's guess of a direction.
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+import copy
+import math
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Iterable, Mapping
 
 if TYPE_CHECKING:
     from ankle_rt.config import Config
 
+FRICTION_EFFECTS = ("stribeck", "asymmetric_friction", "load_dependent_friction")
+
 
 class FrictionFeedForward:
-    def __init__(self, coulomb: float, viscous: float, velocity_band: float, enabled: bool = True):
-        """``coulomb`` N m, ``viscous`` N m s/rad, ``velocity_band`` rad/s (> 0)."""
+    def __init__(self, coulomb: float, viscous: float, velocity_band: float, enabled: bool = True, *,
+                 stribeck_excess: float = 0.0, stribeck_velocity: float = 1.0, coulomb_asymmetry: float = 0.0,
+                 viscous_asymmetry: float = 0.0, load_coefficient: float = 0.0):
+        """``coulomb``, ``stribeck_excess``, ``coulomb_asymmetry`` N m; ``viscous``, ``viscous_asymmetry``
+        N m s/rad; ``velocity_band``, ``stribeck_velocity`` rad/s (> 0); ``load_coefficient`` 1."""
         self.kc = coulomb
         self.d = viscous
         self.inv_band = 1.0 / velocity_band
         self.enabled = enabled
+        self.a = stribeck_excess
+        self.inv_vs = 1.0 / stribeck_velocity
+        self.dc = coulomb_asymmetry
+        self.dv = viscous_asymmetry
+        self.mu = load_coefficient
 
     @classmethod
     def from_config(cls, cfg: "Config") -> "FrictionFeedForward":
-        """``controller.friction_ff``; missing coefficients default to the actuator's identified ones."""
+        """``controller.friction_ff``. ``model: coulomb_viscous`` uses ``coulomb``/``viscous`` (default:
+        the actuator's identified values); ``model: identified`` adds the friction effects of
+        ``model_file`` (a config such as ``diagnose --write-model`` writes; empty: this config's own
+        ``actuator`` and ``sim.effects``)."""
         f = cfg["controller"]["friction_ff"]
-        a = cfg["actuator"]
+        a, effects, source = cfg["actuator"], (), getattr(cfg, "source", None)
+        if f["model"] == "identified":
+            a, effects, source = identified_model(cfg, f["model_file"])
         kc = a["coulomb"] if f["coulomb"] is None else f["coulomb"]
         d = a["damping"] if f["viscous"] is None else f["viscous"]
-        return cls(kc, d, f["velocity_band"], f["enabled"])
+        return cls(kc, d, f["velocity_band"], f["enabled"], **effect_terms(effects, source))
 
-    def torque(self, v: float) -> float:
-        """N m for motor velocity ``v`` rad/s (0 when switched off)."""
+    def without_viscous(self) -> "FrictionFeedForward":
+        """A copy without the viscous terms (D, dv): under the joint-torque loop the motors' viscous
+        friction is the damping the loop's integral relies on (ankle_rt.control.torque_loop)."""
+        out = copy.copy(self)
+        out.d = out.dv = 0.0
+        return out
+
+    def torque(self, v: float, tc: float = 0.0) -> float:
+        """N m for motor velocity ``v`` rad/s and felt cable torque ``tc`` N m (0 when switched off)."""
         if not self.enabled:
             return 0.0
         x = v * self.inv_band
         s = 1.0 if x > 1.0 else (-1.0 if x < -1.0 else x)
-        return self.kc * s + self.d * v
+        u = v * self.inv_vs
+        sliding = self.kc + self.a * math.exp(-u * u) + self.mu * abs(tc)
+        return s * sliding + self.dc * abs(s) + self.d * v + self.dv * abs(v)
+
+
+# the friction effects' parameters the feed-forward reads: name -> (keyword, must be > 0)
+EFFECT_PARAMS = {
+    "stribeck": {"static_excess": ("stribeck_excess", False), "stribeck_velocity": ("stribeck_velocity", True)},
+    "asymmetric_friction": {"coulomb_asymmetry": ("coulomb_asymmetry", False),
+                            "viscous_asymmetry": ("viscous_asymmetry", False)},
+    "load_dependent_friction": {"coefficient": ("load_coefficient", False)},
+}
+OPTIONAL = {"viscous_asymmetry"}
+
+
+def effect_terms(effects: Iterable[Mapping[str, Any]], source: str | None = None) -> dict[str, float]:
+    """Keyword arguments of :class:`FrictionFeedForward` from ``sim.effects`` entries (the friction
+    ones; other effects are not friction and are ignored). Raises ConfigError naming a missing or
+    bad parameter (``sim.effects.N.key`` of ``source``)."""
+    from ankle_rt.config import ConfigError
+
+    out: dict[str, float] = {}
+    for i, e in enumerate(effects):
+        for key, (kw, positive) in EFFECT_PARAMS.get(e.get("type"), {}).items():
+            where = f"sim.effects.{i}.{key}"
+            if key not in e:
+                if key in OPTIONAL:
+                    continue
+                raise ConfigError("missing (the friction feed-forward needs it)", source, where)
+            value = e[key]
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
+                    or (positive and value <= 0.0):
+                raise ConfigError(f"expected a finite number{' > 0' if positive else ''}, got {value!r}", source, where)
+            out[kw] = float(value)
+    return out
+
+
+def identified_model(cfg: "Config", model_file: str) -> tuple[Mapping[str, Any], list, str | None]:
+    """(actuator section, sim.effects, source file) of the identified model: ``model_file`` (relative
+    paths are relative to the config file) or, when empty, ``cfg`` itself. Raises ConfigError naming
+    the key."""
+    from ankle_rt.config import ConfigError, load_config
+
+    if not model_file:
+        return cfg["actuator"], list(cfg["sim"]["effects"]), getattr(cfg, "source", None)
+    path = Path(model_file)
+    if not path.is_absolute() and getattr(cfg, "source", "<memory>") != "<memory>":
+        path = Path(cfg.source).parent / path
+    try:
+        model = load_config(path)
+    except (OSError, ConfigError) as exc:
+        raise ConfigError(f"cannot load the friction model: {exc}", getattr(cfg, "source", None),
+                          "controller.friction_ff.model_file") from None
+    return model["actuator"], list(model["sim"]["effects"]), str(path)

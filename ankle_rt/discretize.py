@@ -1,4 +1,6 @@
-"""Exact zero-order-hold discretisation of a linear system, without scipy (the runtime stays lean)."""
+"""Exact zero-order-hold discretisation of a linear system, without scipy (the runtime stays lean).
+
+Shared by the simulator (sim_backend.model) and the closed-loop analysis (ankle_rt.analysis)."""
 
 from __future__ import annotations
 

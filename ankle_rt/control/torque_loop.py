@@ -1,0 +1,172 @@
+"""Joint-torque feedback from the strain gauges: what makes the rendered impedance the commanded one.
+
+Open loop, everything between the motor and the ankle (reflected motor inertia 1.9 / 0.6 kg m^2,
+gearbox and Bowden-cable friction of several N m at the ankle, load-dependent cable friction) is felt
+by the wearer on top of the commanded impedance. The strain gauges measure the joint torque the cables
+deliver, so per ankle axis this loop drives the measured torque to the desired one:
+
+    u = tau_des + kp e + ki integral(e) - kd d/dt LP(tau_sg)      e = tau_des - LP(tau_sg)
+
+- ``tau_des`` (feed-forward) is the impedance law's joint torque; ``u`` is the ankle-side motor torque
+  (mapped to the motors with R^-T by the caller).
+- The integral removes the static error friction leaves (the rendered stiffness at standstill is then
+  the commanded one); it is clamped, and so is the whole correction ``kp e + ki int(e) - kd d/dt
+  LP(tau_sg)``, to ``max_correction_nm``: a wrong, frozen or glitching torque reading can add at
+  most that torque (sensor faults that the safety layer sees -- rail, stale, jumps, NaN -- put the
+  daemon into the safe state; see docs/daemon.md).
+- ``kd`` on the rate of the measured torque damps the motor-on-cable mode (5-10 Hz with the foot held,
+  as in stance), which the plain proportional loop makes unstable with a cycle of delay. It acts on
+  the cable's stretch rate, not the motor velocity, so it adds no damping to the free motion the
+  wearer feels. The integral is kept slow (``ki``): a fast one turns the reflected motor inertia into
+  negative damping (the loop would not be passive).
+- The measured torque is low-passed (first order at ``cutoff_hz``) so the loop rolls off well below
+  the 77-98 Hz cable modes, whose damping ratio (~0.02) it must not eat.
+
+Stability margins across cable stiffness +/- 30 % and the friction range come from the linear model:
+:func:`ankle_rt.analysis.torque_loop_margins`. Everything per cycle is plain floats (no allocation).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, Mapping
+
+from ankle_rt.estimation import Estimate
+
+if TYPE_CHECKING:
+    from ankle_rt.config import Config
+
+MIN_DAMPING_RATIO = 0.05        # of the rendered impedance against the reflected inertia / (1 + kp)
+# [DP, IE] of the cable stiffness at the ankle: a series-elastic loop cannot render a stiffness near
+# its spring's and stay stable. Where the linear margin checks hold with MIN_DAMPING_RATIO (DP: the
+# impedance mode's frequency rises with K and the loop's lags eat its damping first).
+MAX_STIFFNESS_FRACTION = (0.3, 0.5)
+
+
+@dataclass(frozen=True)
+class TorqueLoopGains:
+    """Per-axis gains [DP, IE] of the joint-torque loop (ankle coordinates)."""
+
+    kp: tuple[float, float]                  # N m per N m of torque error
+    ki: tuple[float, float]                  # 1/s, integral of the torque error
+    torque_rate: tuple[float, float]         # s, kd on the rate of the filtered measured torque
+    cutoff_hz: float                         # first-order low-pass of the measured joint torque
+    max_correction_nm: tuple[float, float]   # |kp e + ki int e - kd rate| at most this (anti-windup, fault bound)
+
+    @classmethod
+    def from_config(cls, c: Mapping[str, Any]) -> "TorqueLoopGains":
+        """From ``controller.torque_loop``."""
+        pair = lambda key: (float(c[key + "_dp"]), float(c[key + "_ie"]))  # noqa: E731
+        return cls(kp=pair("kp"), ki=pair("ki"), torque_rate=pair("torque_rate"),
+                   cutoff_hz=float(c["cutoff_hz"]), max_correction_nm=pair("max_correction"))
+
+
+class JointTorqueLoop:
+    """The loop of the module docstring for both ankle axes; :meth:`update` writes ``out[0:2]``."""
+
+    def __init__(self, gains: TorqueLoopGains, dt: float):
+        self.gains = gains
+        self.kp0, self.kp1 = gains.kp
+        self.kidt0, self.kidt1 = gains.ki[0] * dt, gains.ki[1] * dt
+        self.kdr0, self.kdr1 = gains.torque_rate[0] / dt, gains.torque_rate[1] / dt
+        self.lim0, self.lim1 = gains.max_correction_nm
+        self.alpha = 1.0 - math.exp(-2.0 * math.pi * gains.cutoff_hz * dt)
+        self.out = [0.0, 0.0]   # N m [DP, IE], ankle-side motor torque
+        self.reset_state(0.0, 0.0)
+
+    def reset_state(self, tau_dp: float, tau_ie: float) -> None:
+        """Start from the measured torques (N m) with an empty integrator (on activation)."""
+        self.f0, self.f1 = tau_dp, tau_ie
+        self.i0 = self.i1 = 0.0
+
+    def update(self, tau_dp: float, tau_ie: float, est: Estimate, integrate: bool) -> None:
+        """Desired joint torques (N m) in, ankle-side motor torques out (``self.out``). ``integrate``
+        False holds the integrator (during the soft start)."""
+        a = self.alpha
+        sg = est.sg_torque
+        p0, p1 = self.f0, self.f1
+        f0 = p0 + a * (sg.item(0) - p0)
+        f1 = p1 + a * (sg.item(1) - p1)
+        self.f0, self.f1 = f0, f1
+        e0, e1 = tau_dp - f0, tau_ie - f1
+        lim0, lim1 = self.lim0, self.lim1
+        i0, i1 = self.i0, self.i1
+        if integrate:
+            i0 += self.kidt0 * e0
+            i1 += self.kidt1 * e1
+            i0 = lim0 if i0 > lim0 else (-lim0 if i0 < -lim0 else i0)
+            i1 = lim1 if i1 > lim1 else (-lim1 if i1 < -lim1 else i1)
+            self.i0, self.i1 = i0, i1
+        c0 = self.kp0 * e0 + i0 - self.kdr0 * (f0 - p0)
+        c1 = self.kp1 * e1 + i1 - self.kdr1 * (f1 - p1)
+        c0 = lim0 if c0 > lim0 else (-lim0 if c0 < -lim0 else c0)
+        c1 = lim1 if c1 > lim1 else (-lim1 if c1 < -lim1 else c1)
+        out = self.out
+        out[0] = tau_dp + c0
+        out[1] = tau_ie + c1
+
+
+def torque_feedback(cfg: "Config") -> bool:
+    """Whether the impedance controller closes the joint-torque loop: ``controller.impedance.
+    torque_feedback`` on/off, or auto = when strain gauges are configured (the simulator's always
+    are; on hardware ``strain_gauges.matrix`` is given)."""
+    mode = cfg["controller"]["impedance"]["torque_feedback"]
+    if mode != "auto":
+        return mode == "on"
+    return cfg["backend"] == "sim" or cfg["strain_gauges"]["matrix"] is not None
+
+
+@dataclass(frozen=True)
+class ImpedanceLimits:
+    """The impedances the closed loop renders stably, per ankle axis [DP, IE].
+
+    With the foot free the loop is the reflected inertia J / (1 + kp) on the commanded spring, damped
+    by B + D / (1 + kp), plus the integral. Two conditions keep it stable with a cycle of delay, half
+    the identified viscous friction D and cable stiffness +-30 % (checked at their boundary with the
+    linear model, tests/test_impedance_torque_loop.py):
+
+    - the integral: c (1 + kp) >= 2 J ki, c = D / 2 + (1 + kp) B (the Routh condition, factor 2);
+    - the rendered damping ratio (B + D / (2 (1 + kp))) / (2 sqrt(K J / (1 + kp))) >= MIN_DAMPING_RATIO;
+    - K <= MAX_STIFFNESS_FRACTION x the cable stiffness at the ankle (0.3 DP, 0.5 IE).
+    """
+
+    inertia: tuple[float, float]          # kg m^2, reflected motor inertia R^T J R (diagonal)
+    viscous: tuple[float, float]          # N m s/rad, reflected viscous friction R^T D R
+    max_stiffness: tuple[float, float]    # N m/rad
+    kp: tuple[float, float]
+    ki: tuple[float, float]
+
+    @classmethod
+    def from_config(cls, cfg: "Config") -> "ImpedanceLimits":
+        from ankle_rt.kinematics import Kinematics
+        from ankle_rt.params import TransmissionParams
+
+        kin = Kinematics.from_params(TransmissionParams(**cfg["transmission"]))
+        col = [float(kin.R[0, a] ** 2 + kin.R[1, a] ** 2) for a in (0, 1)]
+        a, tl = cfg["actuator"], cfg["controller"]["torque_loop"]
+        return cls(inertia=(a["inertia"] * col[0], a["inertia"] * col[1]),
+                   viscous=(a["damping"] * col[0], a["damping"] * col[1]),
+                   max_stiffness=(MAX_STIFFNESS_FRACTION[0] * float(kin.K[0, 0]),
+                                  MAX_STIFFNESS_FRACTION[1] * float(kin.K[1, 1])),
+                   kp=(tl["kp_dp"], tl["kp_ie"]), ki=(tl["ki_dp"], tl["ki_ie"]))
+
+    def min_damping(self, axis: int, stiffness: float) -> float:
+        """N m s/rad: the least commanded damping for ``stiffness`` N m/rad on ``axis`` (0 DP, 1 IE)."""
+        g, J, d = 1.0 + self.kp[axis], self.inertia[axis], self.viscous[axis] / (2.0 * (1.0 + self.kp[axis]))
+        integral = 2.0 * J * self.ki[axis] / g ** 2
+        ratio = 2.0 * MIN_DAMPING_RATIO * math.sqrt(stiffness * J / g)
+        return max(0.0, max(integral, ratio) - d)
+
+    def check(self, gains: Mapping[str, float]) -> tuple[str, str] | None:
+        """(gain name, reason) for the first impedance gain outside the stable set, None if all fit."""
+        for axis, name in enumerate(("dp", "ie")):
+            k, b = gains[f"stiffness_{name}"], gains[f"damping_{name}"]
+            if k > self.max_stiffness[axis]:
+                return (f"stiffness_{name}", f"stiffness_{name} {k:g} N m/rad is above {self.max_stiffness[axis]:.0f}, "
+                        f"the most the joint-torque loop renders stably ({MAX_STIFFNESS_FRACTION[axis]:g} x the cable stiffness)")
+            need = self.min_damping(axis, k)
+            if b < need:
+                return (f"damping_{name}", f"damping_{name} {b:g} N m s/rad is below {need:.3g}, the least the "
+                        f"joint-torque loop needs with stiffness_{name} {k:g} (docs/daemon.md)")
+        return None

@@ -1,0 +1,309 @@
+"""The impedance controller's joint-torque loop on the simulator (lockstep) and in the linear model:
+torque tracking, robustness to the cable stiffness, rendered stiffness, and strain-gauge faults."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from ankle_rt.analysis import ImpedanceLoop, torque_loop_margins, torque_step_response
+from ankle_rt.backend import BackendFault, open_backend
+from ankle_rt.clock import SimClock
+from ankle_rt.config import ConfigError, load_config
+from ankle_rt.control import build_controller
+from ankle_rt.control.torque_loop import torque_feedback
+from ankle_rt.control.impedance import ImpedanceController
+from ankle_rt.control.gains import GainError
+from ankle_rt.control.torque_loop import ImpedanceLimits, JointTorqueLoop, TorqueLoopGains
+from ankle_rt.daemon import run_lockstep
+from ankle_rt.estimation import Estimate
+from ankle_rt.impedance_bench import Experiment, TorqueProgramBackend, bench_config, run_impedance
+from ankle_rt.kinematics import Kinematics
+from ankle_rt.params import PlantParams, TransmissionParams
+from ankle_rt.paths import default_config_path
+from ankle_rt.safety import Fault, State
+
+PLANT = [{"type": "load_dependent_friction", "coefficient": 0.12},
+         {"type": "stribeck", "static_excess": 0.15, "stribeck_velocity": 0.1}]
+GROUND = (300.0, 150.0)     # N m/rad: a compliant ground holding the foot (stance), per axis
+GROUND_DAMPING = 1.0        # N m s/rad
+
+
+@pytest.fixture(scope="module")
+def base():
+    return load_config(default_config_path())
+
+
+def impedance_cfg(base, k_dp=50.0, *, feedback="auto", effects=PLANT):
+    return bench_config(base, stiffness=(k_dp, k_dp / 2), damping=(0.5, 0.25), torque_feedback=feedback,
+                        friction_ff=None, effects=effects)
+
+
+def grounded(t, x):
+    """The ground's torque on the foot: a stiff, damped spring at 0 (explicit, held over a tick)."""
+    return (-GROUND[0] * x[0] - GROUND_DAMPING * x[4], -GROUND[1] * x[1] - GROUND_DAMPING * x[5])
+
+
+class TorqueStep:
+    """Test controller: the joint-torque loop alone, tracking a desired joint-torque step [DP, IE]."""
+
+    def __init__(self, cfg, step_nm, t_step):
+        self.loop = JointTorqueLoop(TorqueLoopGains.from_config(cfg["controller"]["torque_loop"]),
+                                    1.0 / cfg["controller"]["rate_hz"])
+        self.RiT = Kinematics.from_params(TransmissionParams(**cfg["transmission"])).R_inv_T
+        self.step, self.t_step = step_nm, t_step
+
+    def reset(self, est: Estimate) -> None:
+        self.loop.reset_state(est.sg_torque.item(0), est.sg_torque.item(1))
+
+    def update(self, est: Estimate, out: np.ndarray) -> None:
+        on = est.t >= self.t_step
+        self.loop.update(self.step[0] if on else 0.0, self.step[1] if on else 0.0, est, True)
+        out[:] = self.RiT @ np.array(self.loop.out)
+
+
+def test_auto_closes_the_loop_when_strain_gauges_are_configured(base):
+    cfg = impedance_cfg(base)
+    assert torque_feedback(cfg)
+    assert isinstance(build_controller(cfg, Kinematics.from_params(TransmissionParams(**cfg["transmission"])),
+                                       np.zeros(2)).torque_loop, JointTorqueLoop)
+    hw = cfg.deep_copy()
+    hw["backend"] = "serial"
+    assert not torque_feedback(hw)                # hardware without a strain-gauge matrix: open loop
+    hw["strain_gauges"]["matrix"] = [[1e-6, 0.0], [0.0, 1e-6]]
+    assert torque_feedback(hw)
+    off = impedance_cfg(base, feedback="off")
+    assert not torque_feedback(off)
+    ctl = build_controller(off, Kinematics.from_params(TransmissionParams(**off["transmission"])), np.zeros(2))
+    assert isinstance(ctl, ImpedanceController) and ctl.torque_loop is None
+
+
+def _torque_step(cfg, step, t0, duration):
+    backend = TorqueProgramBackend(open_backend(cfg, SimClock()), grounded)
+    try:
+        run = run_lockstep(cfg, duration, controller=TorqueStep(cfg, step, t0), backend=backend)
+    finally:
+        backend.close()
+    assert run.summary["fault"] == "NONE"
+    i0 = int(np.searchsorted(run["t"], t0 - 1e-9))
+    return np.vstack([run["sg_torque_dp"][i0:], run["sg_torque_ie"][i0:]]).T
+
+
+def test_torque_loop_tracks_a_step_as_designed(base):
+    """Stance (the foot held by a compliant ground): a 2 N m DP / 1 N m IE joint-torque step (small
+    enough that the correction stays unclamped). Without friction the simulator follows the design
+    model (the linear closed loop of ankle_rt.analysis with the same ground and timing) to within the
+    strain-gauge noise; with the issue's Stribeck and load-dependent friction it still reaches 90 %
+    within 1.5x the designed rise time and holds the step without a steady error."""
+    step, t0 = (2.0, 1.0), 0.5
+    design_cfg = impedance_cfg(base, effects=[])
+    design_cfg["sim"]["friction"] = False
+    loop = dataclasses.replace(ImpedanceLoop.from_config(design_cfg, closed=True, delay_cycles=0),
+                               stiffness=(0.0, 0.0), damping=(0.0, 0.0))
+    designed = torque_step_response(PlantParams.from_config(design_cfg), loop, step, 700,
+                                    ground=(GROUND, GROUND_DAMPING))
+    rise = [int(np.argmax(designed[:, a] >= 0.9 * step[a])) for a in (0, 1)]
+    assert all(20 < r < 100 for r in rise)          # ms: a bandwidth of a few Hz on this ground
+
+    frictionless = _torque_step(design_cfg, step, t0, t0 + 0.7)
+    assert np.all(np.abs(frictionless[:700] - designed) < 0.1 * np.array(step))
+
+    measured = _torque_step(impedance_cfg(base), step, t0, t0 + 1.2)
+    for a, name in enumerate(("dp", "ie")):
+        assert np.argmax(measured[:, a] >= 0.9 * step[a]) <= 1.5 * rise[a], name
+        assert abs(np.mean(measured[900:, a]) / step[a] - 1.0) < 0.05, name
+
+
+@pytest.mark.parametrize("k_dp", [50.0, 200.0])
+def test_linear_margins_at_cable_stiffness_plus_minus_30_percent(base, k_dp):
+    """The sampled loop (ZOH + one cycle of delay) keeps >= 6 dB of gain margin for every cable
+    stiffness, viscous and load-dependent friction and foot condition of the sweep; open loop it is
+    stable too (the comparison is fair)."""
+    cfg = impedance_cfg(base, k_dp)
+    p = PlantParams.from_config(cfg)
+    cases = torque_loop_margins(p, ImpedanceLoop.from_config(cfg, closed=True))
+    assert {c.stiffness_factor for c in cases} == {0.7, 1.0, 1.3}
+    assert all(c.spectral_radius < 1.0 for c in cases)
+    assert min(c.gain_margin_db for c in cases) >= 6.0
+    # the margin is a real limit: enough proportional gain makes the same sweep unstable
+    hot = ImpedanceLoop.from_config(cfg, closed=True)
+    hot = ImpedanceLoop(**{**hot.__dict__, "kp": (60.0, 60.0)})
+    assert min(c.gain_margin_db for c in torque_loop_margins(p, hot, stiffness_factors=(1.3,))) < 0.0
+
+
+@pytest.mark.parametrize("factor", [0.7, 1.3])
+def test_stable_on_the_simulator_with_cable_stiffness_off_by_30_percent(base, factor):
+    """The controller keeps its nominal cable model; the plant's cables are 30 % softer or stiffer.
+    Pushed with +-6 N m DP and +-3 N m IE, the ankle comes to rest at the commanded stiffness (the
+    estimated angle uses the wrong cable stiffness: a few % of the cable's stretch) and, released,
+    returns to the equilibrium (no sustained oscillation)."""
+    cfg = impedance_cfg(base, 50.0)
+    plant_cfg = cfg.deep_copy()
+    plant_cfg["transmission"]["cable_stiffness"] *= factor
+    exp = Experiment(pulses_nm=((6.0, -6.0), (3.0, -3.0)), pulse_s=1.2, rest_s=1.0, sine_hz=())
+    res = run_impedance(cfg, exp, plant_cfg=plant_cfg)
+    assert res.fault == "NONE"
+    assert res.stiffness_error_max_pct() < 10.0
+    assert res.final_offset_rad < 0.01
+
+
+def test_rendered_stiffness_closed_against_open_loop(base):
+    """The issue's experiment, shortened: with Stribeck and load-dependent friction, open loop renders
+    several times the commanded 50 N m/rad for small pushes; the torque loop within 10 %."""
+    exp = Experiment(pulses_nm=((3.0, -3.0, 12.0), (3.0,)), pulse_s=1.5, rest_s=0.5, sine_hz=())
+    closed = run_impedance(impedance_cfg(base, 50.0), exp)
+    opened = run_impedance(impedance_cfg(base, 50.0, feedback="off"), exp)
+    assert closed.fault == opened.fault == "NONE"
+    assert closed.stiffness_error_max_pct() <= 10.0
+    assert opened.stiffness_error_max_pct() > 100.0
+
+
+class FaultAt(TorqueProgramBackend):
+    """Pushes the foot with 6 N m DP and, from ``t_fault``, reports the given backend fault bits."""
+
+    def __init__(self, inner, t_fault, bits):
+        super().__init__(inner, lambda t, x: (6.0 if t > 0.6 else 0.0, 0.0))
+        self.t_fault, self.bits = t_fault, bits
+
+    def read(self, frame):
+        super().read(frame)
+        if frame.t >= self.t_fault:
+            frame.faults |= self.bits
+
+
+@pytest.mark.parametrize("bits,fault", [(BackendFault.STRAIN_GAUGE_RAIL, Fault.SG_RAIL),
+                                        (BackendFault.STALE_SAMPLE, Fault.SENSOR_STALE)])
+def test_strain_gauge_fault_during_torque_control_reaches_the_safe_state(base, bits, fault):
+    cfg = impedance_cfg(base, 50.0)
+    backend = FaultAt(open_backend(cfg, SimClock()), 1.0, bits)
+    try:
+        run = run_lockstep(cfg, 1.5, backend=backend)
+    finally:
+        backend.close()
+    t, state = run["t"], run["state"]
+    before = (t > 0.7) & (t < 1.0)
+    assert np.all(state[before] == State.ACTIVE) and np.any(run["current_cmd_1"][before] != 0.0)
+    after = t >= 1.0 + 1e-9
+    assert run.summary["fault"] == fault.name
+    assert np.all(state[after] == State.FAULT)
+    assert np.all(run["current_cmd_1"][after] == 0.0) and np.all(run["current_cmd_2"][after] == 0.0)
+
+
+def test_a_frozen_strain_gauge_cannot_run_the_loop_away(base):
+    """A reading that freezes without any fault bit (a stuck ADC the safety layer cannot see): the
+    loop's correction stays within max_correction, so the motors get a bounded torque; the ankle ends
+    against the software range limit (ANKLE_RANGE, safe state) or at rest, never beyond."""
+    cfg = impedance_cfg(base, 50.0)
+    tl = cfg["controller"]["torque_loop"]
+    kin = Kinematics.from_params(TransmissionParams(**cfg["transmission"]))
+
+    class Frozen(TorqueProgramBackend):
+        def read(self, frame):
+            super().read(frame)
+            if frame.t >= 1.0:
+                frame.sg_torque[:] = (-2.0, 0.0)
+
+    backend = Frozen(open_backend(cfg, SimClock()), lambda t, x: (0.0, 0.0))
+    try:
+        run = run_lockstep(cfg, 3.0, backend=backend)
+    finally:
+        backend.close()
+    active = run["state"] == State.ACTIVE
+    tau_m = np.vstack([run["torque_cmd_1"], run["torque_cmd_2"]])[:, active]
+    ankle_torque = kin.R.T @ tau_m
+    desired = np.abs(50.0 * run["est_ankle_dp"][active]) + 0.5 * np.abs(kin.R_inv[0] @ np.vstack(
+        [run["motor_vel_1"], run["motor_vel_2"]])[:, active])
+    # |u - tau_des| <= max_correction (+ the soft start's and the velocity filter's small share)
+    assert np.all(np.abs(ankle_torque[0]) <= desired + tl["max_correction_dp"] + 0.5)
+    assert run.summary["fault"] in ("NONE", "ANKLE_RANGE")
+    assert np.max(np.abs(run["ankle_dp"])) < math.radians(cfg["limits"]["ankle_range_deg"]) + 0.05
+
+
+def test_the_stable_set_of_impedances_is_stable_at_its_boundary(base):
+    """ImpedanceLimits' least damping and largest stiffness, checked with the linear model at their
+    corners over the whole sweep (cable stiffness +-30 %, viscous friction x0.5 .. x2, load-dependent
+    friction, foot free or held): >= 6 dB of gain margin."""
+    cfg = impedance_cfg(base)
+    lim = ImpedanceLimits.from_config(cfg)
+    p = PlantParams.from_config(cfg)
+    loop = ImpedanceLoop.from_config(cfg, closed=True)
+    for k in ((5.0, 2.0), lim.max_stiffness):
+        c = dataclasses.replace(loop, stiffness=k, damping=(lim.min_damping(0, k[0]), lim.min_damping(1, k[1])))
+        assert min(m.gain_margin_db for m in torque_loop_margins(p, c)) >= 6.0, k
+    # and the damping floor is needed: without damping the integral destabilises the free foot
+    c = dataclasses.replace(loop, stiffness=(50.0, 25.0), damping=(0.0, 0.0))
+    assert min(m.gain_margin_db for m in torque_loop_margins(p, c, feet=("free",))) < 0.0
+
+
+def test_impedances_outside_the_stable_set_are_refused(base):
+    kin = Kinematics.from_params(TransmissionParams(**base["transmission"]))
+    cfg = impedance_cfg(base)
+    cfg["controller"]["impedance"]["damping_dp"] = 0.1
+    with pytest.raises(ConfigError, match=r"controller\.impedance\.damping_dp: damping_dp 0\.1 N m s/rad is below"):
+        build_controller(cfg, kin, np.zeros(2))
+    cfg["controller"]["impedance"]["torque_feedback"] = "off"      # open loop has no such limit
+    assert build_controller(cfg, kin, np.zeros(2)).torque_loop is None
+    ctl = build_controller(impedance_cfg(base), kin, np.zeros(2))
+    with pytest.raises(GainError, match="stiffness_ie 200 N m/rad is above 110"):
+        ctl.set_gains(stiffness_ie=200.0)
+    with pytest.raises(GainError) as exc:
+        ctl.set_gains(stiffness_dp=400.0)               # needs more damping than the 0.5 it has
+    assert exc.value.gain == "damping_dp"
+    ctl.set_gains(stiffness_dp=400.0, damping_dp=0.8)
+    assert ctl.gains.targets[0] == 400.0
+
+
+def test_bench_impedance_json(capsys, tmp_path):
+    """`ankle-rt bench impedance --quick --json`: one object with the issue's keys; the torque loop
+    meets the issue's figures on the smoke programme, open loop does not; the plot is written."""
+    import json
+
+    from ankle_rt.cli import main
+
+    png = tmp_path / "loops.png"
+    assert main(["bench", "impedance", "--quick", "--stiffness", "50", "--json", "--plot", str(png)]) == 0
+    out = json.loads(capsys.readouterr().out)
+    for key in ("stiffness_error_max_pct", "damping_error_max_pct", "hysteresis_j_per_cycle", "stability_margin_db"):
+        assert isinstance(out[key], float), key
+    assert out["torque_feedback"] is True and out["faults"] == ["NONE"]
+    assert out["stiffness_error_max_pct"] <= 10.0 and out["stability_margin_db"] >= 6.0
+    assert out["hysteresis_ratio_open_to_closed"] >= 5.0
+    assert out["variants"]["open loop"]["stiffness_error_max_pct"] > 100.0
+    assert png.exists() or "matplotlib is not installed" in out["plot"]
+    assert main(["bench", "impedance", "--stiffness", "50", "--stiffness-ie", "500", "--json"]) == 2
+    assert "controller.impedance.stiffness_ie" in capsys.readouterr().err
+
+
+def test_the_closed_loop_update_keeps_no_memory(base):
+    """The impedance law + torque loop + identified friction feed-forward per cycle: float
+    temporaries only (no growth in live blocks, a tiny peak)."""
+    import gc
+    import sys
+    import tracemalloc
+
+    cfg = impedance_cfg(base)
+    cfg["controller"]["friction_ff"].update(enabled=True, model="identified")
+    ctl = build_controller(cfg, Kinematics.from_params(TransmissionParams(**cfg["transmission"])), np.zeros(2))
+    est, out = Estimate(), np.zeros(2)
+    ctl.reset(est)
+
+    def cycles(n):
+        for k in range(n):
+            est.sg_torque[0] = 0.01 * (k % 7)
+            est.motor_vel[0] = 0.3 * ((k % 5) - 2)
+            ctl.update(est, out)
+
+    cycles(500)
+    gc.collect()
+    blocks = sys.getallocatedblocks()
+    tracemalloc.start()
+    try:
+        cycles(2000)
+        current, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert sys.getallocatedblocks() - blocks < 20
+    assert current < 1024 and peak < 4096
