@@ -18,7 +18,7 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from ankle_rt.config import ConfigError, Field, Section, non_negative, positive, validate
+from ankle_rt.schema import ConfigError, Field, Section, non_negative, positive, validate
 from ankle_rt.interchange import InterchangeError, read_table
 
 DEG = math.pi / 180.0
@@ -224,6 +224,7 @@ PROFILES: dict[str, Callable[..., Profile]] = {
 }
 
 _ANGLE = 0.7   # rad (40 deg): the largest amplitude a profile accepts; the safety limit still applies
+_LONGEST_S = 86400.0   # s: the latest start and longest duration a profile accepts
 
 
 def _angle(doc: str, default: float = ...) -> Field:  # type: ignore[assignment]
@@ -236,23 +237,24 @@ PROFILE_PARAMS: dict[str, Section] = {
     "hold": Section({"dp": _angle("rad DP", 0.0), "ie": _angle("rad IE", 0.0)}, optional=True),
     "step": Section({
         "dp": _angle("rad, DP step size", 10 * DEG), "ie": _angle("rad, IE step size", 5 * DEG),
-        "start_s": non_negative("s after the profile starts", default=0.5),
+        "start_s": non_negative("s after the profile starts", default=0.5, high=_LONGEST_S),
     }, optional=True),
     "sine": Section({
         "amplitude_dp": _angle("rad", 5 * DEG), "amplitude_ie": _angle("rad", 0.0),
         "frequency_hz": Field(float, "Hz", default=1.0, low=0.0, low_open=True, high=50.0),
-        "start_s": non_negative("s", default=0.0), "ie_phase": Field(float, "rad, IE lag behind DP", default=0.0),
+        "start_s": non_negative("s", default=0.0, high=_LONGEST_S),
+        "ie_phase": Field(float, "rad, IE lag behind DP", default=0.0, low=-2 * math.pi, high=2 * math.pi),
     }, optional=True),
     "chirp": Section({
         "amplitude_dp": _angle("rad", 2 * DEG), "amplitude_ie": _angle("rad", 0.0),
         "f0_hz": Field(float, "Hz at the start", default=0.1, low=0.0, high=100.0),
         "f1_hz": Field(float, "Hz at the end", default=10.0, low=0.0, high=100.0),
-        "duration_s": positive("s", default=10.0), "start_s": non_negative("s", default=0.0),
+        "duration_s": positive("s", default=10.0, high=_LONGEST_S), "start_s": non_negative("s", default=0.0, high=_LONGEST_S),
     }, optional=True),
     "gait": Section({
         "stride_s": Field(float, "s per stride", default=1.1, low=0.3, high=10.0),
         "scale": Field(float, "scale of the DP/IE angles of the stride", default=1.0, low=0.0, high=2.0),
-        "start_s": non_negative("s", default=0.0),
+        "start_s": non_negative("s", default=0.0, high=_LONGEST_S),
     }, optional=True),
     "csv": Section({"path": Field(str, "CSV with columns t (s), ref_dp, ref_ie (rad)", default="")}, optional=True),
 }
