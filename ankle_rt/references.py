@@ -19,7 +19,7 @@ from typing import Any, Callable, Mapping
 import numpy as np
 
 from ankle_rt.schema import ConfigError, Field, Section, non_negative, positive, validate
-from ankle_rt.interchange import InterchangeError, read_table
+from ankle_rt.interchange import InterchangeError, read_columns
 
 DEG = math.pi / 180.0
 
@@ -189,20 +189,25 @@ class Gait(Profile):
 
 class CsvProfile(Profile):
     """Absolute references from a CSV with columns ``t`` (s), ``ref_dp``, ``ref_ie`` (rad), linearly
-    interpolated and held at the last row. Bad files raise InterchangeError naming column and row."""
+    interpolated and held at the last row. Bad files raise InterchangeError naming column and row.
+
+    Loading reads a regular file of at most :data:`MAX_PROFILE_BYTES` in chunks, calling ``pause()``
+    between them, and computes everything the loop needs (tables as plain lists, the reach) up
+    front: the daemon builds it in a background thread (never in the loop's) and hands it over ready."""
 
     relative = False
 
     COLUMNS = ("t", "ref_dp", "ref_ie")
 
-    def __init__(self, path: str | Path):
+    def __init__(self, path: str | Path, pause: Callable[[], None] | None = None):
         def require(header: list[str]) -> None:
             for name in self.COLUMNS:
                 if name not in header:
                     raise InterchangeError("required column missing", path, name, 0)
 
-        data = {k: v.tolist() for k, v in read_table(path, self.COLUMNS, require, min_rows=1).items()}
+        data = read_columns(path, self.COLUMNS, require, min_rows=1, limit_bytes=MAX_PROFILE_BYTES, pause=pause)
         self.t, self.dp, self.ie = data["t"], data["ref_dp"], data["ref_ie"]
+        self._bounds = (_range(self.dp, pause), _range(self.ie, pause))
 
     def value(self, tau: float) -> tuple[float, float]:
         t = self.t
@@ -216,7 +221,22 @@ class CsvProfile(Profile):
                 self.ie[i - 1] + f * (self.ie[i] - self.ie[i - 1]))
 
     def bounds(self) -> tuple[tuple[float, float], tuple[float, float]]:
-        return (min(self.dp), max(self.dp)), (min(self.ie), max(self.ie))
+        return self._bounds
+
+
+MAX_PROFILE_BYTES = 64 << 20
+"""Largest reference CSV accepted (64 MiB, about 2 hours of 1 kHz references)."""
+
+
+def _range(values: list[float], pause: Callable[[], None] | None, chunk: int = 20000) -> tuple[float, float]:
+    """(min, max) of ``values`` in slices, pausing between them (no long step holding the GIL)."""
+    low, high = math.inf, -math.inf
+    for i in range(0, len(values), chunk):
+        part = values[i:i + chunk]
+        low, high = min(low, min(part)), max(high, max(part))
+        if pause is not None:
+            pause()
+    return low, high
 
 
 PROFILES: dict[str, Callable[..., Profile]] = {
