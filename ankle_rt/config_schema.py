@@ -83,7 +83,7 @@ IMPEDANCE = Section({
 }, optional=True)
 
 GAIN_LIMITS = Section({
-    "kp": non_negative("N m/rad; largest motor-side kp a set_gains command may ask for", default=200.0, high=MAX_KP),
+    "kp": non_negative("N m/rad; largest motor-side kp a set_gains command may ask for", default=500.0, high=MAX_KP),
     "kd": non_negative("N m s/rad; largest motor-side kd a set_gains command may ask for", default=10.0, high=MAX_KD),
     "stiffness": non_negative("N m/rad; largest ankle stiffness (DP and IE) a command may ask for", default=200.0,
                               high=MAX_STIFFNESS),
@@ -137,8 +137,8 @@ REALTIME = Section({
 LOOP = Section({
     "duration_s": non_negative("s the run lasts; 0 = until stopped (SIGINT/SIGTERM/stop)", default=0.0,
                                high=365 * DAY_S),
-    "max_consecutive_overruns": Field(int, "fault (MISSED_DEADLINES) after this many overruns in a row",
-                                      default=5, low=1, high=1000),
+    "max_consecutive_overruns": Field(int, "fault (MISSED_DEADLINES) after this many deadlines missed in a row",
+                                      default=5, low=1, high=1_000_000),
     "realtime": REALTIME,
 }, optional=True)
 

@@ -8,9 +8,10 @@ Overrun policy. A cycle *overruns* when it ends after the next deadline. Every o
 The missed deadlines are skipped, not caught up: the next cycle starts at the first grid point after
 the overrun ended (a burst of back-to-back cycles would only make the control worse, and the
 backend's sample time tells the estimator how much time passed). After
-``max_consecutive_overruns`` overruns in a row the loop reports it (``on_overrun_limit``; the daemon
-trips the MISSED_DEADLINES fault) and carries on in the safe state, so the log keeps recording.
-A single long stall (a VM hiccup) is one overrun however many deadlines it covers.
+``max_consecutive_overruns`` deadlines missed in a row the loop reports it (``on_overrun_limit``; the
+daemon trips the MISSED_DEADLINES fault) and carries on in the safe state, so the log keeps recording.
+A single long stall counts one overrun in the statistics but every deadline it covers towards the
+limit: a loop that stood still for a second while the motors were on must not just carry on.
 """
 
 from __future__ import annotations
@@ -64,8 +65,9 @@ class FixedRateLoop:
                 stats.overruns += 1
                 stats.skipped += steps - 1
                 deadline += steps * period
-                self.consecutive_overruns += 1
-                if self.consecutive_overruns == self.max_consecutive and self.on_overrun_limit is not None:
+                before = self.consecutive_overruns
+                self.consecutive_overruns += steps - 1      # deadlines missed in a row
+                if before < self.max_consecutive <= self.consecutive_overruns and self.on_overrun_limit is not None:
                     self.on_overrun_limit()
             else:
                 deadline += period

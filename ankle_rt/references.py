@@ -280,15 +280,21 @@ PROFILE_PARAMS: dict[str, Section] = {
 }
 
 
-def make_profile(name: str, params: Mapping[str, Any], source: str = "command") -> Profile:
-    """Build profile ``name`` from SI parameters (missing ones take their defaults). Bad names or
-    values raise ConfigError naming the key (``params.<key>``)."""
+def validate_profile_params(name: str, params: Mapping[str, Any], source: str = "command") -> dict[str, Any]:
+    """The checked parameters of profile ``name`` (defaults filled in). Bad names or values raise
+    ConfigError naming the key (``params.<key>``)."""
     if name not in PROFILES:
         raise ConfigError(f"unknown profile {name!r} (expected one of: {', '.join(PROFILES)})", source, "name")
     checked = validate(dict(params), PROFILE_PARAMS[name], lambda _p: source, ("params",))
     if name == "csv" and not checked["path"]:
         raise ConfigError("a CSV file is needed", source, "params.path")
-    return PROFILES[name](**checked)
+    return checked
+
+
+def make_profile(name: str, params: Mapping[str, Any], source: str = "command") -> Profile:
+    """Build profile ``name`` from SI parameters (see :func:`validate_profile_params`). A CSV profile
+    reads its file here: the daemon does that in its background loader, never in the loop thread."""
+    return PROFILES[name](**validate_profile_params(name, params, source))
 
 
 class ReferenceGenerator:
@@ -300,6 +306,9 @@ class ReferenceGenerator:
         self.profile = profile
         self.t0 = t0
         self.pending: Profile | None = None
+        self.max_step = math.inf
+        """rad per update the reference may move (inf: unlimited); the daemon sets it for commanded
+        references, so no command can make the reference jump."""
         profile.begin(self.base)
 
     def start(self, profile: Profile) -> None:
@@ -318,8 +327,13 @@ class ReferenceGenerator:
         if p.relative:
             dp += self.base[0]
             ie += self.base[1]
-        self.ref[0] = dp
-        self.ref[1] = ie
+        step, ref = self.max_step, self.ref
+        if step != math.inf:         # rate limit (a NaN passes through: the safety layer faults on it)
+            r0, r1 = ref.item(0), ref.item(1)
+            dp = r0 + step if dp > r0 + step else (r0 - step if dp < r0 - step else dp)
+            ie = r1 + step if ie > r1 + step else (r1 - step if ie < r1 - step else ie)
+        ref[0] = dp
+        ref[1] = ie
 
 
 def reference_from_config(cfg: Mapping[str, Any]) -> ReferenceGenerator:

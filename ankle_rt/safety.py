@@ -49,14 +49,14 @@ class Fault(enum.IntEnum):
     SG_RAIL = 6              # strain-gauge torque at its rail (safety.sg_rail_nm) or reported so
     SENSOR_INVALID = 7       # a sensor value is NaN/inf
     AMP_NOT_READY = 8        # an ESCON ready output is low while active
-    MISSED_DEADLINES = 9     # loop.max_consecutive_overruns overruns in a row
+    MISSED_DEADLINES = 9     # loop.max_consecutive_overruns deadlines missed in a row (one long stall counts all)
     COMMAND_LOST = 10        # no command on the socket for service.command_timeout_s while active
     LINK_LOST = 11           # backend: no sample within its detection time
     BUS_OFF = 12             # backend: CAN bus-off
     DEVICE_FAULT = 13        # backend: the bridge / I/O module reported a fault
     ENCODER_FAULT = 14       # backend: encoder stuck or implausible
     OUTPUT_INVALID = 15      # the controller produced a NaN/inf torque
-    REFERENCE_INVALID = 16   # the ankle reference is NaN/inf or beyond the software limit
+    REFERENCE_INVALID = 16   # the ankle reference is NaN/inf
 
     @property
     def description(self) -> str:
@@ -80,7 +80,7 @@ _DESCRIPTIONS = {
     Fault.DEVICE_FAULT: "device reported a fault",
     Fault.ENCODER_FAULT: "encoder fault reported by the backend",
     Fault.OUTPUT_INVALID: "controller output not finite",
-    Fault.REFERENCE_INVALID: "ankle reference not finite or beyond the software limit",
+    Fault.REFERENCE_INVALID: "ankle reference not finite",
 }
 
 # BackendFault bits that stop the device, in priority order. CRC errors and sequence gaps are
@@ -214,12 +214,10 @@ class Safety:
         return 0
 
     def check_reference(self, dp: float, ie: float) -> int:
-        """REFERENCE_INVALID when the ankle reference (rad) is NaN/inf or beyond the software limit
-        (commands and profiles are refused before that; this catches whatever slips past)."""
-        lim = self.ankle_limit
-        if -lim <= dp <= lim and -lim <= ie <= lim:    # False for NaN
-            return 0
-        return _REFERENCE_INVALID
+        """REFERENCE_INVALID when the ankle reference (rad) is NaN or inf. (Commands that would take it
+        beyond the ankle range are refused before they start; the ankle itself is checked against
+        the range every cycle.)"""
+        return 0 if math.isfinite(dp + ie) else _REFERENCE_INVALID
 
     def limit_currents(self, i1: float, i2: float) -> int:
         """Clamp set values (A) to the peak current into ``self.current`` and update the I^2 t
