@@ -30,9 +30,9 @@ def _kind(mode: int) -> str:
     return "not a regular file"
 
 
-def read_bytes(path: str | Path, limit_bytes: int) -> bytes:
-    """The content of the regular file ``path``; TextFileError if it is something else, cannot be
-    opened, or is larger than ``limit_bytes``."""
+def _open_regular(path: str | Path, limit_bytes: int | None) -> int:
+    """A read-only descriptor of the regular file ``path`` (never blocks on a FIFO), at most
+    ``limit_bytes`` long when given; TextFileError otherwise. The caller closes it."""
     try:
         fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
     except OSError as exc:
@@ -41,11 +41,38 @@ def read_bytes(path: str | Path, limit_bytes: int) -> bytes:
         st = os.fstat(fd)
         if not stat.S_ISREG(st.st_mode):
             raise TextFileError(f"not a regular file ({_kind(st.st_mode)})")
-        if st.st_size > limit_bytes:
+        if limit_bytes is not None and st.st_size > limit_bytes:
             raise TextFileError(f"too large: {st.st_size} bytes, at most {limit_bytes} accepted")
+    except BaseException:
+        os.close(fd)
+        raise
+    return fd
+
+
+def _read(fd: int, n: int) -> bytes:
+    try:
+        return os.read(fd, n)
+    except OSError as exc:
+        raise TextFileError(f"cannot read: {exc.strerror}") from None
+
+
+def read_head(path: str | Path, n: int) -> bytes:
+    """The first ``n`` bytes (fewer if the file is shorter) of the regular file ``path``."""
+    fd = _open_regular(path, None)
+    try:
+        return _read(fd, n)
+    finally:
+        os.close(fd)
+
+
+def read_bytes(path: str | Path, limit_bytes: int) -> bytes:
+    """The content of the regular file ``path``; TextFileError if it is something else, cannot be
+    opened, or is larger than ``limit_bytes``."""
+    fd = _open_regular(path, limit_bytes)
+    try:
         chunks, total = [], 0
         while total <= limit_bytes:      # the size can change after fstat: never read past the limit
-            chunk = os.read(fd, min(MiB, limit_bytes + 1 - total))
+            chunk = _read(fd, min(MiB, limit_bytes + 1 - total))
             if not chunk:
                 break
             chunks.append(chunk)
@@ -53,8 +80,6 @@ def read_bytes(path: str | Path, limit_bytes: int) -> bytes:
         if total > limit_bytes:
             raise TextFileError(f"too large: more than {limit_bytes} bytes")
         return b"".join(chunks)
-    except OSError as exc:
-        raise TextFileError(f"cannot read: {exc.strerror}") from None
     finally:
         os.close(fd)
 
@@ -83,23 +108,12 @@ def iter_lines(path: str | Path, limit_bytes: int, pause: Callable[[], None] | N
     (a background loader passes a short sleep so the control loop's thread gets the GIL promptly).
     The same checks as :func:`read_text` (regular file, size limit, UTF-8, no NUL), raised as
     TextFileError when reached."""
+    fd = _open_regular(path, limit_bytes)
     try:
-        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
-    except OSError as exc:
-        raise TextFileError(f"cannot read: {exc.strerror}") from None
-    try:
-        st = os.fstat(fd)
-        if not stat.S_ISREG(st.st_mode):
-            raise TextFileError(f"not a regular file ({_kind(st.st_mode)})")
-        if st.st_size > limit_bytes:
-            raise TextFileError(f"too large: {st.st_size} bytes, at most {limit_bytes} accepted")
         decoder = codecs.getincrementaldecoder("utf-8-sig")()
         offset, tail = 0, ""
         while True:
-            try:
-                chunk = os.read(fd, chunk_bytes)
-            except OSError as exc:
-                raise TextFileError(f"cannot read: {exc.strerror}") from None
+            chunk = _read(fd, chunk_bytes)
             nul = chunk.find(b"\0")
             if nul >= 0:
                 raise TextFileError(f"binary data, not text (NUL byte at offset {offset + nul})")

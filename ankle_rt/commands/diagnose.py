@@ -69,8 +69,11 @@ def run(args: argparse.Namespace) -> int:
 
     cfg = load_config(args.config) if args.config else None
     try:
-        ident = load_recording(args.data)
-        valid = load_recording(args.validation) if args.validation else None
+        ident = load_recording(args.data, cfg=cfg)      # sampling and units checked (against cfg when given)
+        valid = load_recording(args.validation, cfg=cfg) if args.validation else None
+        for rec in (ident, valid):
+            for warning in (rec.extra["warnings"] if rec is not None else ()):
+                print(f"ankle-rt diagnose: warning: {warning}", file=sys.stderr)
         diag = diagnose(ident, valid, plant=args.plant, cfg=cfg)
     except (InterchangeError, DiagnosisError) as exc:
         print(f"ankle-rt diagnose: {exc}", file=sys.stderr)
