@@ -119,8 +119,9 @@ REFERENCE = Section({
                      choices=tuple(PROFILE_PARAMS)),
     **PROFILE_PARAMS,
     "ramp_s": non_negative("s; default ramp of a set_reference command", default=1.0, high=60.0),
-    "max_rate_rad_s": positive("rad/s; a commanded reference (set_reference, start_profile) moves at most this fast",
-                               default=10.0, high=100.0),
+    "max_rate_rad_s": positive("rad/s; a commanded reference (set_reference, start_profile) moves at most this fast "
+                               "(2 rad/s: what the nominal ankle follows at 15 A without the motor-speed fault)",
+                               default=2.0, high=20.0),
 }, optional=True)
 
 REALTIME = Section({

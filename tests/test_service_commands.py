@@ -54,7 +54,7 @@ def test_csv_profile_bounds(tmp_path):
 def test_profiles_beyond_the_ankle_range_are_refused_before_they_start(daemon, tmp_path):
     daemon.run(0.02)
     daemon.handle(SetReference(math.radians(30.0), 0.0, 0.0))
-    daemon.run(0.1)                        # ramp 0, but rate limited (reference.max_rate_rad_s)
+    daemon.run(0.3)                        # ramp 0, but rate limited (reference.max_rate_rad_s, 2 rad/s)
     assert reference_deg(daemon) == [30.0, 0.0]
 
     refused = [
@@ -77,7 +77,7 @@ def test_profiles_beyond_the_ankle_range_are_refused_before_they_start(daemon, t
 
     step_down = {"dp": math.radians(-25.0), "ie": math.radians(-39.0), "start_s": 0.0}  # to (5, -39) deg
     assert daemon.handle(StartProfile("step", step_down))["state"] == "configured"
-    daemon.run(0.1)                        # 0.68 rad at reference.max_rate_rad_s (10 rad/s)
+    daemon.run(0.4)                        # 0.68 rad at reference.max_rate_rad_s (2 rad/s)
     assert reference_deg(daemon) == pytest.approx([5.0, -39.0])
 
 
