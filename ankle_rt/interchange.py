@@ -102,18 +102,22 @@ MAX_CSV_BYTES = 256 << 20
 
 # Largest magnitude a value of each column can plausibly have (SI units); beyond it the file is not in
 # the units this format states (or is damaged), and numerical tools would fail on it further down.
-PLAUSIBLE_ABS: dict[str, float] = {
-    "t": 1e7,                                        # s (115 days)
-    "motor_pos_1": 1e4, "motor_pos_2": 1e4,          # rad at the gearbox output
-    "current_cmd_1": 100.0, "current_cmd_2": 100.0,  # A
-    "motor_torque_1": 1e3, "motor_torque_2": 1e3,    # N m
-    "sg_torque_dp": 1e3, "sg_torque_ie": 1e3,        # N m
-    "ankle_dp": 2 * math.pi, "ankle_ie": 2 * math.pi, "ref_dp": 2 * math.pi, "ref_ie": 2 * math.pi,  # rad
+PLAUSIBLE_ABS: dict[str, tuple[float, str]] = {
+    "t": (1e7, "s"),                                                   # 115 days
+    "motor_pos_1": (1e4, "rad"), "motor_pos_2": (1e4, "rad"),          # at the gearbox output
+    "current_cmd_1": (100.0, "A"), "current_cmd_2": (100.0, "A"),
+    "motor_torque_1": (1e3, "N m"), "motor_torque_2": (1e3, "N m"),
+    "sg_torque_dp": (1e3, "N m"), "sg_torque_ie": (1e3, "N m"),
+    "ankle_dp": (2 * math.pi, "rad"), "ankle_ie": (2 * math.pi, "rad"),
+    "ref_dp": (2 * math.pi, "rad"), "ref_ie": (2 * math.pi, "rad"),
 }
+_UNIT_HINTS = {"s": "time in ms rather than s?", "rad": "degrees or counts rather than rad?",
+               "A": "mA rather than A?", "N m": "N mm rather than N m?"}
 
 
 def read_columns(path: str | Path, columns: Iterable[str], check_header: Callable[[list[str]], None],
-                 min_rows: int = 2, *, limit_bytes: int = MAX_CSV_BYTES, plausible: Mapping[str, float] = PLAUSIBLE_ABS,
+                 min_rows: int = 2, *, limit_bytes: int = MAX_CSV_BYTES,
+                 plausible: Mapping[str, tuple[float, str]] = PLAUSIBLE_ABS,
                  pause: Callable[[], None] | None = None) -> dict[str, list[float]]:
     """Read the named ``columns`` of a CSV with a header row as lists of floats, checking every cell.
 
@@ -134,8 +138,8 @@ def read_columns(path: str | Path, columns: Iterable[str], check_header: Callabl
         dupes = {h for h in header if header.count(h) > 1 and h in wanted}
         if dupes:
             raise InterchangeError("column appears more than once", path, sorted(dupes)[0], 0)
-        keep = [(i, h, plausible.get(h, math.inf)) for i, h in enumerate(header) if h in wanted]
-        data: dict[str, list[float]] = {h: [] for _, h, _ in keep}
+        keep = [(i, h, *plausible.get(h, (math.inf, ""))) for i, h in enumerate(header) if h in wanted]
+        data: dict[str, list[float]] = {h: [] for _, h, _, _ in keep}
         times = data.get("t")
         width = len(header)
         for row_no, row in enumerate(reader, start=1):
@@ -144,7 +148,7 @@ def read_columns(path: str | Path, columns: Iterable[str], check_header: Callabl
             if len(row) != width:
                 column = header[len(row)] if len(row) < width else f"#{width + 1} (no header)"
                 raise InterchangeError(f"row has {len(row)} cells, header has {width}", path, column, row_no)
-            for i, name, bound in keep:
+            for i, name, bound, unit in keep:
                 cell = row[i].strip()
                 try:
                     value = float(cell)
@@ -153,8 +157,8 @@ def read_columns(path: str | Path, columns: Iterable[str], check_header: Callabl
                 if not math.isfinite(value):
                     raise InterchangeError(f"not a finite number: {cell[:40]!r}", path, name, row_no)
                 if not -bound <= value <= bound:
-                    raise InterchangeError(f"implausible value {value:.6g}: beyond +/-{bound:g} in this column's "
-                                           "SI unit (wrong unit, or a damaged file?)", path, name, row_no)
+                    raise InterchangeError(f"implausible value {value:.6g}: beyond +/-{bound:g} {unit} "
+                                           f"({_UNIT_HINTS[unit]} or a damaged file)", path, name, row_no)
                 data[name].append(value)
             if times is not None and len(times) > 1 and times[-1] <= times[-2]:
                 raise InterchangeError("time does not increase", path, "t", row_no)
