@@ -22,8 +22,13 @@ from ankle_rt.textfile import TextFileError, read_text
 
 MAX_CONFIG_BYTES = 1 << 20
 """Largest config file read (1 MiB; the shipped ones are a few kB)."""
+MAX_CONFIG_DEPTH = 16
+"""Deepest nesting of mappings and lists accepted (the schema needs 4)."""
 MAX_CONFIG_FILES = 32
 """Most files one config may pull in through ``include:`` (nested includes counted)."""
+
+
+_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)   # libyaml when present: the same documents, faster
 
 
 def _read_yaml(path: Path) -> dict:
@@ -32,17 +37,38 @@ def _read_yaml(path: Path) -> dict:
         text = read_text(path, MAX_CONFIG_BYTES)
     except TextFileError as exc:
         raise ConfigError(f"cannot use as a config file: {exc}", str(path)) from None
+    return parse_yaml(text, str(path))
+
+
+def parse_yaml(text: str, source: str) -> dict:
+    """A config document's text as a mapping (``{}`` when empty); ConfigError naming ``source`` when
+    it is not valid YAML or not a mapping."""
     try:
-        data = yaml.safe_load(text)
+        data = yaml.load(text, Loader=_LOADER)
     except yaml.YAMLError as exc:
-        raise ConfigError(f"not valid YAML: {exc}", str(path)) from None
+        raise ConfigError(f"not valid YAML: {exc}", source) from None
     except RecursionError:
-        raise ConfigError("not valid YAML: nested too deeply", str(path)) from None
+        raise ConfigError("not valid YAML: nested too deeply", source) from None
     if data is None:
         return {}
     if not isinstance(data, dict):
-        raise ConfigError("expected a mapping at the top level", str(path))
+        raise ConfigError("expected a mapping at the top level", source)
+    if _depth(data) > MAX_CONFIG_DEPTH:
+        raise ConfigError(f"nested deeper than {MAX_CONFIG_DEPTH} levels", source)
     return data
+
+
+def _depth(data: object) -> int:
+    """How deeply lists and mappings nest in ``data`` (iteratively: no recursion limit to hit)."""
+    deepest, stack, seen = 0, [(data, 1)], set()
+    while stack:
+        item, level = stack.pop()
+        if isinstance(item, (dict, list)) and id(item) not in seen:   # YAML aliases share objects
+            seen.add(id(item))
+            deepest = max(deepest, level)
+            if level <= MAX_CONFIG_DEPTH:
+                stack.extend((v, level + 1) for v in (item.values() if isinstance(item, dict) else item))
+    return deepest
 
 
 def merge(into: dict, new: dict, origins: dict[KeyPath, str] | None = None, source: str = "",
