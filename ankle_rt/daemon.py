@@ -32,11 +32,12 @@ from ankle_rt.log.reader import interchange_columns
 from ankle_rt.log.writer import LogWriter, log_metadata
 from ankle_rt.loop import FixedRateLoop
 from ankle_rt.params import TransmissionParams
-from ankle_rt.references import (CsvProfile, Hold, Profile, RampTo, ReferenceGenerator, make_profile,
+from ankle_rt.references import (Hold, Profile, RampTo, ReferenceGenerator, make_profile,
                                   reference_from_config, validate_profile_params)
 from ankle_rt.safety import Fault, Safety, State
 from ankle_rt.service import protocol as proto
 from ankle_rt.service.loader import BackgroundLoader, Job, pause
+from ankle_rt.service.profile_process import load_csv_profile
 
 if TYPE_CHECKING:
     from ankle_rt.service.link import ServiceLink
@@ -220,13 +221,14 @@ class Daemon:
         self.reference_commanded = True
 
     def _start_csv(self, params: dict) -> proto.Pending:
-        """Load a CSV profile off the loop thread; the reply comes when it is loaded and started."""
+        """Load a CSV profile off the loop thread (parsed in a child process, handed over by the
+        background loader); the reply comes when it is loaded and started."""
         running = self.loader.pending()
         if running is not None:
             raise proto.CommandError("params.path", f"busy: still loading {running.what}")
         checked = validate_profile_params("csv", params)
         path = checked["path"]
-        job = self.loader.submit(lambda: CsvProfile(path, pause), path)
+        job = self.loader.submit(lambda: load_csv_profile(path, pause), path)
         return proto.Pending(lambda: self._finish_csv(job))
 
     def _finish_csv(self, job: Job) -> dict | None:

@@ -117,8 +117,7 @@ _UNIT_HINTS = {"s": "time in ms rather than s?", "rad": "degrees or counts rathe
 
 def read_columns(path: str | Path, columns: Iterable[str], check_header: Callable[[list[str]], None],
                  min_rows: int = 2, *, limit_bytes: int = MAX_CSV_BYTES,
-                 plausible: Mapping[str, tuple[float, str]] = PLAUSIBLE_ABS,
-                 pause: Callable[[], None] | None = None) -> dict[str, list[float]]:
+                 plausible: Mapping[str, tuple[float, str]] = PLAUSIBLE_ABS) -> dict[str, list[float]]:
     """Read the named ``columns`` of a CSV with a header row as lists of floats, checking every cell.
 
     ``check_header(header)`` raises for missing required columns; names in ``columns`` that the
@@ -126,9 +125,9 @@ def read_columns(path: str | Path, columns: Iterable[str], check_header: Callabl
     is not a regular UTF-8 text file of at most ``limit_bytes``, a non-numeric or non-finite cell, a
     value beyond the column's ``plausible`` magnitude, a row with fewer or more cells than the
     header, a file shorter than ``min_rows`` data rows, or a ``t`` column that does not increase.
-    The file is read in chunks with ``pause()`` between them (see :func:`ankle_rt.textfile.iter_lines`)."""
+    The file is streamed (:func:`ankle_rt.textfile.iter_lines`), never read whole into memory."""
     try:
-        reader = csv.reader(iter_lines(path, limit_bytes, pause))
+        reader = csv.reader(iter_lines(path, limit_bytes))
         try:
             header = [h.strip() for h in next(reader)]
         except StopIteration:

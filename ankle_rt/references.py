@@ -14,7 +14,7 @@ from __future__ import annotations
 import bisect
 import math
 from pathlib import Path
-from typing import Any, Callable, Mapping
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -191,23 +191,33 @@ class CsvProfile(Profile):
     """Absolute references from a CSV with columns ``t`` (s), ``ref_dp``, ``ref_ie`` (rad), linearly
     interpolated and held at the last row. Bad files raise InterchangeError naming column and row.
 
-    Loading reads a regular file of at most :data:`MAX_PROFILE_BYTES` in chunks, calling ``pause()``
-    between them, and computes everything the loop needs (tables as plain lists, the reach) up
-    front: the daemon builds it in a background thread (never in the loop's) and hands it over ready."""
+    Loading reads a regular file of at most :data:`MAX_PROFILE_BYTES` and computes everything the
+    loop needs (tables as plain lists, the reach) up front: the daemon has it parsed in a child
+    process and hands it to the loop ready (never a file read in the loop thread)."""
 
     relative = False
 
     COLUMNS = ("t", "ref_dp", "ref_ie")
 
-    def __init__(self, path: str | Path, pause: Callable[[], None] | None = None):
+    def __init__(self, path: str | Path):
         def require(header: list[str]) -> None:
             for name in self.COLUMNS:
                 if name not in header:
                     raise InterchangeError("required column missing", path, name, 0)
 
-        data = read_columns(path, self.COLUMNS, require, min_rows=1, limit_bytes=MAX_PROFILE_BYTES, pause=pause)
+        data = read_columns(path, self.COLUMNS, require, min_rows=1, limit_bytes=MAX_PROFILE_BYTES)
         self.t, self.dp, self.ie = data["t"], data["ref_dp"], data["ref_ie"]
-        self._bounds = (_range(self.dp, pause), _range(self.ie, pause))
+        self._bounds = ((min(self.dp), max(self.dp)), (min(self.ie), max(self.ie)))
+
+    @classmethod
+    def from_columns(cls, t: Sequence[float], dp: Sequence[float], ie: Sequence[float],
+                     bounds: tuple[tuple[float, float], tuple[float, float]]) -> "CsvProfile":
+        """A profile from columns already read and checked (by a child process:
+        :mod:`ankle_rt.service.profile_process`), as lists or ``array('d')``; ``bounds`` as
+        :meth:`bounds` returns them."""
+        profile = cls.__new__(cls)
+        profile.t, profile.dp, profile.ie, profile._bounds = t, dp, ie, bounds
+        return profile
 
     def value(self, tau: float) -> tuple[float, float]:
         t = self.t
@@ -226,17 +236,6 @@ class CsvProfile(Profile):
 
 MAX_PROFILE_BYTES = 64 << 20
 """Largest reference CSV accepted (64 MiB, about 2 hours of 1 kHz references)."""
-
-
-def _range(values: list[float], pause: Callable[[], None] | None, chunk: int = 20000) -> tuple[float, float]:
-    """(min, max) of ``values`` in slices, pausing between them (no long step holding the GIL)."""
-    low, high = math.inf, -math.inf
-    for i in range(0, len(values), chunk):
-        part = values[i:i + chunk]
-        low, high = min(low, min(part)), max(high, max(part))
-        if pause is not None:
-            pause()
-    return low, high
 
 
 PROFILES: dict[str, Callable[..., Profile]] = {

@@ -13,7 +13,7 @@ import codecs
 import os
 import stat
 from pathlib import Path
-from typing import Callable, Iterator
+from typing import Iterator
 
 MiB = 1 << 20
 
@@ -101,13 +101,10 @@ def read_text(path: str | Path, limit_bytes: int) -> str:
     return decode_text(read_bytes(path, limit_bytes))
 
 
-def iter_lines(path: str | Path, limit_bytes: int, pause: Callable[[], None] | None = None,
-               chunk_bytes: int = 16384) -> Iterator[str]:
+def iter_lines(path: str | Path, limit_bytes: int, chunk_bytes: int = 1 << 16) -> Iterator[str]:
     """The lines of a UTF-8 text file (a leading byte-order mark dropped), read ``chunk_bytes`` at a
-    time so that no single step holds the interpreter long; ``pause()`` is called after each chunk
-    (a background loader passes a short sleep so the control loop's thread gets the GIL promptly).
-    The same checks as :func:`read_text` (regular file, size limit, UTF-8, no NUL), raised as
-    TextFileError when reached."""
+    time (a large file is never held whole). The same checks as :func:`read_text` (regular file, size
+    limit, UTF-8, no NUL), raised as TextFileError when reached."""
     fd = _open_regular(path, limit_bytes)
     try:
         decoder = codecs.getincrementaldecoder("utf-8-sig")()
@@ -132,7 +129,5 @@ def iter_lines(path: str | Path, limit_bytes: int, pause: Callable[[], None] | N
             lines = text.splitlines(keepends=True)
             tail = lines.pop() if lines and not lines[-1].endswith(("\n", "\r")) else ""
             yield from lines
-            if pause is not None:
-                pause()
     finally:
         os.close(fd)

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from ankle_rt import daemon as daemon_module
-from ankle_rt.references import Profile
+from ankle_rt.references import CsvProfile, Profile
 from ankle_rt.safety import Fault, State
 from ankle_rt.service.protocol import CommandError, Pending, SetGains, SetReference, StartProfile, parse_command
 from ankle_rt.service.protocol import CommandLimits
@@ -107,12 +107,12 @@ def test_a_csv_profile_loads_off_the_loop_thread_and_starts_when_ready(daemon, t
     np.savetxt(path, np.column_stack([t, 0.1 * np.sin(t), 0.0 * t]), delimiter=",", header="t,ref_dp,ref_ie",
                comments="")
     threads = []
-    real = daemon_module.CsvProfile
+    real = daemon_module.load_csv_profile
 
     def spy(*args, **kw):
         threads.append(threading.current_thread())
         return real(*args, **kw)
-    monkeypatch.setattr(daemon_module, "CsvProfile", spy)
+    monkeypatch.setattr(daemon_module, "load_csv_profile", spy)
     run_cycles(daemon, 300)
     pending = daemon.handle(StartProfile("csv", {"path": str(path)}))
     assert isinstance(pending, Pending)
@@ -120,7 +120,8 @@ def test_a_csv_profile_loads_off_the_loop_thread_and_starts_when_ready(daemon, t
     assert data["loaded_rows"] == len(t)
     assert threads and threads[0] is not threading.current_thread()
     run_cycles(daemon, 100)
-    assert isinstance(daemon.reference.profile, real)
+    profile = daemon.reference.profile
+    assert isinstance(profile, CsvProfile) and profile.value(1.0) == pytest.approx((0.1 * math.sin(1.0), 0.0))
 
 
 def test_a_fifo_as_profile_is_refused_without_blocking(daemon, tmp_path):
