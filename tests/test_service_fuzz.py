@@ -1,8 +1,8 @@
 """Command fuzz: random bytes and malformed JSON on the socket never crash the server or the daemon,
 never reach the controller, and never move the ankle.
 
-The generators are seeded; the seed is printed (pytest -s shows it; a failure report includes it).
-Set ANKLE_RT_FUZZ_SEED to replay one.
+The generators are seeded with a fixed seed, printed (pytest -s shows it; a failure report includes
+it). Set ANKLE_RT_FUZZ_SEED to try another or replay one.
 """
 
 from __future__ import annotations
@@ -20,7 +20,8 @@ GUARD_POLLS = 5000  # generous bound on polls while waiting; no wall-clock timin
 
 
 def fuzz_seed() -> int:
-    seed = int(os.environ.get("ANKLE_RT_FUZZ_SEED", random.SystemRandom().randrange(2**32)))
+    """A fixed seed (the suite is deterministic); ANKLE_RT_FUZZ_SEED replays or explores another."""
+    seed = int(os.environ.get("ANKLE_RT_FUZZ_SEED", 20261123))
     print(f"fuzz seed: {seed} (replay with ANKLE_RT_FUZZ_SEED={seed})")
     return seed
 
@@ -169,6 +170,8 @@ def test_daemon_survives_fuzz_and_rejects_bad_commands_without_moving(daemon):
     assert after["motor_pos_rad"] == [0.0, 0.0], "the ankle moved"
 
     # 3. active and holding: out-of-range and malformed commands are refused and change nothing
+    # a corrupted line can still be a valid set_gains (its target applies once active): restore them
+    assert client.request(json.dumps({"cmd": "set_gains", **before["gains"]}).encode())["ok"]
     assert client.request(b'{"cmd":"start_profile","name":"hold"}')["ok"]
     assert activate(client) == {"ok": True, "state": "active"}
     refused = [  # (request, the field the error names, words in the message)
