@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import socket
 import sys
 import tempfile
@@ -141,7 +142,8 @@ def main() -> int:
                         help="also measure the stall with the loop thread at this SCHED_FIFO priority (0: only normal)")
     args = parser.parse_args()
     failed = False
-    with tempfile.TemporaryDirectory() as tmp_name:
+    shm = Path("/dev/shm")
+    with tempfile.TemporaryDirectory(dir=shm if shm.is_dir() and os.access(shm, os.W_OK) else None) as tmp_name:
         tmp = Path(tmp_name)
         print(f"1. bad inputs per parser (seed {args.seed})")
         results = parsers(args.inputs, args.seed, tmp)
