@@ -2,9 +2,14 @@
 
 A configuration is one YAML file, optionally pulling in others with ``include:`` (paths relative to
 the including file; later files and the including file override earlier ones, key by key). Every key
-is checked against a declarative schema: a typo, a missing key, a wrong type or an out-of-range value
-stops loading with a :class:`ConfigError` that names the file, the dotted key and what was expected.
-Physical parameters never get silent defaults; only software options do.
+is checked against a declarative schema (:mod:`ankle_rt.config_schema`, built from
+:mod:`ankle_rt.schema`): a typo, a missing key, a wrong type, a non-finite number or an out-of-range
+value stops loading with a :class:`ConfigError` that names the file, the dotted key and what was
+expected. Physical parameters never get silent defaults; only software options do.
+
+Files are read as regular files only (a FIFO or ``/dev/zero`` named by ``include:`` fails at once),
+at most :data:`MAX_CONFIG_BYTES` each and :data:`MAX_CONFIG_FILES` in all, as UTF-8 text; nesting is
+bounded by :data:`MAX_CONFIG_DEPTH`. Every such problem is a ConfigError naming the file.
 """
 
 from __future__ import annotations
