@@ -138,8 +138,10 @@ REALTIME = Section({
 LOOP = Section({
     "duration_s": non_negative("s the run lasts; 0 = until stopped (SIGINT/SIGTERM/stop)", default=0.0,
                                high=365 * DAY_S),
-    "max_consecutive_overruns": Field(int, "fault (MISSED_DEADLINES) after this many deadlines missed in a row",
+    "max_consecutive_overruns": Field(int, "fault (MISSED_DEADLINES) after this many overruns in a row",
                                       default=5, low=1, high=1_000_000),
+    "max_stall_s": Field(float, "s; fault (MISSED_DEADLINES) when one stall of the loop misses deadlines for "
+                                "longer than this", default=0.05, low=0.001, high=10.0),
     "realtime": REALTIME,
 }, optional=True)
 

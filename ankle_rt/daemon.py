@@ -84,7 +84,8 @@ class Daemon:
         self.loader = BackgroundLoader()
         self.torque = np.zeros(2)
         self.loop = FixedRateLoop(clock, self.period_ns, cfg["loop"]["max_consecutive_overruns"],
-                                  on_overrun_limit=self._missed_deadlines)
+                                  on_overrun_limit=self._missed_deadlines,
+                                  max_stall_ns=round(cfg["loop"]["max_stall_s"] * 1e9))
         self.recorder = recorder
         self.service = service
         self.auto_activate = cfg["safety"]["auto_activate"]

@@ -49,7 +49,7 @@ class Fault(enum.IntEnum):
     SG_RAIL = 6              # strain-gauge torque at its rail (safety.sg_rail_nm) or reported so
     SENSOR_INVALID = 7       # a sensor value is NaN/inf
     AMP_NOT_READY = 8        # an ESCON ready output is low while active
-    MISSED_DEADLINES = 9     # loop.max_consecutive_overruns deadlines missed in a row (one long stall counts all)
+    MISSED_DEADLINES = 9     # loop.max_consecutive_overruns overruns in a row, or one stall > loop.max_stall_s
     COMMAND_LOST = 10        # no command on the socket for service.command_timeout_s while active
     LINK_LOST = 11           # backend: no sample within its detection time
     BUS_OFF = 12             # backend: CAN bus-off
