@@ -39,6 +39,10 @@ class Candidate:
     def grid(self, ch: Channel) -> list[float]:
         return [0.0]
 
+    def search_grid(self, ch: Channel, residual: np.ndarray) -> list[float]:
+        """Values of the nonlinear parameter to score, given the current model's residual (stacked)."""
+        return self.grid(ch)
+
     def design(self, ch: Channel, nl: float) -> Design:
         raise NotImplementedError
 
@@ -93,28 +97,67 @@ class LoadDependentFriction(Candidate):
 
 
 class Cogging(Candidate):
+    """Torque ripple periodic in the motor angle: ``a sin(n theta) + b cos(n theta)``, n periods per
+    revolution (2 pi of the position unit), shared by the motors as the simulator effect is.
+
+    The count is found without a prior by the residual's spectrum in the angle domain: the residual is
+    taken back through the filter (its adjoint: the zero-phase filter again) to the raw samples, binned
+    onto a uniform grid of the angle modulo 2 pi and Fourier-transformed, which gives its projection on
+    every integer count at once; each count's projection is normalised by the share of its ripple the
+    filter passes at the recorded speeds. The strongest peaks and their neighbours are then scored by
+    the regression itself. Rotor cogging through the gearbox (e.g. 6 periods per motor turn x 81 = 486)
+    is found where the motion is slow enough for the ripple to stay in the pass band."""
+
     cause = "cogging"
     nonlinear = "periods_per_rev"
     integer = True
 
-    def grid(self, ch):
-        # up to where the ripple n |v| / 2 pi leaves the filter's pass band for slow-to-medium motion, in
-        # steps small enough that the ripple's phase drifts < pi/2 over the travel (every integer on a
-        # rotary axis; a linear axis in metres has large n and coarser steps), at most MAX_COGGING_POINTS
-        # A ripple is told from a slow position dependence (a spring, a preload: not cogging) only when the
-        # travel spans at least MIN_COGGING_PERIODS of it.
-        v_slow = float(np.percentile(np.abs(ch.vel), 25)) or 1.0
+    def count_range(self, ch) -> tuple[int, int]:
+        """(fewest, most) periods per revolution searched: at least MIN_COGGING_PERIODS in the travel
+        (fewer cannot be told from a spring or preload); at most where the ripple leaves the pass band at
+        the slowest tenth of the motion, and never fewer than MIN_COGGING_SEARCH."""
         span = max(float(np.ptp(ch.pos)), 1e-12)
-        step = max(1, int(0.5 * np.pi / span))
-        n_min = step * max(1, math.ceil(2.0 * np.pi * MIN_COGGING_PERIODS / span / step))
-        n_max = min(max(n_min + 8 * step, int(2.0 * np.pi * 25.0 / v_slow)), n_min + step * MAX_COGGING_POINTS)
-        return [float(n) for n in range(n_min, n_max + 1, step)]
+        n_min = max(1, math.ceil(2.0 * np.pi * MIN_COGGING_PERIODS / span))
+        v_slow = float(np.percentile(np.abs(ch.vel[ch.rows]), 10))
+        n_fast = 2.0 * np.pi * ch.sm.cutoff_hz / max(v_slow, 1e-12)
+        n_max = int(min(max(n_fast, MIN_COGGING_SEARCH, n_min + 300), MAX_COGGING_BINS // 8))
+        return n_min, n_max
 
-    def local_grid(self, ch, best: float) -> list[float]:
-        """Every integer between the coarse grid's neighbours of ``best``."""
-        grid = self.grid(ch)
-        step = int(grid[1] - grid[0]) if len(grid) > 1 else 1
-        return [float(n) for n in range(max(int(grid[0]), int(best) - step + 1), int(best) + step)] if step > 1 else []
+    def grid(self, ch):
+        n_min, n_max = self.count_range(ch)
+        return [float(n) for n in np.unique(np.geomspace(n_min, n_max, 40).round())]
+
+    def search_grid(self, ch, residual: np.ndarray) -> list[float]:
+        """Integer counts worth a regression: the angle-domain spectrum's strongest peaks (see the class
+        docstring) with their neighbours, and the config's prior when it gives one."""
+        n_min, n_max = self.count_range(ch)
+        full = np.zeros((ch.n_samples, ch.m))
+        full[ch.rows] = residual.reshape(ch.m, -1).T
+        back = ch.sm.smooth(full)                                # adjoint of "filter, keep rows"
+        bins = 1 << int(math.ceil(math.log2(8 * n_max)))
+        idx = np.floor(np.mod(ch.pos, 2.0 * np.pi) * (bins / (2.0 * np.pi))).astype(np.int64) % bins
+        spectrum = np.fft.fft(np.bincount(idx.ravel(), weights=back.ravel(), minlength=bins))[: n_max + 1]
+        counts = np.arange(n_max + 1, dtype=float)
+        power = np.abs(spectrum) ** 2 / self._passed_energy(ch, counts)
+        power[:n_min] = 0.0
+        peaks = np.flatnonzero((power[1:-1] > power[:-2]) & (power[1:-1] >= power[2:])) + 1
+        best = peaks[np.argsort(power[peaks])[::-1][:COGGING_PEAKS]]
+        picks = {int(n) for p in best for n in range(p - 1, p + 2) if n_min <= n <= n_max}
+        if ch.cogging_prior:
+            picks.add(int(round(ch.cogging_prior)))
+        return [float(n) for n in sorted(picks)]
+
+    @staticmethod
+    def _passed_energy(ch, counts: np.ndarray) -> np.ndarray:
+        """Sum over the kept rows of the squared gain the filter gives a ripple of each count (its
+        instantaneous frequency n |v| / 2 pi), from a histogram of the speeds."""
+        speed = np.abs(ch.vel[ch.rows]).ravel()
+        hist, edges = np.histogram(np.log(np.maximum(speed, 1e-12)), bins=64)
+        v = np.exp(0.5 * (edges[1:] + edges[:-1]))
+        coarse = np.unique(np.geomspace(1.0, max(counts[-1], 2.0), 256))
+        f = coarse[:, None] * v[None, :] / (2.0 * np.pi * ch.sm.cutoff_hz)
+        energy = (hist[None, :] / (1.0 + f ** 4) ** 2).sum(axis=1) + 1e-9 * len(speed)
+        return np.interp(counts, coarse, energy)
 
     def design(self, ch, nl):
         ang = nl * ch.pos
@@ -128,6 +171,19 @@ class Cogging(Candidate):
         amp_sd = float(np.sqrt(max(g @ cov[:2, :2] @ g, 0.0)))
         return {"amplitude": (amp, amp_sd), "periods_per_rev": (nl, 0.0),
                 "phase": (float(np.arctan2(c, s)), amp_sd / max(amp, 1e-300))}
+
+
+class TorqueOffset(Candidate):
+    """A constant load torque on each motor (gravity, preload): one column per motor. Unlike
+    asymmetric friction it keeps its sign through a reversal and may differ between the motors."""
+
+    cause = "torque_offset"
+
+    def design(self, ch, nl):
+        return Design(ch.per_column(np.ones((ch.n_samples, ch.m))))
+
+    def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
+        return {f"torque_{i + 1}": (float(coef[i]), _sd(cov, i)) for i in range(len(coef))}
 
 
 class Delay(Candidate):
@@ -181,45 +237,69 @@ class HardeningStiffness(Candidate):
 
 
 MOTOR_CANDIDATES: tuple[Candidate, ...] = (Stribeck(), AsymmetricFriction(), LoadDependentFriction(),
-                                           Cogging(), Delay())
+                                           Cogging(), Delay(), TorqueOffset())
 CABLE_CANDIDATES: tuple[Candidate, ...] = (Backlash(), HardeningStiffness())
 
-MAX_COGGING_POINTS = 300
 MIN_COGGING_PERIODS = 2.0
+MIN_COGGING_SEARCH = 2500          # periods per revolution searched at least (rotor cogging x gearbox)
+MAX_COGGING_BINS = 1 << 22         # angle-domain grid points per revolution, at most
+COGGING_PEAKS = 6                  # angle-spectrum peaks scored by the regression
 DELAY_LAGS_S = (0.001, 0.002, 0.004, 0.007, 0.011, 0.016, 0.022)
 
 
-def catch_all_motor(ch: MotorChannel) -> np.ndarray:
-    """Generic columns for the motor channel: a torque FIR (latency, dynamics), a torque-constant
-    nonlinearity, velocity and cable-torque shapes, slow position dependence (spring, preload, slow
-    harmonics) and an offset. No
-    low-speed shapes beyond the named Stribeck block: near zero speed the residual carries the
-    friction-transition error of any velocity estimate, which must not read as an unnamed effect."""
+def _time_shapes(ch: Channel) -> list[np.ndarray]:
+    """Slow shapes of time over the record (Legendre-like, per column): a drift."""
+    t = ch.t - ch.t[0]
+    u = (2.0 * t / max(float(t[-1]), 1e-12) - 1.0)[:, None] * np.ones((1, ch.m))
+    return [u, 1.5 * u ** 2 - 0.5, 2.5 * u ** 3 - 1.5 * u]
+
+
+def time_columns(ch: Channel) -> np.ndarray:
+    """The slow time shapes, one set per motor or axis (block diagonal): a sensor offset drifting."""
+    return np.hstack([ch.per_column(ch.sm.smooth(u)) for u in _time_shapes(ch)])
+
+
+def catch_all_motor(ch: MotorChannel) -> tuple[np.ndarray, list[str]]:
+    """Generic columns for the motor channel and what each correlates with: a torque FIR (latency,
+    dynamics), torque-constant nonlinearity, velocity and cable-torque shapes, slow position dependence
+    (spring, preload, slow harmonics, friction varying along the travel), slow drift in time (also of the
+    friction: temperature) and an offset. No low-speed shapes beyond the named Stribeck block: near zero
+    speed the residual carries the friction-transition error of any velocity estimate, which must not
+    read as an unnamed effect."""
     now = ch.torque()
     cols = [ch.torque(lag) - now for lag in DELAY_LAGS_S]
+    groups = ["latency (torque history)"] * len(cols)
     tau = ch.tau / max(float(np.max(np.abs(ch.tau))), 1e-12)
     v99 = max(float(np.percentile(np.abs(ch.vel), 99)), 1e-12)
     v = ch.vel / v99
-    raw = [tau * np.abs(tau), tau ** 3, v * np.abs(v), v ** 3, np.abs(v), np.abs(ch.sign)]
+    raw = [(tau * np.abs(tau), "torque level"), (tau ** 3, "torque level"), (v * np.abs(v), "velocity"),
+           (v ** 3, "velocity"), (np.abs(v), "velocity"), (np.abs(ch.sign), "velocity")]
     if np.any(ch.tc):
         tcs = ch.tc / max(float(np.max(np.abs(ch.tc))), 1e-12)
-        raw += [tcs, np.abs(tcs), tcs * np.abs(tcs), np.abs(tcs) * ch.sign]
+        raw += [(x, "load (cable torque)") for x in (tcs, np.abs(tcs), tcs * np.abs(tcs), np.abs(tcs) * ch.sign)]
     span = max(float(np.ptp(ch.pos)), 1e-12)
     p = (ch.pos - ch.pos.mean(axis=0)) / span
-    raw += [p, p * np.abs(p)]
+    raw += [(p, "position"), (p * np.abs(p), "position"), (p * ch.sign, "position"),
+            (p * p * ch.sign, "position")]
     for n in (1, 2, 3):
-        raw += [np.sin(2 * np.pi * n * ch.pos / span), np.cos(2 * np.pi * n * ch.pos / span)]
-    raw.append(np.ones_like(ch.pos))
-    cols += [ch.filt(r) for r in raw]
-    return np.column_stack(cols)
+        raw += [(np.sin(2 * np.pi * n * ch.pos / span), "position"), (np.cos(2 * np.pi * n * ch.pos / span), "position")]
+    for u in _time_shapes(ch):
+        raw += [(u, "time (drift)"), (u * ch.sign, "time (drift)")]
+    raw.append((np.ones_like(ch.pos), "offset"))
+    cols += [ch.filt(r) for r, _ in raw]
+    groups += [g for _, g in raw]
+    return np.column_stack(cols), groups
 
 
-def catch_all_cable(ch: CableChannel) -> np.ndarray:
-    """Generic columns for the cable channel: even and odd stretch shapes, rate-dependent terms, and
-    soft dead zones (per axis)."""
+def catch_all_cable(ch: CableChannel) -> tuple[np.ndarray, list[str]]:
+    """Generic columns for the cable channel (per axis) and what each correlates with: even and odd
+    stretch shapes, rate-dependent terms, soft dead zones, and a slow drift in time."""
     scale = np.maximum(np.percentile(np.abs(ch.phi), 99, axis=0), 1e-12)
     p = ch.phi / scale
     d = ch.L_dphi / np.maximum(np.percentile(np.abs(ch.L_dphi), 99, axis=0), 1e-12)
-    raw = [p * np.abs(p), p ** 3, p ** 5, np.tanh(4 * p), np.tanh(d / 0.05), d * np.abs(d), p * np.abs(d),
-           np.clip(p, -0.1, 0.1), np.clip(p, -0.3, 0.3)]
-    return np.hstack([ch.per_column(ch.sm.smooth(r)) for r in raw])
+    raw = [(p * np.abs(p), "stretch"), (p ** 3, "stretch"), (p ** 5, "stretch"), (np.tanh(4 * p), "stretch"),
+           (np.tanh(d / 0.05), "stretch rate"), (d * np.abs(d), "stretch rate"), (p * np.abs(d), "stretch rate"),
+           (np.clip(p, -0.1, 0.1), "stretch"), (np.clip(p, -0.3, 0.3), "stretch")]
+    raw += [(u, "time (drift)") for u in _time_shapes(ch)]
+    X = np.hstack([ch.per_column(ch.sm.smooth(r)) for r, _ in raw])
+    return X, [g for _, g in raw for _axis in range(ch.m)]
