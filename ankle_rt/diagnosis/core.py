@@ -304,9 +304,9 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
             raise InterchangeError("validation file has a different number of motors", validation.source,
                                    "motor_pos_2", 0)
         vname = validation.source
-    scr: Screening = screen(ident, inputs.v_eps, inputs.current_limit)
-    vscr: Screening = screen(validation, inputs.v_eps, inputs.current_limit)
-    warnings = scr.warnings + [w for w in vscr.warnings if w not in scr.warnings]
+    scr: Screening = screen(ident, inputs.v_eps, inputs.current_limit, f"identification data ({ident.source})")
+    vscr: Screening = screen(validation, inputs.v_eps, inputs.current_limit, f"validation data ({vname})")
+    warnings = scr.warnings + vscr.warnings
     chans = build_channels(ident, inputs, scr.good)
     vchans = build_channels(validation, inputs, vscr.good)
     if plant == "ankle" and "cable" not in chans:
@@ -316,10 +316,14 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
         if drift is not None:
             warnings.append("the strain-gauge offsets drift over the record (peak to peak "
                             + ", ".join(f"{d:.3g} N m" for d in drift) + " on DP, IE): fitted as a sensor drift "
-                            "in both channels, not as an effect")
+                            "in both channels, not as an effect; a load offset on the motors cannot then be told "
+                            "from the gauges' own offset, so torque_offset is not tried")
             for group in (chans, vchans):
                 for ch in group.values():
                     ch.nuisance = time_columns(ch)
+                    if isinstance(ch, MotorChannel):
+                        ch.nuisance = np.hstack([ch.nuisance, ch.per_column(np.ones((ch.n_samples, ch.m)))])
+            scr.skip.add("torque_offset")
     skip = scr.skip | vscr.skip
     motor_pool = tuple(c for c in MOTOR_CANDIDATES if c.cause not in skip)
     results = [select_channel("motor", chans["motor"], motor_pool, catch_all_motor)]
@@ -340,7 +344,7 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
                 notes.append(f"{res.name} channel: {', '.join(c.cause for c, _ in specs)} explain only "
                              f"{100 * explained:.0f} % of what the catch-all removes: not named")
                 specs = []
-        if scr.too_short:
+        if (scr.unusable or vscr.unusable):
             specs = []
         chosen[res.name] = specs
     # every named effect must earn its place on the validation data too
@@ -383,14 +387,14 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
             effects.append(entry)
     effects.sort(key=lambda e: -e["size"])
     causes = [e["type"] for e in effects] + (["unknown"] if unexplained else [])
-    if scr.too_short and not causes:
+    if (scr.unusable or vscr.unusable) and not causes:
         causes = ["unknown"]
     causes = causes or ["none"]
     if effects:
         confidence = min(e["confidence"] for e in effects)
     elif unexplained:
         confidence = min(1.0, max(r.catch_all_reduction for r in results if r.name in unexplained) / 0.2)
-    elif scr.too_short:
+    elif (scr.unusable or vscr.unusable):
         confidence = 0.0
     else:
         confidence = _none_confidence(results)

@@ -15,6 +15,7 @@ angles make the gauges' expected torque known.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -30,6 +31,7 @@ MOVING_SHARE = 0.2            # moving less than this share of the record: too l
 MIN_RECORD_S = 2.0            # shorter: nothing is named
 SHORT_RECORD_S = 4.0          # shorter: a warning (weak effects may be missed)
 MASK_S = 0.01                 # s masked either side of a gap
+MIN_USABLE = 0.25             # share of the record that must stay usable after masking
 
 
 @dataclass
@@ -37,7 +39,7 @@ class Screening:
     good: np.ndarray                               # per sample: usable for the regressions
     warnings: list[str] = field(default_factory=list)
     skip: set[str] = field(default_factory=set)    # candidates that cannot be told apart on these data
-    too_short: bool = False
+    unusable: bool = False        # too short, or too much of it masked: nothing is named
 
 
 def _runs(flags: np.ndarray) -> list[tuple[int, int]]:
@@ -59,9 +61,10 @@ def _flat_at_extreme(x: np.ndarray) -> np.ndarray:
 
 
 def _held(x: np.ndarray, rail: np.ndarray) -> np.ndarray:
-    """Runs of >= HOLD_SAMPLES identical values not at a rail, in a column that otherwise changes
-    almost every sample (a noisy sensor or a continuously varying set value)."""
-    same = np.concatenate([[False], np.diff(x) == 0.0])
+    """Runs of >= HOLD_SAMPLES identical values not at the column's extremes (a limit, however brief,
+    is not a held sample), in a column that otherwise changes almost every sample (a noisy sensor or a
+    continuously varying set value)."""
+    same = np.concatenate([[False], np.diff(x) == 0.0]) & (x != np.max(x)) & (x != np.min(x))
     if np.mean(same & ~rail) > 0.5:        # a signal that is piecewise constant by nature
         return np.zeros(len(x), dtype=bool)
     out = np.zeros(len(x), dtype=bool)
@@ -75,9 +78,9 @@ def _pct(share: float) -> str:
     return f"{100 * share:.1f} %"
 
 
-def screen(rec: Recording, v_eps: float, current_limit: float | None = None) -> Screening:
+def screen(rec: Recording, v_eps: float, current_limit: float | None = None, label: str = "data") -> Screening:
     """Screen ``rec`` (see the module docstring); ``v_eps`` sets the speed that counts as moving,
-    ``current_limit`` (A, from the config) the amplifier limit."""
+    ``current_limit`` (A, from the config) the amplifier limit; ``label`` starts every warning."""
     n = len(rec)
     t = np.asarray(rec["t"], dtype=float)
     dt = rec.dt
@@ -85,11 +88,11 @@ def screen(rec: Recording, v_eps: float, current_limit: float | None = None) -> 
     out = Screening(good)
     duration = float(t[-1] - t[0]) + dt
     if duration < MIN_RECORD_S:
-        out.too_short = True
-        out.warnings.append(f"{rec.source}: the record is {duration:.2f} s long, too short to diagnose "
+        out.unusable = True
+        out.warnings.append(f"{label}: the record is {duration:.2f} s long, too short to diagnose "
                             f"(at least {MIN_RECORD_S:g} s): nothing is named")
     elif duration < SHORT_RECORD_S:
-        out.warnings.append(f"{rec.source}: the record is only {duration:.1f} s long: weak effects may be "
+        out.warnings.append(f"{label}: the record is only {duration:.1f} s long: weak effects may be "
                             "missed")
     gaps = np.flatnonzero(np.diff(t) > GAP_FACTOR * dt)
     if gaps.size:
@@ -97,7 +100,7 @@ def screen(rec: Recording, v_eps: float, current_limit: float | None = None) -> 
         for g in gaps:
             good[max(0, g - reach):g + reach + 2] = False
         longest = float(np.max(np.diff(t)[gaps]))
-        out.warnings.append(f"{rec.source}: {gaps.size} time gap(s) (dropped samples), the longest "
+        out.warnings.append(f"{label}: {gaps.size} time gap(s) (dropped samples), the longest "
                             f"{1e3 * longest:.0f} ms: the samples around them are masked")
     inputs = [c for c in ("current_cmd_1", "current_cmd_2", "motor_torque_1", "motor_torque_2") if c in rec]
     gauges = [c for c in ("sg_torque_dp", "sg_torque_ie") if c in rec]
@@ -112,10 +115,10 @@ def screen(rec: Recording, v_eps: float, current_limit: float | None = None) -> 
             level = float(np.max(np.abs(x[rail])))
             reason = ("at the amplifier's limit: the applied current need not follow the set value" if col in inputs
                       else "clipped at the end of its range")
-            out.warnings.append(f"{rec.source}: {what} {col} flat at +/-{level:.4g} in {_pct(float(np.mean(rail)))} "
+            out.warnings.append(f"{label}: {what} {col} flat at +/-{level:.4g} in {_pct(float(np.mean(rail)))} "
                                 f"of the samples ({reason}); those samples are masked")
         if held.any():
-            out.warnings.append(f"{rec.source}: {what} {col} holds the same value for {HOLD_SAMPLES}+ samples in "
+            out.warnings.append(f"{label}: {what} {col} holds the same value for {HOLD_SAMPLES}+ samples in "
                                 f"{_pct(float(np.mean(held)))} of the record (held or repeated samples); masked")
         good &= ~(rail | held)
     motors = [c for c in ("motor_pos_1", "motor_pos_2") if c in rec]
@@ -124,10 +127,10 @@ def screen(rec: Recording, v_eps: float, current_limit: float | None = None) -> 
         window = max(5, int(round(0.021 / dt)) | 1)
         vel = np.column_stack([savgol_filter(rec[c], window, 3, deriv=1, delta=dt) for c in motors])
         v99 = float(np.percentile(np.abs(vel), 99))
-        moving = np.abs(vel) > max(20.0 * v_eps, 0.02 * v99)
+        moving = np.abs(vel) > max(5.0 * v_eps, 0.01 * v99)
         share = float(np.mean(moving))
         if share < MOVING_SHARE:
-            out.warnings.append(f"{rec.source}: the motors move in only {_pct(share)} of the record: too little "
+            out.warnings.append(f"{label}: the motors move in only {_pct(share)} of the record: too little "
                                 "motion to separate friction, load and inertia well")
         for i, c in enumerate(motors):
             m = moving[:, i]
@@ -135,20 +138,33 @@ def screen(rec: Recording, v_eps: float, current_limit: float | None = None) -> 
                 continue
             fwd = float(np.mean(vel[m, i] > 0.0))
             if min(fwd, 1.0 - fwd) < ONE_WAY_SHARE:
-                out.warnings.append(f"{rec.source}: {c} moves in one direction only ({_pct(max(fwd, 1 - fwd))} of "
+                out.warnings.append(f"{label}: {c} moves in one direction only ({_pct(max(fwd, 1 - fwd))} of "
                                     "its motion): direction-dependent friction and a load offset cannot be told "
                                     "from the Coulomb term, so neither is tried")
                 out.skip |= {"asymmetric_friction", "torque_offset"}
-    if np.mean(good) < 0.5:
-        out.warnings.append(f"{rec.source}: {_pct(1.0 - float(np.mean(good)))} of the samples are masked: the "
+    usable = float(np.mean(_reach_of_masks(good, dt)))
+    if usable < MIN_USABLE:
+        out.warnings.append(f"{label}: only {_pct(usable)} of the record is free of the artefacts above: too "
+                            "little to diagnose, nothing is named")
+        out.unusable = True
+        out.good[:] = True
+    elif np.mean(good) < 0.5:
+        out.warnings.append(f"{label}: {_pct(1.0 - float(np.mean(good)))} of the samples are masked: the "
                             "diagnosis rests on the rest")
     return out
 
 
+def _reach_of_masks(good: np.ndarray, dt: float) -> np.ndarray:
+    """Samples not within the filter's reach of a masked sample (what the regressions can use)."""
+    reach = int(round(0.06 / dt)) + 2
+    bad = np.convolve((~good).astype(float), np.ones(2 * reach + 1), mode="same") > 0.5
+    return ~bad
+
+
 #: strain-gauge drift: the time shapes must remove this share of the cable baseline's residual ...
 DRIFT_REDUCTION = 0.2
-#: ... and span this much of the measured joint torque's standard deviation
-DRIFT_SIZE = 0.03
+#: ... and span this many times the RMS of what is left (the noise floor)
+DRIFT_SIZE = 5.0
 
 
 def strain_gauge_drift(cable) -> list[float] | None:
@@ -169,6 +185,6 @@ def strain_gauge_drift(cable) -> list[float] | None:
         return None
     drift = (T @ full.coef[Xb.shape[1]:]).reshape(cable.m, -1)
     span = np.ptp(drift, axis=1)
-    if float(np.max(span)) < DRIFT_SIZE * 4.0 * float(np.std(cable.measured())):
+    if float(np.max(span)) < DRIFT_SIZE * math.sqrt(full.rss / len(y)):
         return None
     return [float(s) for s in span]
