@@ -103,9 +103,9 @@ class Cogging(Candidate):
     The count is found without a prior by the residual's spectrum in the angle domain: the residual is
     taken back through the filter (its adjoint: the zero-phase filter again) to the raw samples, binned
     onto a uniform grid of the angle modulo 2 pi and Fourier-transformed, which gives its projection on
-    every integer count at once; each count's projection is normalised by the share of its ripple the
-    filter passes at the recorded speeds. The strongest peaks and their neighbours are then scored by
-    the regression itself. Rotor cogging through the gearbox (e.g. 6 periods per motor turn x 81 = 486)
+    every integer count at once; each count's projection is normalised by the variance it would have
+    were the residual noise. The strongest peaks are screened by the share of the residual their own
+    filtered columns explain, and the best of them, with their neighbours, scored by the regression. Rotor cogging through the gearbox (e.g. 6 periods per motor turn x 81 = 486)
     is found where the motion is slow enough for the ripple to stay in the pass band."""
 
     cause = "cogging"
@@ -138,26 +138,36 @@ class Cogging(Candidate):
         idx = np.floor(np.mod(ch.pos, 2.0 * np.pi) * (bins / (2.0 * np.pi))).astype(np.int64) % bins
         spectrum = np.fft.fft(np.bincount(idx.ravel(), weights=back.ravel(), minlength=bins))[: n_max + 1]
         counts = np.arange(n_max + 1, dtype=float)
-        power = np.abs(spectrum) ** 2 / self._passed_energy(ch, counts)
+        power = np.abs(spectrum) ** 2 / self._noise_of_projection(ch, counts, residual)
         power[:n_min] = 0.0
         peaks = np.flatnonzero((power[1:-1] > power[:-2]) & (power[1:-1] >= power[2:])) + 1
-        best = peaks[np.argsort(power[peaks])[::-1][:COGGING_PEAKS]]
+        screened = peaks[np.argsort(power[peaks])[::-1][:COGGING_SCREENED]]
+        # the exact share of the residual each screened count's filtered sin/cos pair explains
+        explained = []
+        for n in screened:
+            X = self.design(ch, float(n)).X
+            g = X.T @ residual
+            explained.append(float(g @ np.linalg.lstsq(X.T @ X, g, rcond=None)[0]))
+        best = screened[np.argsort(explained)[::-1][:COGGING_PEAKS]]
         picks = {int(n) for p in best for n in range(p - 1, p + 2) if n_min <= n <= n_max}
         if ch.cogging_prior:
             picks.add(int(round(ch.cogging_prior)))
         return [float(n) for n in sorted(picks)]
 
     @staticmethod
-    def _passed_energy(ch, counts: np.ndarray) -> np.ndarray:
-        """Sum over the kept rows of the squared gain the filter gives a ripple of each count (its
-        instantaneous frequency n |v| / 2 pi), from a histogram of the speeds."""
-        speed = np.abs(ch.vel[ch.rows]).ravel()
-        hist, edges = np.histogram(np.log(np.maximum(speed, 1e-12)), bins=64)
+    def _noise_of_projection(ch, counts: np.ndarray, residual: np.ndarray) -> np.ndarray:
+        """Variance of each count's projection were the residual noise: sum over the kept rows of the
+        squared residual times the squared gain the filter gives a ripple of that count (instantaneous
+        frequency n |v| / 2 pi), from a histogram of the speeds weighted by the squared residual. The
+        residual is largest where the motion is slow, which is also the only place a high count's ripple
+        passes the filter; unweighted, high counts would be favoured by noise."""
+        speed = np.abs(ch.vel[ch.rows]).T.ravel()
+        hist, edges = np.histogram(np.log(np.maximum(speed, 1e-12)), bins=64, weights=residual ** 2)
         v = np.exp(0.5 * (edges[1:] + edges[:-1]))
         coarse = np.unique(np.geomspace(1.0, max(counts[-1], 2.0), 256))
         f = coarse[:, None] * v[None, :] / (2.0 * np.pi * ch.sm.cutoff_hz)
-        energy = (hist[None, :] / (1.0 + f ** 4) ** 2).sum(axis=1) + 1e-9 * len(speed)
-        return np.interp(counts, coarse, energy)
+        var = (hist[None, :] / (1.0 + f ** 4) ** 2).sum(axis=1) + 1e-12 * float(residual @ residual)
+        return np.interp(counts, coarse, var)
 
     def design(self, ch, nl):
         ang = nl * ch.pos
@@ -243,7 +253,8 @@ CABLE_CANDIDATES: tuple[Candidate, ...] = (Backlash(), HardeningStiffness())
 MIN_COGGING_PERIODS = 2.0
 MIN_COGGING_SEARCH = 2500          # periods per revolution searched at least (rotor cogging x gearbox)
 MAX_COGGING_BINS = 1 << 22         # angle-domain grid points per revolution, at most
-COGGING_PEAKS = 6                  # angle-spectrum peaks scored by the regression
+COGGING_SCREENED = 80              # angle-spectrum peaks whose filtered columns are built
+COGGING_PEAKS = 4                  # ... of which the best explaining are scored by the regression
 DELAY_LAGS_S = (0.001, 0.002, 0.004, 0.007, 0.011, 0.016, 0.022)
 
 

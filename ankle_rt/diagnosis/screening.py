@@ -31,7 +31,7 @@ MOVING_SHARE = 0.2            # moving less than this share of the record: too l
 MIN_RECORD_S = 2.0            # shorter: nothing is named
 SHORT_RECORD_S = 4.0          # shorter: a warning (weak effects may be missed)
 MASK_S = 0.01                 # s masked either side of a gap
-MIN_USABLE = 0.25             # share of the record that must stay usable after masking
+MIN_USABLE = 0.15             # share of the record that must stay usable after masking
 
 
 @dataclass
@@ -61,10 +61,10 @@ def _flat_at_extreme(x: np.ndarray) -> np.ndarray:
 
 
 def _held(x: np.ndarray, rail: np.ndarray) -> np.ndarray:
-    """Runs of >= HOLD_SAMPLES identical values not at the column's extremes (a limit, however brief,
-    is not a held sample), in a column that otherwise changes almost every sample (a noisy sensor or a
-    continuously varying set value)."""
-    same = np.concatenate([[False], np.diff(x) == 0.0]) & (x != np.max(x)) & (x != np.min(x))
+    """Runs of >= HOLD_SAMPLES identical values, in a column that otherwise changes almost every sample
+    (a noisy sensor or a continuously varying set value). Not held: the column's extremes (a limit,
+    however brief) and exact zeros (an amplifier switched off, e.g. while the gauges are tared)."""
+    same = np.concatenate([[False], np.diff(x) == 0.0]) & (x != np.max(x)) & (x != np.min(x)) & (x != 0.0)
     if np.mean(same & ~rail) > 0.5:        # a signal that is piecewise constant by nature
         return np.zeros(len(x), dtype=bool)
     out = np.zeros(len(x), dtype=bool)

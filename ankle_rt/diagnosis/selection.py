@@ -24,6 +24,8 @@ MIN_REDUCTION = 0.04
 #: ... and be of practical size: what it explains must reach this NRMSE (RMS / std of the measured
 #: torque); on effect-free data the best named candidate explains <= 0.001
 MIN_SIZE = 0.003
+#: a block removing this share of the residual counts whatever its size
+LARGE_REDUCTION = 0.25
 #: the catch-all must remove this fraction (in-sample and in held-out blocks) before a discrepancy counts
 #: as real without a name ...
 MIN_UNKNOWN_REDUCTION = 0.10
@@ -156,7 +158,10 @@ def score_against(models: ChannelModels, score: Score, ref_rss: float, ref_k: in
 
 
 def significant(score: Score) -> bool:
-    return score.delta_ic > IC_THRESHOLD and score.reduction > MIN_REDUCTION and score.size > MIN_SIZE
+    """Beats the reference in the criterion, by a share of its residual, and by a practical size (or by
+    a large share: a strong motion can make a clear effect small against the measured torque)."""
+    return (score.delta_ic > IC_THRESHOLD and score.reduction > MIN_REDUCTION
+            and (score.size > MIN_SIZE or score.reduction > LARGE_REDUCTION))
 
 
 def cv_wins(models: ChannelModels, without: list[Term], with_: list[Term]) -> tuple[bool, int]:
