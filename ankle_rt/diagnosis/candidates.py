@@ -103,8 +103,9 @@ class Cogging(Candidate):
     The count is found without a prior by the residual's spectrum in the angle domain: the residual is
     taken back through the filter (its adjoint: the zero-phase filter again) to the raw samples, binned
     onto a uniform grid of the angle modulo 2 pi and Fourier-transformed, which gives its projection on
-    every integer count at once; each count's projection is normalised by the variance it would have
-    were the residual noise. The strongest peaks are screened by the share of the residual their own
+    every integer count at once (per speed band, each band weighted by the taper the regressor gives
+    a ripple at that speed); each count's projection is normalised by the variance it would have were
+    the residual noise. The strongest peaks are screened by the share of the residual their own
     filtered columns explain, and the best of them, with their neighbours, scored by the regression. Rotor cogging through the gearbox (e.g. 6 periods per motor turn x 81 = 486)
     is found where the motion is slow enough for the ripple to stay in the pass band."""
 
@@ -133,12 +134,25 @@ class Cogging(Candidate):
         n_min, n_max = self.count_range(ch)
         full = np.zeros((ch.n_samples, ch.m))
         full[ch.rows] = residual.reshape(ch.m, -1).T
-        back = ch.sm.smooth(full)                                # adjoint of "filter, keep rows"
+        back = ch.sm.smooth(full).ravel()                        # adjoint of "filter, keep rows"
         bins = 1 << int(math.ceil(math.log2(8 * n_max)))
-        idx = np.floor(np.mod(ch.pos, 2.0 * np.pi) * (bins / (2.0 * np.pi))).astype(np.int64) % bins
-        spectrum = np.fft.fft(np.bincount(idx.ravel(), weights=back.ravel(), minlength=bins))[: n_max + 1]
+        idx = (np.floor(np.mod(ch.pos, 2.0 * np.pi) * (bins / (2.0 * np.pi))).astype(np.int64) % bins).ravel()
+        speed = np.abs(ch.vel).ravel()
+        # speed bands, within which the taper of a count's ripple is nearly one number
+        edges = np.unique(np.quantile(speed, np.linspace(0.0, 1.0, SPEED_BANDS + 1)))
+        band = np.clip(np.searchsorted(edges, speed, side="right") - 1, 0, len(edges) - 2)
         counts = np.arange(n_max + 1, dtype=float)
-        power = np.abs(spectrum) ** 2 / self._noise_of_projection(ch, counts, residual)
+        spectrum = np.zeros(n_max + 1, dtype=complex)
+        variance = np.zeros(n_max + 1)
+        for b in range(len(edges) - 1):
+            sel = band == b
+            if not sel.any():
+                continue
+            v_b = float(np.sqrt(max(edges[b], 1e-12) * max(edges[b + 1], 1e-12)))
+            w = self.taper(ch, counts * v_b)
+            spectrum += w * np.fft.fft(np.bincount(idx[sel], weights=back[sel], minlength=bins))[: n_max + 1]
+            variance += 0.5 * w ** 2 * float(back[sel] @ back[sel])
+        power = np.abs(spectrum) ** 2 / np.maximum(variance, 1e-300)
         power[:n_min] = 0.0
         peaks = np.flatnonzero((power[1:-1] > power[:-2]) & (power[1:-1] >= power[2:])) + 1
         screened = peaks[np.argsort(power[peaks])[::-1][:COGGING_SCREENED]]
@@ -155,23 +169,20 @@ class Cogging(Candidate):
         return [float(n) for n in sorted(picks)]
 
     @staticmethod
-    def _noise_of_projection(ch, counts: np.ndarray, residual: np.ndarray) -> np.ndarray:
-        """Variance of each count's projection were the residual noise: sum over the kept rows of the
-        squared residual times the squared gain the filter gives a ripple of that count (instantaneous
-        frequency n |v| / 2 pi), from a histogram of the speeds weighted by the squared residual. The
-        residual is largest where the motion is slow, which is also the only place a high count's ripple
-        passes the filter; unweighted, high counts would be favoured by noise."""
-        speed = np.abs(ch.vel[ch.rows]).T.ravel()
-        hist, edges = np.histogram(np.log(np.maximum(speed, 1e-12)), bins=64, weights=residual ** 2)
-        v = np.exp(0.5 * (edges[1:] + edges[:-1]))
-        coarse = np.unique(np.geomspace(1.0, max(counts[-1], 2.0), 256))
-        f = coarse[:, None] * v[None, :] / (2.0 * np.pi * ch.sm.cutoff_hz)
-        var = (hist[None, :] / (1.0 + f ** 4) ** 2).sum(axis=1) + 1e-12 * float(residual @ residual)
-        return np.interp(counts, coarse, var)
+    def taper(ch, angular_rate: np.ndarray) -> np.ndarray:
+        """Weight of the ripple at ``angular_rate`` = n |v| (rad/s of ripple phase): 1 well inside what
+        the sampled data resolve, 0 where it nears the Nyquist rate (a ripple there is aliased in the
+        sampled angle and in the measured acceleration alike, and beyond the filter's pass band anyway)."""
+        f = np.abs(angular_rate) / (2.0 * np.pi)
+        f1 = min(TAPER_START * ch.sm.cutoff_hz, 0.15 / ch.dt)
+        f2 = min(TAPER_END * ch.sm.cutoff_hz, 0.3 / ch.dt)
+        x = np.clip((f - f1) / (f2 - f1), 0.0, 1.0)
+        return 0.5 * (1.0 + np.cos(np.pi * x))
 
     def design(self, ch, nl):
         ang = nl * ch.pos
-        both = ch.sm.smooth(np.hstack([np.sin(ang), np.cos(ang)]))[ch.rows]   # one filter pass for both
+        w = self.taper(ch, nl * ch.vel)
+        both = ch.sm.smooth(np.hstack([w * np.sin(ang), w * np.cos(ang)]))[ch.rows]   # one filter pass for both
         return Design(np.column_stack([both[:, :ch.m].T.ravel(), both[:, ch.m:].T.ravel()]))
 
     def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
@@ -253,7 +264,9 @@ CABLE_CANDIDATES: tuple[Candidate, ...] = (Backlash(), HardeningStiffness())
 MIN_COGGING_PERIODS = 2.0
 MIN_COGGING_SEARCH = 2500          # periods per revolution searched at least (rotor cogging x gearbox)
 MAX_COGGING_BINS = 1 << 22         # angle-domain grid points per revolution, at most
-COGGING_SCREENED = 80              # angle-spectrum peaks whose filtered columns are built
+SPEED_BANDS = 16                   # speed bands of the angle-domain spectrum
+TAPER_START, TAPER_END = 3.0, 6.0  # x the filter's cut-off: the cogging regressor's taper (Cogging.taper)
+COGGING_SCREENED = 40              # angle-spectrum peaks whose filtered columns are built
 COGGING_PEAKS = 4                  # ... of which the best explaining are scored by the regression
 DELAY_LAGS_S = (0.001, 0.002, 0.004, 0.007, 0.011, 0.016, 0.022)
 
