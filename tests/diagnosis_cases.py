@@ -1,14 +1,20 @@
-"""Random diagnosis cases: a hidden effect (or none, or one outside the vocabulary) in simulated data.
+"""Random diagnosis cases: hidden effects (none, one, several, or one outside the vocabulary) in
+simulated data, with or without sensor artefacts.
 
-Shared by the diagnosis tests and benchmarks/bench_diagnose.py. A case draws, from its seed:
-the effect and a plausible magnitude, the plant's physical parameters perturbed by +/-15 % around the
-nominal config, and two different rich trajectories (identification and validation). The data carry
-encoder quantisation, strain-gauge noise and amplifier current noise. ``--plant ankle`` cases run a
-motor PD loop tracking multisine ankle references against a multisine load on the foot;
-``--plant actuator`` cases drive the motors off the cables with open-loop multisine currents.
+Shared by the diagnosis tests and benchmarks/bench_diagnose.py. A case draws, from its seed: the
+effects and plausible magnitudes (rotor cogging through the gearbox on request), the plant's physical
+parameters perturbed by +/-15 % around the nominal config, and two different trajectories
+(identification and validation). All data come from the simulator (sim_backend) running the effects,
+never from the diagnosis' own regressors. The data carry encoder quantisation, strain-gauge noise and
+amplifier current noise, and on request sensor artefacts (:func:`corrupt`, :data:`ARTEFACTS`).
+``--plant ankle`` cases run a motor PD loop tracking ankle references (multisine, gait-like or one
+way: :func:`references`) against a multisine load on the foot; ``--plant actuator`` cases drive the
+motors off the cables with open-loop multisine currents. :func:`draw_scenario` gives the benchmark's
+mix.
 
-The out-of-vocabulary effects ``kt_saturation`` (the torque constant dropping at high current) and
-``return_spring`` (a spring from each motor to the frame) are test material, registered here rather
+The out-of-vocabulary effects ``kt_saturation`` (the torque constant dropping at high current),
+``return_spring`` (a spring from each motor to the frame) and ``position_friction`` (friction growing
+along the travel) are test material, registered here rather
 than in sim_backend: they are not product effects, and keeping them out of the simulator's library
 keeps the library equal to the vocabulary the diagnosis can name.
 """
@@ -68,6 +74,25 @@ if "return_spring" not in EFFECTS:
             return self.k * th1, self.k * th2
 
 
+if "position_friction" not in EFFECTS:
+    @register_effect("position_friction")
+    class PositionFriction(Effect):
+        """OUT-OF-VOCABULARY TEST EFFECT: friction growing along the travel (a tight spot, a cable guide
+        rubbing), extra Coulomb torque ``coefficient * theta_m^2 * tanh(w / v_eps)``."""
+
+        PARAMS = Section({"coefficient": positive("N m/rad^2 at the gearbox output")})
+        cause = "unknown"
+
+        def __init__(self, params, plant, dt):
+            super().__init__(params, plant, dt)
+            self.c = params["coefficient"]
+            self.inv_ve = 1.0 / plant.actuator.friction_smoothing_velocity
+
+        def motor_torque(self, th1, th2, w1, w2, tc1, tc2):
+            c, ive = self.c, self.inv_ve
+            return c * th1 * th1 * math.tanh(w1 * ive), c * th2 * th2 * math.tanh(w2 * ive)
+
+
 # (effect, primary parameter, its range): the magnitude of a case is where its primary value lies
 MAGNITUDES = {
     "stribeck": ("static_excess", (0.08, 0.3)),
@@ -80,8 +105,9 @@ MAGNITUDES = {
     "torque_offset": ("torque_1", (0.1, 0.4)),
     "kt_saturation": ("saturation_torque", (6.0, 2.5)),            # smaller = stronger
     "return_spring": ("stiffness", (0.2, 1.0)),
+    "position_friction": ("coefficient", (0.5, 1.5)),
 }
-OUT_OF_VOCABULARY = ("kt_saturation", "return_spring")
+OUT_OF_VOCABULARY = ("kt_saturation", "return_spring", "position_friction")
 MOTOR_EFFECTS = ("stribeck", "asymmetric_friction", "cogging", "delay", "torque_offset")
 ANKLE_EFFECTS = MOTOR_EFFECTS + ("load_dependent_friction", "backlash", "stiffness_nonlinear")
 #: rotor cogging periods per motor turn (pole/slot combinations of small BLDC motors)

@@ -29,7 +29,7 @@ RAIL_RUN = 3                  # ... in runs at least this long
 ONE_WAY_SHARE = 0.03          # the rarer direction of travel below this share of the moving samples
 MOVING_SHARE = 0.2            # moving less than this share of the record: too little motion
 MIN_RECORD_S = 2.0            # shorter: nothing is named
-SHORT_RECORD_S = 4.0          # shorter: a warning (weak effects may be missed)
+SHORT_RECORD_S = 5.0          # shorter: a warning (weak effects may be missed)
 MASK_S = 0.01                 # s masked either side of a gap
 MIN_USABLE = 0.15             # share of the record that must stay usable after masking
 
@@ -92,7 +92,7 @@ def screen(rec: Recording, v_eps: float, current_limit: float | None = None, lab
         out.warnings.append(f"{label}: the record is {duration:.2f} s long, too short to diagnose "
                             f"(at least {MIN_RECORD_S:g} s): nothing is named")
     elif duration < SHORT_RECORD_S:
-        out.warnings.append(f"{label}: the record is only {duration:.1f} s long: weak effects may be "
+        out.warnings.append(f"{label}: the record is short ({duration:.1f} s): weak effects may be "
                             "missed")
     gaps = np.flatnonzero(np.diff(t) > GAP_FACTOR * dt)
     if gaps.size:
