@@ -125,19 +125,22 @@ def main() -> int:
           f"{len(artefact_cases)} with sensor artefacts")
     print(f"exact-set accuracy:                      {pct(exact)}   (goal >= 90 %)")
     if multi:
-        print(f"exact-set accuracy, several effects:     {pct(np.mean([sorted(d.causes) == sorted(c.causes) for c, d, _ in multi]))}")
+        rate = np.mean([sorted(d.causes) == sorted(c.causes) for c, d, _ in multi])
+        print(f"exact-set accuracy, several effects:     {pct(rate)}")
     if single:
-        print(f"single-effect top-1:                     {pct(np.mean([d.causes[0] == c.causes[0] for c, d, _ in single]))}"
-              "   (goal 100 %)")
+        rate = np.mean([d.causes[0] == c.causes[0] for c, d, _ in single])
+        print(f"single-effect top-1:                     {pct(rate)}   (goal 100 %)")
     print(f"false names, effect-free/artefact-only:  {pct(len(false_clean) / max(1, len(clean)))}   (goal <= 2 %); "
           f"'unknown' there: {pct(len(unknown_clean) / max(1, len(clean)))}")
     print(f"artefact cases with a data warning:      {pct(flagged)}")
-    print("recall per effect (goal >= 95 %): " + ", ".join(f"{k} {sum(v)}/{len(v)}" for k, v in sorted(recall.items())))
-    print("false names per word (cases):     " + (", ".join(f"{k} {v}" for k, v in sorted(false_names.items())) or "none"))
+    print("recall per word (goal >= 95 %):   " + ", ".join(f"{k} {sum(v)}/{len(v)}" for k, v in sorted(recall.items())))
+    print("false names per word (cases):     "
+          + (", ".join(f"{k} {v}" for k, v in sorted(false_names.items())) or "none"))
     if errs.size:
         print(f"primary parameter error (named effects): median {pct(np.median(errs))}, 90th pct "
               f"{pct(np.percentile(errs, 90))}   (goal median <= 10 %)")
-    print(f"diagnose time per case: median {np.median([r[2] for r in rows]):.2f} s, max {max(r[2] for r in rows):.2f} s")
+    times = [r[2] for r in rows]
+    print(f"diagnose time per case: median {np.median(times):.2f} s, max {max(times):.2f} s")
     print(f"README trajectory, 486-period rotor cogging at 1 % rated torque: {readme_rotor_cogging()}")
 
     if args.runtime_s > 0:

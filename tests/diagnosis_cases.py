@@ -299,7 +299,8 @@ def corrupt(rec: Recording, artefact: str, rng: np.random.Generator) -> Recordin
     elif artefact == "sg_drift":        # offsets wandering slowly (temperature)
         u = np.linspace(0.0, 1.0, n)
         for c in ("sg_torque_dp", "sg_torque_ie"):
-            cols[c] += rng.uniform(0.2, 0.5) * rng.choice([-1.0, 1.0]) * (u + 0.5 * np.sin(np.pi * u * rng.uniform(1, 2)))
+            wander = u + 0.5 * np.sin(np.pi * u * rng.uniform(1, 2))
+            cols[c] += rng.uniform(0.2, 0.5) * rng.choice([-1.0, 1.0]) * wander
     elif artefact == "sg_hold":         # bursts of repeated samples (stale values on the bus)
         for start in rng.integers(0, n - 200, max(4, n // 2000)):
             length = int(rng.integers(20, 150))

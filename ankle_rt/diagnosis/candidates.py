@@ -106,7 +106,8 @@ class Cogging(Candidate):
     every integer count at once (per speed band, each band weighted by the taper the regressor gives
     a ripple at that speed); each count's projection is normalised by the variance it would have were
     the residual noise. The strongest peaks are screened by the share of the residual their own
-    filtered columns explain, and the best of them, with their neighbours, scored by the regression. Rotor cogging through the gearbox (e.g. 6 periods per motor turn x 81 = 486)
+    filtered columns explain, and the best of them, with their neighbours, scored by the regression.
+    Rotor cogging through the gearbox (e.g. 6 periods per motor turn x 81 = 486)
     is found where the motion is slow enough for the ripple to stay in the pass band."""
 
     cause = "cogging"
@@ -306,7 +307,8 @@ def catch_all_motor(ch: MotorChannel) -> tuple[np.ndarray, list[str]]:
     raw += [(p, "position"), (p * np.abs(p), "position"), (p * ch.sign, "position"),
             (p * p * ch.sign, "position")]
     for n in (1, 2, 3):
-        raw += [(np.sin(2 * np.pi * n * ch.pos / span), "position"), (np.cos(2 * np.pi * n * ch.pos / span), "position")]
+        ang = 2 * np.pi * n * ch.pos / span
+        raw += [(np.sin(ang), "position"), (np.cos(ang), "position")]
     for u in _time_shapes(ch):
         raw += [(u, "time (drift)"), (u * ch.sign, "time (drift)")]
     raw.append((np.ones_like(ch.pos), "offset"))

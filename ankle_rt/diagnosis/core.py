@@ -60,6 +60,7 @@ class Diagnosis:
     notes: list[str] = field(default_factory=list)
     data_warnings: list[str] = field(default_factory=list)
     unexplained: dict[str, Any] | None = None   # channel -> what an unexplained remainder correlates with
+    adequacy: dict[str, Any] = field(default_factory=dict)   # channel -> what is left after the chosen model
     actuator_refit: dict[str, float] | None = None
     baseline_extended: dict[str, Any] | None = None   # the baseline part of the extended model's fit
     detail: dict[str, Any] = field(default_factory=dict, repr=False)   # fits and channels for the report
@@ -90,8 +91,8 @@ class Diagnosis:
     def to_json(self) -> dict[str, Any]:
         return {"cause": self.cause, "causes": self.causes, "confidence": round(self.confidence, 4),
                 "channel": self.channel, "effects": self.effects, "data_warnings": self.data_warnings,
-                "unexplained": self.unexplained, "candidates": self.candidates, "parameters": self.parameters,
-                "baseline": self.baseline, "baseline_extended": self.baseline_extended,
+                "unexplained": self.unexplained, "adequacy": self.adequacy, "candidates": self.candidates,
+                "parameters": self.parameters, "baseline": self.baseline, "baseline_extended": self.baseline_extended,
                 "nrmse_baseline": self.nrmse_baseline, "nrmse_extended": self.nrmse_extended,
                 "gain": self.gain, "validation": self.validation, "effect": self.effect,
                 "notes": self.notes}
@@ -420,8 +421,14 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
                           for j, (key, _) in enumerate(BASELINE_NAMES["motor"])}
     channel = effects[0]["channel"] if effects else (next(iter(unexplained)) if unexplained else None)
     detail = {"results": results, "fits": fits, "validation_channels": vchans}
+    adequacy = {r.name: {"catch_all_reduction": round(r.catch_all_reduction, 4),
+                         "catch_all_cv_reduction": round(r.catch_all_cv_reduction, 4),
+                         "catch_all_size": round(r.catch_all_size, 5),
+                         "independent_share": round(r.n_eff / len(r.channel.target()), 4),
+                         "adequate": not r.unexplained} for r in results}
     return Diagnosis(causes=causes, confidence=float(confidence), channel=channel,
                      candidates=candidate_table(results), effects=effects, baseline=baseline,
                      nrmse_baseline=nrmse_base, nrmse_extended=nrmse_ext, validation=vname, notes=notes,
-                     data_warnings=warnings, unexplained=unexplained or None, actuator_refit=actuator_refit,
+                     data_warnings=warnings, unexplained=unexplained or None, adequacy=adequacy,
+                     actuator_refit=actuator_refit,
                      baseline_extended=baseline_extended, detail=detail)
