@@ -21,6 +21,7 @@ keeps the library equal to the vocabulary the diagnosis can name.
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -344,7 +345,7 @@ def make_case(seed: int, plant: str = "ankle", cause: str | list[str] | None = N
     truth["sim"]["effects"] = effects
     limit = None
     if "current_limit" in artefacts:      # an amplifier limit the experiment reaches now and then
-        probe = simulate(truth, plant, np.random.default_rng(seed + 1), ident_s, motion)
+        probe = simulate(truth, plant, copy.deepcopy(rng), ident_s, motion)     # the same experiment
         limit = float(np.percentile(np.abs(probe.motor_input(1.0)), 99.5))
     ident = simulate(truth, plant, rng, ident_s, motion, limit)
     valid = simulate(truth, plant, rng, valid_s, motion, limit)
