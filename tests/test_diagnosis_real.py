@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 
 from ankle_rt.cli import main
@@ -108,6 +109,24 @@ def test_an_effect_is_still_named_through_a_sensor_artefact(seed, artefact, caus
     case, diag, msg = _diagnose(seed=seed, plant="ankle", cause=[cause], artefacts=(artefact,))
     assert diag.causes == [cause] and diag.data_warnings, msg
     assert primary_error(case, diag.parameters) < PARAM_TOLERANCE, msg
+
+
+def test_currents_held_at_the_limit_most_of_the_time_are_flagged_and_nothing_is_named():
+    """The issue's case: set currents on the amplifier's rail 60 % of the time (the recording holds
+    the rail while the applied current does not follow it)."""
+    case = make_case(47, "ankle", "none", ident_s=10.0, valid_s=5.0)
+    print(case.describe())
+
+    def railed(rec: Recording) -> Recording:
+        cols = dict(rec.columns)
+        for c in ("current_cmd_1", "current_cmd_2"):
+            level = float(np.percentile(np.abs(cols[c]), 40))
+            cols[c] = np.clip(cols[c], -level, level)
+        return Recording(cols, rec.source)
+
+    diag = diagnose(railed(case.ident), railed(case.valid), plant="ankle", cfg=case.nominal_cfg)
+    assert not set(diag.causes) & PHYSICAL, diag.causes
+    assert any("limit" in w for w in diag.data_warnings) and any("nothing is named" in w for w in diag.data_warnings)
 
 
 def test_one_directional_motion_is_flagged_and_friction_asymmetry_not_tried():
