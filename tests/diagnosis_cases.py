@@ -13,8 +13,8 @@ motors off the cables with open-loop multisine currents. :func:`draw_scenario` g
 mix.
 
 The out-of-vocabulary effects ``kt_saturation`` (the torque constant dropping at high current),
-``return_spring`` (a spring from each motor to the frame) and ``position_friction`` (friction growing
-along the travel) are test material, registered here rather
+``return_spring`` (a spring from each motor to the frame), ``position_friction`` (friction growing
+along the travel) and ``friction_drift`` (Coulomb friction drifting with temperature) are test material, registered here rather
 than in sim_backend: they are not product effects, and keeping them out of the simulator's library
 keeps the library equal to the vocabulary the diagnosis can name.
 """
@@ -94,6 +94,36 @@ if "position_friction" not in EFFECTS:
             return c * th1 * th1 * math.tanh(w1 * ive), c * th2 * th2 * math.tanh(w2 * ive)
 
 
+if "friction_drift" not in EFFECTS:
+    @register_effect("friction_drift")
+    class FrictionDrift(Effect):
+        """OUT-OF-VOCABULARY TEST EFFECT: the Coulomb friction drifting with temperature, by ``share`` of kc
+        over a slow swing of ``period`` s: extra torque ``share kc sin(2 pi t / period) tanh(w / v_eps)``.
+        Time is counted in control ticks (the command hook runs once per tick)."""
+
+        PARAMS = Section({"share": positive("fraction of kc the friction drifts by"),
+                          "period": positive("s, period of the slow swing")})
+        cause = "unknown"
+
+        def __init__(self, params, plant, dt):
+            super().__init__(params, plant, dt)
+            self.amp = params["share"] * plant.actuator.coulomb
+            self.rate = 2 * math.pi * dt / params["period"]
+            self.inv_ve = 1.0 / plant.actuator.friction_smoothing_velocity
+            self.ticks = 0
+
+        def reset(self) -> None:
+            self.ticks = 0
+
+        def command(self, tau1, tau2):
+            self.ticks += 1
+            return tau1, tau2
+
+        def motor_torque(self, th1, th2, w1, w2, tc1, tc2):
+            a, ive = self.amp * math.sin(self.rate * self.ticks), self.inv_ve
+            return a * math.tanh(w1 * ive), a * math.tanh(w2 * ive)
+
+
 # (effect, primary parameter, its range): the magnitude of a case is where its primary value lies
 MAGNITUDES = {
     "stribeck": ("static_excess", (0.08, 0.3)),
@@ -107,8 +137,9 @@ MAGNITUDES = {
     "kt_saturation": ("saturation_torque", (6.0, 2.5)),            # smaller = stronger
     "return_spring": ("stiffness", (0.2, 1.0)),
     "position_friction": ("coefficient", (0.5, 1.5)),
+    "friction_drift": ("share", (0.1, 0.2)),
 }
-OUT_OF_VOCABULARY = ("kt_saturation", "return_spring", "position_friction")
+OUT_OF_VOCABULARY = ("kt_saturation", "return_spring", "position_friction", "friction_drift")
 MOTOR_EFFECTS = ("stribeck", "asymmetric_friction", "cogging", "delay", "torque_offset")
 ANKLE_EFFECTS = MOTOR_EFFECTS + ("load_dependent_friction", "backlash", "stiffness_nonlinear")
 #: rotor cogging periods per motor turn (pole/slot combinations of small BLDC motors)
@@ -148,6 +179,8 @@ def draw_effect(name: str, rng: np.random.Generator, strength: float | None = No
     elif name == "cogging":
         entry["periods_per_rev"] = int(rng.integers(6, 61))
         entry["phase"] = float(rng.uniform(0.0, 2 * math.pi))
+    elif name == "friction_drift":
+        entry["period"] = float(rng.uniform(20.0, 40.0))
     elif name == "torque_offset":
         entry[key] = float(rng.choice([-1.0, 1.0])) * value
         entry["torque_2"] = float(rng.choice([-1.0, 1.0])) * float(rng.uniform(lo, hi))

@@ -148,7 +148,8 @@ def test_a_short_record_is_flagged_and_a_too_short_one_names_nothing():
 
 
 @pytest.mark.parametrize("seed,effect,correlate", [(43, "position_friction", "position"),
-                                                   (44, "kt_saturation", "torque level")])
+                                                   (44, "kt_saturation", "torque level"),
+                                                   (48, "friction_drift", "time (drift)")])
 def test_an_unexplained_residual_is_unknown_with_what_it_correlates_with(seed, effect, correlate):
     _, diag, msg = _diagnose(seed=seed, plant="ankle", cause=effect)
     assert diag.causes == ["unknown"] and not diag.effects, msg
