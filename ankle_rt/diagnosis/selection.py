@@ -31,6 +31,11 @@ LARGE_REDUCTION = 0.25
 MIN_UNKNOWN_REDUCTION = 0.10
 #: ... and explain this much: on effect-free data it fits <= 0.0035 of noise and friction-transition error
 MIN_SIZE_UNKNOWN = 0.006
+#: ... and predict held-out time blocks this much better: in closed loop the controller's reaction to past
+#: noise makes the torque history correlate with the residual, which the catch-all's latency columns fit
+#: in-sample (up to ~20 % in held-out blocks on effect-free slow motion); an effect outside the vocabulary
+#: predicts held-out blocks by >= 50 % in the tests
+MIN_UNKNOWN_CV = 0.4
 #: two hypotheses whose criteria differ by less than this are reported as ambiguous
 AMBIGUOUS_IC = 10.0
 CV_FOLDS = 5
@@ -107,7 +112,7 @@ class ChannelResult:
         """A discrepancy the chosen effects leave: the catch-all beats them in the criterion and in
         held-out blocks, by a practical size."""
         return (self.catch_all_delta_ic > IC_THRESHOLD and self.catch_all_reduction > MIN_UNKNOWN_REDUCTION
-                and self.catch_all_size > MIN_SIZE_UNKNOWN and self.catch_all_cv_reduction > MIN_UNKNOWN_REDUCTION)
+                and self.catch_all_size > MIN_SIZE_UNKNOWN and self.catch_all_cv_reduction > MIN_UNKNOWN_CV)
 
 
 class ChannelModels:
