@@ -291,53 +291,22 @@ def _describe_remainder(res: ChannelResult) -> dict[str, Any]:
             "correlates_with": [{"with": g, "share": round(s, 3)} for g, s in top]}
 
 
-# -- the whole -----------------------------------------------------------------------------------------
-def diagnose(ident: Recording, validation: Recording | None = None, *, plant: str = "ankle",
-             cfg: Config | None = None) -> Diagnosis:
-    """Diagnose the model discrepancy of ``ident`` (see the module docstring)."""
-    inputs = resolve_inputs(ident, plant, cfg)
-    notes = list(inputs.notes)
-    if validation is None:
-        ident, validation = split_recording(ident, HOLDOUT_FRACTION)
-        vname = f"held-out last {int(100 * HOLDOUT_FRACTION)} % of {ident.source}"
-    else:
-        if validation.two_motors != ident.two_motors:
-            raise InterchangeError("validation file has a different number of motors", validation.source,
-                                   "motor_pos_2", 0)
-        vname = validation.source
-    scr: Screening = screen(ident, inputs.v_eps, inputs.current_limit, f"identification data ({ident.source})")
-    vscr: Screening = screen(validation, inputs.v_eps, inputs.current_limit, f"validation data ({vname})")
-    warnings = scr.warnings + vscr.warnings
-    chans = build_channels(ident, inputs, scr.good)
-    vchans = build_channels(validation, inputs, vscr.good)
-    if plant == "ankle" and "cable" not in chans:
-        notes.append("no joint angles (ankle_dp, ankle_ie): cable side (backlash, stiffness) not diagnosed")
-    if "cable" in chans:
-        drift = strain_gauge_drift(chans["cable"])
-        if drift is not None:
-            warnings.append("the strain-gauge offsets drift over the record (peak to peak "
-                            + ", ".join(f"{d:.3g} N m" for d in drift) + " on DP, IE): fitted as a sensor drift "
-                            "in both channels, not as an effect; a load offset on the motors cannot then be told "
-                            "from the gauges' own offset, so torque_offset is not tried")
-            for group in (chans, vchans):
-                for ch in group.values():
-                    ch.nuisance = time_columns(ch)
-                    if isinstance(ch, MotorChannel):
-                        ch.nuisance = np.hstack([ch.nuisance, ch.per_column(np.ones((ch.n_samples, ch.m)))])
-            scr.skip.add("torque_offset")
-    skip = scr.skip | vscr.skip
-    motor_pool = tuple(c for c in MOTOR_CANDIDATES if c.cause not in skip)
-    results = [select_channel("motor", chans["motor"], motor_pool, catch_all_motor)]
-    if "cable" in chans and "cable" in vchans:
-        results.append(select_channel("cable", chans["cable"], CABLE_CANDIDATES, catch_all_cable))
+def _add_drift_nuisance(ch: Channel) -> None:
+    """A strain-gauge drift as nuisance columns of the channel's baseline: slow shapes of time per motor
+    or axis, and on the motor side the gauges' constant offset as well (the cable side has its own)."""
+    ch.nuisance = time_columns(ch)
+    if isinstance(ch, MotorChannel):
+        ch.nuisance = np.hstack([ch.nuisance, ch.per_column(np.ones((ch.n_samples, ch.m)))])
 
-    # which effects are named, per channel
+
+def _named_sets(results: list[ChannelResult], notes: list[str],
+                unusable: bool) -> tuple[dict[str, list[tuple[Candidate, float]]], dict[str, Any]]:
+    """Per channel the effects to name, and the channels with an unexplained remainder. A named set that
+    explains less than MIN_EXPLAINED of the catch-all's gain is a partial proxy: not named."""
     chosen: dict[str, list[tuple[Candidate, float]]] = {}
-    sd_of: dict[str, dict[str, float]] = {}
     unexplained: dict[str, Any] = {}
     for res in results:
         specs = [(ts.term.candidate, ts.term.nl) for ts in res.terms]
-        sd_of[res.name] = {ts.term.cause: sd for ts, sd in zip(res.terms, res.nl_sd)}
         if res.unexplained:
             unexplained[res.name] = _describe_remainder(res)
             explained = sum(ts.share for ts in res.terms) / max(res.catch_all_total, 1e-12)
@@ -345,26 +314,29 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
                 notes.append(f"{res.name} channel: {', '.join(c.cause for c, _ in specs)} explain only "
                              f"{100 * explained:.0f} % of what the catch-all removes: not named")
                 specs = []
-        if (scr.unusable or vscr.unusable):
-            specs = []
-        chosen[res.name] = specs
-    # every named effect must earn its place on the validation data too
-    vnrmse: dict[str, float] = {}
-    for res in results:
-        vch, specs = vchans[res.name], chosen[res.name]
-        while specs:
-            full = validation_nrmse(res, vch, specs)
-            gains = [validation_nrmse(res, vch, specs[:i] + specs[i + 1:]) / full for i in range(len(specs))]
-            worst = int(np.argmin(gains))
-            if gains[worst] > 1.0:
-                break
-            notes.append(f"{specs[worst][0].cause} dropped: it does not improve the prediction of the "
-                         f"validation data (gain {gains[worst]:.3f})")
-            del specs[worst]
-        vnrmse[res.name] = validation_nrmse(res, vch, specs)
+        chosen[res.name] = [] if unusable else specs
+    return chosen, unexplained
 
-    fits = {res.name: joint_fit(res, [(c, v, sd_of[res.name][c.cause]) for c, v in chosen[res.name]])
-            for res in results}
+
+def _validated(res: ChannelResult, vch: Channel, specs: list[tuple[Candidate, float]],
+               notes: list[str]) -> list[tuple[Candidate, float]]:
+    """Drop, one at a time, the effect whose removal does not make the validation prediction worse."""
+    specs = list(specs)
+    while specs:
+        full = validation_nrmse(res, vch, specs)
+        gains = [validation_nrmse(res, vch, specs[:i] + specs[i + 1:]) / full for i in range(len(specs))]
+        worst = int(np.argmin(gains))
+        if gains[worst] > 1.0:
+            break
+        notes.append(f"{specs[worst][0].cause} dropped: it does not improve the prediction of the "
+                     f"validation data (gain {gains[worst]:.3f})")
+        del specs[worst]
+    return specs
+
+
+def _effect_entries(results: list[ChannelResult], fits: dict[str, ChannelFit], vchans: dict[str, Channel],
+                    notes: list[str]) -> list[dict[str, Any]]:
+    """The ``effects`` list: each named effect's parameters, confidence, shares and own validation gain."""
     stats = {(res.name, ts.term.cause): ts for res in results for ts in res.terms}
     effects: list[dict[str, Any]] = []
     for res in results:
@@ -386,16 +358,71 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
                 notes.append(f"{cand.cause} and {ts.rival} fit these data nearly equally well (criterion "
                              f"{ts.rival_margin:.1f} apart: nearly collinear regressors): confidence shared")
             effects.append(entry)
-    effects.sort(key=lambda e: -e["size"])
+    return sorted(effects, key=lambda e: -e["size"])
+
+
+def _adequacy(results: list[ChannelResult]) -> dict[str, Any]:
+    """Per channel, what the catch-all still finds beyond the chosen model, and the residual's share of
+    independent samples (its whiteness)."""
+    return {r.name: {"catch_all_reduction": round(r.catch_all_reduction, 4),
+                     "catch_all_cv_reduction": round(r.catch_all_cv_reduction, 4),
+                     "catch_all_size": round(r.catch_all_size, 5),
+                     "independent_share": round(r.n_eff / len(r.channel.target()), 4),
+                     "adequate": not r.unexplained} for r in results}
+
+
+# -- the whole -----------------------------------------------------------------------------------------
+def diagnose(ident: Recording, validation: Recording | None = None, *, plant: str = "ankle",
+             cfg: Config | None = None) -> Diagnosis:
+    """Diagnose the model discrepancy of ``ident`` (see the module docstring)."""
+    inputs = resolve_inputs(ident, plant, cfg)
+    notes = list(inputs.notes)
+    if validation is None:
+        ident, validation = split_recording(ident, HOLDOUT_FRACTION)
+        vname = f"held-out last {int(100 * HOLDOUT_FRACTION)} % of {ident.source}"
+    else:
+        if validation.two_motors != ident.two_motors:
+            raise InterchangeError("validation file has a different number of motors", validation.source,
+                                   "motor_pos_2", 0)
+        vname = validation.source
+    scr: Screening = screen(ident, inputs.v_eps, inputs.current_limit, f"identification data ({ident.source})")
+    vscr: Screening = screen(validation, inputs.v_eps, inputs.current_limit, f"validation data ({vname})")
+    unusable = scr.unusable or vscr.unusable
+    warnings = scr.warnings + vscr.warnings
+    chans = build_channels(ident, inputs, scr.good)
+    vchans = build_channels(validation, inputs, vscr.good)
+    if plant == "ankle" and "cable" not in chans:
+        notes.append("no joint angles (ankle_dp, ankle_ie): cable side (backlash, stiffness) not diagnosed")
+    if "cable" in chans and (drift := strain_gauge_drift(chans["cable"])) is not None:
+        warnings.append("the strain-gauge offsets drift over the record (peak to peak "
+                        + ", ".join(f"{d:.3g} N m" for d in drift) + " on DP, IE): fitted as a sensor drift "
+                        "in both channels, not as an effect; a load offset on the motors cannot then be told "
+                        "from the gauges' own offset, so torque_offset is not tried")
+        for ch in list(chans.values()) + list(vchans.values()):
+            _add_drift_nuisance(ch)
+        scr.skip.add("torque_offset")
+    skip = scr.skip | vscr.skip
+    motor_pool = tuple(c for c in MOTOR_CANDIDATES if c.cause not in skip)
+    results = [select_channel("motor", chans["motor"], motor_pool, catch_all_motor)]
+    if "cable" in chans and "cable" in vchans:
+        results.append(select_channel("cable", chans["cable"], CABLE_CANDIDATES, catch_all_cable))
+
+    chosen, unexplained = _named_sets(results, notes, unusable)
+    for res in results:
+        chosen[res.name] = _validated(res, vchans[res.name], chosen[res.name], notes)
+    sd_of = {res.name: {ts.term.cause: sd for ts, sd in zip(res.terms, res.nl_sd)} for res in results}
+    fits = {res.name: joint_fit(res, [(c, v, sd_of[res.name][c.cause]) for c, v in chosen[res.name]])
+            for res in results}
+    effects = _effect_entries(results, fits, vchans, notes)
     causes = [e["type"] for e in effects] + (["unknown"] if unexplained else [])
-    if (scr.unusable or vscr.unusable) and not causes:
+    if unusable and not causes:
         causes = ["unknown"]
     causes = causes or ["none"]
     if effects:
         confidence = min(e["confidence"] for e in effects)
     elif unexplained:
         confidence = min(1.0, max(r.catch_all_reduction for r in results if r.name in unexplained) / 0.2)
-    elif (scr.unusable or vscr.unusable):
+    elif unusable:
         confidence = 0.0
     else:
         confidence = _none_confidence(results)
@@ -421,14 +448,8 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
                           for j, (key, _) in enumerate(BASELINE_NAMES["motor"])}
     channel = effects[0]["channel"] if effects else (next(iter(unexplained)) if unexplained else None)
     detail = {"results": results, "fits": fits, "validation_channels": vchans}
-    adequacy = {r.name: {"catch_all_reduction": round(r.catch_all_reduction, 4),
-                         "catch_all_cv_reduction": round(r.catch_all_cv_reduction, 4),
-                         "catch_all_size": round(r.catch_all_size, 5),
-                         "independent_share": round(r.n_eff / len(r.channel.target()), 4),
-                         "adequate": not r.unexplained} for r in results}
     return Diagnosis(causes=causes, confidence=float(confidence), channel=channel,
                      candidates=candidate_table(results), effects=effects, baseline=baseline,
                      nrmse_baseline=nrmse_base, nrmse_extended=nrmse_ext, validation=vname, notes=notes,
-                     data_warnings=warnings, unexplained=unexplained or None, adequacy=adequacy,
-                     actuator_refit=actuator_refit,
-                     baseline_extended=baseline_extended, detail=detail)
+                     data_warnings=warnings, unexplained=unexplained or None, adequacy=_adequacy(results),
+                     actuator_refit=actuator_refit, baseline_extended=baseline_extended, detail=detail)
