@@ -189,3 +189,19 @@ def test_cli_json_lists_every_effect_and_writes_them_all(tmp_path, capsys):
     assert "ActuationDelay" in names and "Backlash" in names       # the simulator runs them together
     report = (tmp_path / "report" / "report.md").read_text()
     assert "Effect `backlash`" in report and "Effect `delay`" in report
+
+
+def test_the_configs_cogging_prior_is_scored_and_the_search_reaches_2000_periods():
+    from ankle_rt.diagnosis.candidates import Cogging
+    from ankle_rt.diagnosis.core import build_channels, resolve_inputs
+
+    case = make_case(61, "ankle", "none", ident_s=6.0, valid_s=3.0)
+    cfg = case.nominal_cfg.deep_copy()
+    cfg["diagnosis"] = {"cogging_periods_per_motor_rev": 7}
+    inputs = resolve_inputs(case.ident, "ankle", cfg)
+    assert inputs.cogging_prior == 7 * 81
+    ch = build_channels(case.ident, inputs)["motor"]
+    noise = np.random.default_rng(0).standard_normal(len(ch.target()))
+    cog = Cogging()
+    assert 7 * 81 in cog.search_grid(ch, noise)
+    assert cog.count_range(ch)[1] >= 2000
