@@ -301,7 +301,9 @@ def catch_all_motor(ch: MotorChannel) -> tuple[np.ndarray, list[str]]:
            (v ** 3, "velocity"), (np.abs(v), "velocity"), (np.abs(ch.sign), "velocity")]
     if np.any(ch.tc):
         tcs = ch.tc / max(float(np.max(np.abs(ch.tc))), 1e-12)
-        raw += [(x, "load (cable torque)") for x in (tcs, np.abs(tcs), tcs * np.abs(tcs), np.abs(tcs) * ch.sign)]
+        # no tc |tc| beside tau |tau|: where the motor torque nearly balances the cable torque at a steady
+        # level (slow one-way motion) their difference is ~2 |tau| (tau - tc), the left side itself
+        raw += [(x, "load (cable torque)") for x in (tcs, np.abs(tcs), np.abs(tcs) * ch.sign)]
     span = max(float(np.ptp(ch.pos)), 1e-12)
     p = (ch.pos - ch.pos.mean(axis=0)) / span
     raw += [(p, "position"), (p * np.abs(p), "position"), (p * ch.sign, "position"),
@@ -315,6 +317,20 @@ def catch_all_motor(ch: MotorChannel) -> tuple[np.ndarray, list[str]]:
     cols += [ch.filt(r) for r, _ in raw]
     groups += [g for _, g in raw]
     return np.column_stack(cols), groups
+
+
+def without_groups(catch_all, dropped: set[str]):
+    """``catch_all`` without the columns of the ``dropped`` groups."""
+    def restricted(ch: Channel) -> tuple[np.ndarray, list[str]]:
+        X, groups = catch_all(ch)
+        keep = [j for j, g in enumerate(groups) if g not in dropped]
+        return X[:, keep], [groups[j] for j in keep]
+    return restricted
+
+
+#: in slow one-directional closed-loop motion the commanded torque mostly carries the controller's reaction
+#: to noise and varies little: shapes of it can rebuild the left side (tau - tc) and fit the noise
+INPUT_GROUPS = {"torque level", "latency (torque history)"}
 
 
 def catch_all_cable(ch: CableChannel) -> tuple[np.ndarray, list[str]]:

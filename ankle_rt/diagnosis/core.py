@@ -23,8 +23,8 @@ from typing import Any
 import numpy as np
 
 from ankle_rt.config import Config
-from ankle_rt.diagnosis.candidates import (CABLE_CANDIDATES, MOTOR_CANDIDATES, Candidate, Channel,
-                                           catch_all_cable, catch_all_motor, time_columns)
+from ankle_rt.diagnosis.candidates import (CABLE_CANDIDATES, INPUT_GROUPS, MOTOR_CANDIDATES, Candidate, Channel,
+                                           catch_all_cable, catch_all_motor, time_columns, without_groups)
 from ankle_rt.diagnosis.regression import fit, rss_only
 from ankle_rt.diagnosis.screening import Screening, screen, strain_gauge_drift
 from ankle_rt.diagnosis.selection import (IC_THRESHOLD, MIN_REDUCTION, MIN_SIZE, MIN_SIZE_UNKNOWN,
@@ -403,7 +403,8 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
         scr.skip.add("torque_offset")
     skip = scr.skip | vscr.skip
     motor_pool = tuple(c for c in MOTOR_CANDIDATES if c.cause not in skip)
-    results = [select_channel("motor", chans["motor"], motor_pool, catch_all_motor)]
+    motor_catch_all = without_groups(catch_all_motor, INPUT_GROUPS) if scr.one_way or vscr.one_way else catch_all_motor
+    results = [select_channel("motor", chans["motor"], motor_pool, motor_catch_all)]
     if "cable" in chans and "cable" in vchans:
         results.append(select_channel("cable", chans["cable"], CABLE_CANDIDATES, catch_all_cable))
 

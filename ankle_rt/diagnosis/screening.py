@@ -40,6 +40,7 @@ class Screening:
     warnings: list[str] = field(default_factory=list)
     skip: set[str] = field(default_factory=set)    # candidates that cannot be told apart on these data
     unusable: bool = False        # too short, or too much of it masked: nothing is named
+    one_way: bool = False         # a motor moves in one direction only
 
 
 def _runs(flags: np.ndarray) -> list[tuple[int, int]]:
@@ -140,8 +141,10 @@ def screen(rec: Recording, v_eps: float, current_limit: float | None = None, lab
             if min(fwd, 1.0 - fwd) < ONE_WAY_SHARE:
                 out.warnings.append(f"{label}: {c} moves in one direction only ({_pct(max(fwd, 1 - fwd))} of "
                                     "its motion): direction-dependent friction and a load offset cannot be told "
-                                    "from the Coulomb term, so neither is tried")
+                                    "from the Coulomb term, so neither is tried; shapes of the commanded "
+                                    "torque are left out of the adequacy test")
                 out.skip |= {"asymmetric_friction", "torque_offset"}
+                out.one_way = True
     usable = float(np.mean(_reach_of_masks(good, dt)))
     if usable < MIN_USABLE:
         out.warnings.append(f"{label}: only {_pct(usable)} of the record is free of the artefacts above: too "
