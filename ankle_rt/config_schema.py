@@ -357,8 +357,16 @@ SERIAL = Section({
 }, optional=True, doc="serial bridge transport (backend: serial)")
 
 
+DIAGNOSIS = Section({
+    "cogging_periods_per_motor_rev": Field(int, "cogging periods per motor revolution (the motor's pole/slot "
+                                                "count): a prior for `ankle-rt diagnose`, which finds the count "
+                                                "without it too", default=None, low=1),
+}, optional=True, doc="hints for `ankle-rt diagnose` (optional)")
+
+
 SCHEMA = Section({
     "backend": Field(str, "backend name: sim, serial or canopen"),
+    "diagnosis": DIAGNOSIS,
     "actuator": ACTUATOR,
     "transmission": TRANSMISSION,
     "foot": FOOT,

@@ -1,20 +1,27 @@
-"""Random diagnosis cases: a hidden effect (or none, or one outside the vocabulary) in simulated data.
+"""Random diagnosis cases: hidden effects (none, one, several, or one outside the vocabulary) in
+simulated data, with or without sensor artefacts.
 
-Shared by the diagnosis tests and benchmarks/bench_diagnose.py. A case draws, from its seed:
-the effect and a plausible magnitude, the plant's physical parameters perturbed by +/-15 % around the
-nominal config, and two different rich trajectories (identification and validation). The data carry
-encoder quantisation, strain-gauge noise and amplifier current noise. ``--plant ankle`` cases run a
-motor PD loop tracking multisine ankle references against a multisine load on the foot;
-``--plant actuator`` cases drive the motors off the cables with open-loop multisine currents.
+Shared by the diagnosis tests and benchmarks/bench_diagnose.py. A case draws, from its seed: the
+effects and plausible magnitudes (rotor cogging through the gearbox on request), the plant's physical
+parameters perturbed by +/-15 % around the nominal config, and two different trajectories
+(identification and validation). All data come from the simulator (sim_backend) running the effects,
+never from the diagnosis' own regressors. The data carry encoder quantisation, strain-gauge noise and
+amplifier current noise, and on request sensor artefacts (:func:`corrupt`, :data:`ARTEFACTS`).
+``--plant ankle`` cases run a motor PD loop tracking ankle references (multisine, gait-like or one
+way: :func:`references`) against a multisine load on the foot; ``--plant actuator`` cases drive the
+motors off the cables with open-loop multisine currents. :func:`draw_scenario` gives the benchmark's
+mix.
 
-The out-of-vocabulary effects ``kt_saturation`` (the torque constant dropping at high current) and
-``return_spring`` (a spring from each motor to the frame) are test material, registered here rather
+The out-of-vocabulary effects ``kt_saturation`` (the torque constant dropping at high current),
+``return_spring`` (a spring from each motor to the frame), ``position_friction`` (friction growing
+along the travel) and ``friction_drift`` (Coulomb friction drifting with temperature) are test material, registered here rather
 than in sim_backend: they are not product effects, and keeping them out of the simulator's library
 keeps the library equal to the vocabulary the diagnosis can name.
 """
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -68,6 +75,55 @@ if "return_spring" not in EFFECTS:
             return self.k * th1, self.k * th2
 
 
+if "position_friction" not in EFFECTS:
+    @register_effect("position_friction")
+    class PositionFriction(Effect):
+        """OUT-OF-VOCABULARY TEST EFFECT: friction growing along the travel (a tight spot, a cable guide
+        rubbing), extra Coulomb torque ``coefficient * theta_m^2 * tanh(w / v_eps)``."""
+
+        PARAMS = Section({"coefficient": positive("N m/rad^2 at the gearbox output")})
+        cause = "unknown"
+
+        def __init__(self, params, plant, dt):
+            super().__init__(params, plant, dt)
+            self.c = params["coefficient"]
+            self.inv_ve = 1.0 / plant.actuator.friction_smoothing_velocity
+
+        def motor_torque(self, th1, th2, w1, w2, tc1, tc2):
+            c, ive = self.c, self.inv_ve
+            return c * th1 * th1 * math.tanh(w1 * ive), c * th2 * th2 * math.tanh(w2 * ive)
+
+
+if "friction_drift" not in EFFECTS:
+    @register_effect("friction_drift")
+    class FrictionDrift(Effect):
+        """OUT-OF-VOCABULARY TEST EFFECT: the Coulomb friction drifting with temperature, by ``share`` of kc
+        over a slow swing of ``period`` s: extra torque ``share kc sin(2 pi t / period) tanh(w / v_eps)``.
+        Time is counted in control ticks (the command hook runs once per tick)."""
+
+        PARAMS = Section({"share": positive("fraction of kc the friction drifts by"),
+                          "period": positive("s, period of the slow swing")})
+        cause = "unknown"
+
+        def __init__(self, params, plant, dt):
+            super().__init__(params, plant, dt)
+            self.amp = params["share"] * plant.actuator.coulomb
+            self.rate = 2 * math.pi * dt / params["period"]
+            self.inv_ve = 1.0 / plant.actuator.friction_smoothing_velocity
+            self.ticks = 0
+
+        def reset(self) -> None:
+            self.ticks = 0
+
+        def command(self, tau1, tau2):
+            self.ticks += 1
+            return tau1, tau2
+
+        def motor_torque(self, th1, th2, w1, w2, tc1, tc2):
+            a, ive = self.amp * math.sin(self.rate * self.ticks), self.inv_ve
+            return a * math.tanh(w1 * ive), a * math.tanh(w2 * ive)
+
+
 # (effect, primary parameter, its range): the magnitude of a case is where its primary value lies
 MAGNITUDES = {
     "stribeck": ("static_excess", (0.08, 0.3)),
@@ -77,17 +133,30 @@ MAGNITUDES = {
     "delay": ("delay", (0.002, 0.012)),
     "backlash": ("half_width", (5e-5, 4e-4)),
     "stiffness_nonlinear": ("hardening_stretch", (1.2e-3, 3e-4)),   # smaller stretch = stronger effect
+    "torque_offset": ("torque_1", (0.1, 0.4)),
     "kt_saturation": ("saturation_torque", (6.0, 2.5)),            # smaller = stronger
     "return_spring": ("stiffness", (0.2, 1.0)),
+    "position_friction": ("coefficient", (0.5, 1.5)),
+    "friction_drift": ("share", (0.1, 0.2)),
 }
-OUT_OF_VOCABULARY = ("kt_saturation", "return_spring")
-MOTOR_EFFECTS = ("stribeck", "asymmetric_friction", "cogging", "delay")
+OUT_OF_VOCABULARY = ("kt_saturation", "return_spring", "position_friction", "friction_drift")
+MOTOR_EFFECTS = ("stribeck", "asymmetric_friction", "cogging", "delay", "torque_offset")
 ANKLE_EFFECTS = MOTOR_EFFECTS + ("load_dependent_friction", "backlash", "stiffness_nonlinear")
+#: rotor cogging periods per motor turn (pole/slot combinations of small BLDC motors)
+ROTOR_COGGING_PERIODS = (4, 6, 8, 12, 14)
+#: realistic rotor cogging: this share of the rated torque (kt x continuous current limit)
+ROTOR_COGGING_SHARE = (0.01, 0.03)
+#: sensor and data artefacts a case can carry (not physics: flagged, never named)
+ARTEFACTS = ("sg_clip", "sg_drift", "sg_hold", "current_limit", "dropouts")
+MOTIONS = ("multisine", "gait", "one_way")
 
 
-def draw_effect(name: str, rng: np.random.Generator, strength: float | None = None) -> tuple[dict, float]:
+def draw_effect(name: str, rng: np.random.Generator, strength: float | None = None,
+                cfg: Config | None = None, rotor: bool = False) -> tuple[dict, float]:
     """(sim.effects entry, magnitude in [0, 1]) with a plausible random size; ``strength`` < 1 instead
-    makes it that fraction of the weakest plausible size (magnitude reported as 0)."""
+    makes it that fraction of the weakest plausible size (magnitude reported as 0). ``rotor``: cogging
+    of the motor's rotor seen through the gearbox (periods per motor turn x gear ratio, 1-3 % of the
+    rated torque; needs ``cfg``) instead of a gear-mesh ripple of 6-60 periods per output turn."""
     key, (lo, hi) = MAGNITUDES[name]
     mag = float(rng.uniform())
     value = lo + mag * (hi - lo)
@@ -101,9 +170,20 @@ def draw_effect(name: str, rng: np.random.Generator, strength: float | None = No
         sign = float(rng.choice([-1.0, 1.0]))
         entry[key] = sign * value
         entry["viscous_asymmetry"] = sign * float(rng.uniform(0.0, 0.015))
+    elif name == "cogging" and rotor:
+        rated = cfg["actuator"]["torque_constant"] * cfg["amplifier"]["current_limit_continuous"]
+        share = ROTOR_COGGING_SHARE[0] + mag * (ROTOR_COGGING_SHARE[1] - ROTOR_COGGING_SHARE[0])
+        entry[key] = share * rated
+        entry["periods_per_rev"] = int(rng.choice(ROTOR_COGGING_PERIODS)) * int(cfg["actuator"]["gear_ratio"])
+        entry["phase"] = float(rng.uniform(0.0, 2 * math.pi))
     elif name == "cogging":
         entry["periods_per_rev"] = int(rng.integers(6, 61))
         entry["phase"] = float(rng.uniform(0.0, 2 * math.pi))
+    elif name == "friction_drift":
+        entry["period"] = float(rng.uniform(20.0, 40.0))
+    elif name == "torque_offset":
+        entry[key] = float(rng.choice([-1.0, 1.0])) * value
+        entry["torque_2"] = float(rng.choice([-1.0, 1.0])) * float(rng.uniform(lo, hi))
     return entry, mag
 
 
@@ -111,21 +191,32 @@ def draw_effect(name: str, rng: np.random.Generator, strength: float | None = No
 class Case:
     seed: int
     plant: str                 # "ankle" or "actuator"
-    cause: str                 # the vocabulary word expected ("none", ..., "unknown" for kt_saturation)
-    effect: dict | None        # the hidden sim.effects entry
-    magnitude: float           # 0 (weakest of the plausible range) .. 1 (strongest)
+    causes: tuple[str, ...]    # the vocabulary words expected, sorted ("none",) or (..., "unknown")
+    effects: list[dict]        # the hidden sim.effects entries
+    magnitude: float           # 0 (weakest of the plausible range) .. 1 (strongest), of the first effect
     truth_cfg: Config          # the perturbed plant that made the data
     nominal_cfg: Config        # what the diagnosis is given
     ident: Recording
     valid: Recording
+    artefacts: tuple[str, ...] = ()
+    motion: str = "multisine"
+
+    @property
+    def cause(self) -> str:
+        """The one expected word of a single-effect case (the first of ``causes``)."""
+        return self.causes[0]
+
+    @property
+    def effect(self) -> dict | None:
+        return self.effects[0] if self.effects else None
 
     def describe(self) -> str:
-        return f"seed={self.seed} plant={self.plant} cause={self.cause} effect={self.effect}"
+        return (f"seed={self.seed} plant={self.plant} causes={list(self.causes)} effects={self.effects} "
+                f"artefacts={list(self.artefacts)} motion={self.motion}")
 
 
 def _nominal() -> Config:
-    cfg = load_config(SIM_CONFIG)
-    return cfg
+    return load_config(SIM_CONFIG)
 
 
 def perturbed(cfg: Config, rng: np.random.Generator) -> Config:
@@ -149,8 +240,34 @@ class Multisine:
         return (self.a[None, :] * np.sin(2 * np.pi * self.f[None, :] * t[:, None] + self.p[None, :])).sum(1)
 
 
-def simulate(cfg: Config, plant_kind: str, rng: np.random.Generator, duration_s: float) -> Recording:
-    """Run one experiment on a fresh SimulatedPlant and record it in interchange columns."""
+def gait(rng: np.random.Generator, t: np.ndarray, amplitude: float) -> np.ndarray:
+    """A walking-like periodic angle: a stride of ~1 s, a few harmonics with a push-off peak, the stride
+    time varying a little from step to step."""
+    stride = rng.uniform(0.9, 1.2)
+    phase = 2 * np.pi * t / stride + 0.3 * np.sin(2 * np.pi * t / rng.uniform(5.0, 9.0))
+    harm = rng.uniform(0.2, 1.0, 4) / np.arange(1, 5)
+    off = rng.uniform(0, 2 * np.pi, 4)
+    x = sum(h * np.sin(k * phase + o) for k, (h, o) in enumerate(zip(harm, off), start=1))
+    return amplitude * x / max(float(np.std(x)), 1e-12) / math.sqrt(2.0)
+
+
+def references(rng: np.random.Generator, t: np.ndarray, motion: str) -> np.ndarray:
+    """Ankle reference angles [DP, IE] (rad) of one experiment."""
+    if motion == "gait":
+        return np.column_stack([gait(rng, t, 0.05), gait(rng, t, 0.02)])
+    if motion == "one_way":
+        # a slow sweep in one direction with a small ripple that never reverses it
+        rate = rng.uniform(0.02, 0.04) * rng.choice([-1.0, 1.0])
+        dp = rate * t + 0.2 * abs(rate) * np.sin(2 * np.pi * 0.7 * t) / (2 * np.pi * 0.7) * 0.8
+        return np.column_stack([dp, 0.5 * dp])
+    return np.column_stack([Multisine(rng, 0.1, 3.0, 7, 0.12).samples(t), Multisine(rng, 0.1, 3.0, 7, 0.06).samples(t)])
+
+
+def simulate(cfg: Config, plant_kind: str, rng: np.random.Generator, duration_s: float,
+             motion: str = "multisine", current_limit: float | None = None) -> Recording:
+    """Run one experiment on a fresh SimulatedPlant and record it in interchange columns.
+    ``current_limit`` (A): the amplifier saturates there (its current loop then delivers only 95 % of
+    the limit while the recorded set value sits on the rail)."""
     plant = SimulatedPlant(cfg)
     dt = plant.dt
     n = int(round(duration_s / dt))
@@ -167,16 +284,18 @@ def simulate(cfg: Config, plant_kind: str, rng: np.random.Generator, duration_s:
         R = np.array([[cfg["transmission"]["lever_dp"], cfg["transmission"]["lever_ie"]],
                       [cfg["transmission"]["lever_dp"], -cfg["transmission"]["lever_ie"]]]) \
             / cfg["transmission"]["pulley_radius"]
-        ref = np.column_stack([Multisine(rng, 0.1, 3.0, 7, 0.12).samples(t),
-                               Multisine(rng, 0.1, 3.0, 7, 0.06).samples(t)]) @ R.T
-        load = np.column_stack([Multisine(rng, 0.1, 4.0, 6, 4.0).samples(t),
-                                Multisine(rng, 0.1, 4.0, 6, 2.0).samples(t)])
+        ref = references(rng, t, motion) @ R.T
+        load_rms = (4.0, 2.0) if motion != "one_way" else (1.0, 0.5)
+        load = np.column_stack([Multisine(rng, 0.1, 4.0, 6, load_rms[0]).samples(t),
+                                Multisine(rng, 0.1, 4.0, 6, load_rms[1]).samples(t)])
         fade_in = np.minimum(1.0, t / RAMP_S)[:, None]    # no start-up jump of the PD loop
-        ref *= fade_in
+        if motion != "one_way":
+            ref *= fade_in
         load *= fade_in
         kp, kd = 60.0, 1.0
     x = plant.model.x
     limit = 0.9 * cfg["amplifier"]["current_limit_continuous"]
+    rail = current_limit if current_limit is not None else math.inf
     for k in range(n):
         p1, p2 = plant.motor_positions()
         s1, s2 = plant.strain_gauge_torques()
@@ -190,21 +309,54 @@ def simulate(cfg: Config, plant_kind: str, rng: np.random.Generator, duration_s:
             c2 = max(-limit, min(limit, c2))
             plant.extra_disturbance[0] = float(load[k, 0])
             plant.extra_disturbance[1] = float(load[k, 1])
+        c1, c2 = max(-rail, min(rail, c1)), max(-rail, min(rail, c2))
         row = (k * dt, p1, p2, c1, c2, s1, s2, a1, a2)
         for name, v in zip(cols, row):
             cols[name][k] = v
-        plant.step(c1 + noise[k, 0], c2 + noise[k, 1])
+        u1 = 0.95 * c1 if abs(c1) >= rail else c1
+        u2 = 0.95 * c2 if abs(c2) >= rail else c2
+        plant.step(u1 + noise[k, 0], u2 + noise[k, 1])
     if plant_kind == "actuator":
         cols = {k: v for k, v in cols.items() if k in ("t", "motor_pos_1", "current_cmd_1")}
     return Recording(cols, f"simulated {plant_kind} run")
 
 
-def make_case(seed: int, plant: str = "ankle", cause: str | None = None, ident_s: float = 12.0,
+def corrupt(rec: Recording, artefact: str, rng: np.random.Generator) -> Recording:
+    """The recording as a faulty sensor or link would deliver it (``current_limit`` acts in
+    :func:`simulate`)."""
+    cols = {k: v.copy() for k, v in rec.columns.items()}
+    n = len(rec)
+    if artefact == "sg_clip":           # gauges' amplifier saturating at 70 % of the peak torque
+        for c in ("sg_torque_dp", "sg_torque_ie"):
+            level = 0.7 * float(np.max(np.abs(cols[c])))
+            cols[c] = np.clip(cols[c], -level, level)
+    elif artefact == "sg_drift":        # offsets wandering slowly (temperature)
+        u = np.linspace(0.0, 1.0, n)
+        for c in ("sg_torque_dp", "sg_torque_ie"):
+            wander = u + 0.5 * np.sin(np.pi * u * rng.uniform(1, 2))
+            cols[c] += rng.uniform(0.2, 0.5) * rng.choice([-1.0, 1.0]) * wander
+    elif artefact == "sg_hold":         # bursts of repeated samples (stale values on the bus)
+        for start in rng.integers(0, n - 200, max(4, n // 2000)):
+            length = int(rng.integers(20, 150))
+            for c in ("sg_torque_dp", "sg_torque_ie"):
+                cols[c][start:start + length] = cols[c][start]
+    elif artefact == "dropouts":        # lost frames: rows missing, time stamps jump
+        keep = np.ones(n, dtype=bool)
+        for start in rng.integers(100, n - 200, max(3, n // 3000)):
+            keep[start:start + int(rng.integers(5, 60))] = False
+        cols = {k: v[keep] for k, v in cols.items()}
+    return Recording(cols, rec.source + f" ({artefact})")
+
+
+def make_case(seed: int, plant: str = "ankle", cause: str | list[str] | None = None, ident_s: float = 12.0,
               valid_s: float = 6.0, p_none: float = 0.25, p_unknown: float = 0.1,
-              strength: float | None = None) -> Case:
-    """Draw a case from ``seed``. ``cause``: force an effect name, "none" or an out-of-vocabulary one; else
-    random (``p_none`` effect-free, ``p_unknown`` out of vocabulary, the rest uniform over the vocabulary).
-    ``strength``: see :func:`draw_effect`."""
+              strength: float | None = None, artefacts: tuple[str, ...] = (), motion: str = "multisine",
+              rotor_cogging: bool = False) -> Case:
+    """Draw a case from ``seed``. ``cause``: an effect name, a list of them (several at once), "none" or
+    an out-of-vocabulary one; else random (``p_none`` effect-free, ``p_unknown`` out of vocabulary, the
+    rest uniform over the vocabulary). ``strength``: see :func:`draw_effect`. ``artefacts``: sensor and
+    data faults (:data:`ARTEFACTS`); ``motion``: the reference's kind (:data:`MOTIONS`);
+    ``rotor_cogging``: cogging at the rotor's count through the gearbox (see :func:`draw_effect`)."""
     rng = np.random.default_rng(seed)
     pool = ANKLE_EFFECTS if plant == "ankle" else MOTOR_EFFECTS
     if cause is None:
@@ -215,24 +367,76 @@ def make_case(seed: int, plant: str = "ankle", cause: str | None = None, ident_s
             cause = str(rng.choice(OUT_OF_VOCABULARY))
         else:
             cause = str(rng.choice(pool))
+    names = [cause] if isinstance(cause, str) else list(cause)
+    names = [c for c in names if c != "none"]
     nominal = _nominal()
     truth = perturbed(nominal, rng)
     truth["sim"]["seed"] = int(seed)
     truth["sim"]["cables"] = plant == "ankle"
-    effect, mag = (None, 0.0) if cause == "none" else draw_effect(cause, rng, strength)
-    truth["sim"]["effects"] = [effect] if effect else []
-    ident = simulate(truth, plant, rng, ident_s)
-    valid = simulate(truth, plant, rng, valid_s)
-    expected = "unknown" if cause in OUT_OF_VOCABULARY else cause
-    return Case(seed, plant, expected, effect, mag, truth, nominal, ident, valid)
+    drawn = [draw_effect(c, rng, strength, truth, rotor_cogging) for c in names]
+    effects = [e for e, _ in drawn]
+    truth["sim"]["effects"] = effects
+    limit = None
+    if "current_limit" in artefacts:      # an amplifier limit the experiment reaches now and then
+        probe = simulate(truth, plant, copy.deepcopy(rng), ident_s, motion)     # the same experiment
+        limit = float(np.percentile(np.abs(probe.motor_input(1.0)), 99.5))
+    ident = simulate(truth, plant, rng, ident_s, motion, limit)
+    valid = simulate(truth, plant, rng, valid_s, motion, limit)
+    for a in artefacts:
+        if a != "current_limit":
+            ident, valid = corrupt(ident, a, rng), corrupt(valid, a, rng)
+    words = sorted({"unknown" if c in OUT_OF_VOCABULARY else c for c in names}) or ["none"]
+    return Case(seed, plant, tuple(words), effects, drawn[0][1] if drawn else 0.0, truth, nominal, ident, valid,
+                tuple(artefacts), motion)
 
 
-def primary_error(case: Case, parameters: dict) -> float | None:
-    """Relative error of the case's primary effect parameter (None when not applicable)."""
-    if case.effect is None or case.cause == "unknown":
+def primary_error(case: Case, parameters: dict, effect: str | None = None) -> float | None:
+    """Relative error of an effect's primary parameter (the case's first effect unless ``effect`` names
+    one; None when not applicable)."""
+    entry = next((e for e in case.effects if e["type"] == (effect or case.effects[0]["type"])), None) \
+        if case.effects else None
+    if entry is None or entry["type"] in OUT_OF_VOCABULARY:
         return None
-    key = MAGNITUDES[case.effect["type"]][0]
+    key = MAGNITUDES[entry["type"]][0]
     if key not in parameters:
         return None
-    true = case.effect[key]
+    true = entry[key]
     return abs(parameters[key]["value"] - true) / abs(true)
+
+
+#: scenario kinds of the extended benchmark and their shares
+SCENARIOS = (("single", 0.22), ("two", 0.27), ("three", 0.15), ("none", 0.07), ("out_of_vocabulary", 0.05),
+             ("artefact_only", 0.11), ("artefact_and_effect", 0.05), ("short", 0.04), ("one_way", 0.04))
+
+
+def draw_scenario(seed: int, actuator_share: float = 0.2) -> dict:
+    """The keyword arguments of :func:`make_case` for one case of the extended benchmark, from ``seed``:
+    one, two or three effects at once (rotor cogging through the gearbox in a third of the cogging
+    cases), effect-free and out-of-vocabulary data, sensor artefacts with and without effects, gait-like
+    motion in a quarter of the ankle cases, one-directional motion and short records."""
+    rng = np.random.default_rng(seed + 7_000_000)
+    kinds, shares = zip(*SCENARIOS)
+    kind = str(rng.choice(kinds, p=np.array(shares) / sum(shares)))
+    plant = "actuator" if kind in ("single", "two", "none") and rng.uniform() < actuator_share else "ankle"
+    pool = list(ANKLE_EFFECTS if plant == "ankle" else MOTOR_EFFECTS)
+    spec: dict = {"seed": seed, "plant": plant, "cause": "none", "artefacts": (), "motion": "multisine",
+                  "rotor_cogging": False}
+    count = {"single": 1, "two": 2, "three": 3, "artefact_and_effect": 1, "short": 1}.get(kind, 0)
+    if count:
+        spec["cause"] = [str(c) for c in rng.choice(pool, count, replace=False)]
+    if kind == "out_of_vocabulary":
+        spec["cause"] = str(rng.choice(OUT_OF_VOCABULARY))
+    if kind in ("artefact_only", "artefact_and_effect"):
+        spec["artefacts"] = (str(rng.choice(ARTEFACTS)),)
+        if spec["artefacts"] == ("sg_drift",) and "torque_offset" in spec["cause"]:
+            spec["cause"] = ["stribeck"]    # a drifting gauge hides a load offset (docs/diagnosis.md, limits)
+    if kind == "short":
+        spec["ident_s"], spec["valid_s"] = 4.0, 2.0
+    if kind == "one_way":
+        spec["motion"] = "one_way"
+        spec["cause"] = "cogging" if rng.uniform() < 0.5 else "none"
+    elif plant == "ankle" and not spec["artefacts"] and rng.uniform() < 0.25:
+        spec["motion"] = "gait"
+    causes = [spec["cause"]] if isinstance(spec["cause"], str) else spec["cause"]
+    spec["rotor_cogging"] = "cogging" in causes and rng.uniform() < 0.34
+    return spec

@@ -127,7 +127,10 @@ def test_linear_axis_in_newtons_and_metres_without_config():
     assert diag.cause == "cogging", case.describe()
     assert diag.parameters["amplitude"]["value"] == pytest.approx(case.effect["amplitude"] / metre_per_rad,
                                                                  rel=PARAM_TOLERANCE)
-    assert diag.parameters["periods_per_rev"]["value"] == case.effect["periods_per_rev"] / metre_per_rad
+    # the travel spans only a few periods per 2 pi m here: the count is resolved to a fraction of a
+    # percent, not to one period (on a rotary axis it is exact: the tests of realistic cogging)
+    assert diag.parameters["periods_per_rev"]["value"] == pytest.approx(case.effect["periods_per_rev"] / metre_per_rad,
+                                                                       rel=0.002)
     mass = case.truth_cfg["actuator"]["inertia"] / metre_per_rad ** 2   # kg
     assert diag.baseline["motor"]["inertia"]["value"][0] == pytest.approx(mass, rel=0.05)
 

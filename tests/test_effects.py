@@ -77,6 +77,16 @@ def test_asymmetric_friction_makes_the_two_directions_differ(params):
     assert back == pytest.approx(-(1.0 - kc + 0.1) / (D - 0.02), rel=0.02)
 
 
+def test_torque_offset_shifts_both_directions_the_same_way(params):
+    """Unlike friction asymmetry, a load torque keeps its sign when the motion reverses."""
+    eff = [{"type": "torque_offset", "torque_1": 0.1}]
+    fwd = _free_motor(params, eff, 1.0, ticks=3000)
+    back = _free_motor(params, eff, -1.0, ticks=3000)
+    D, kc = params.actuator.damping, params.actuator.coulomb
+    assert fwd == pytest.approx((1.0 - kc - 0.1) / D, rel=0.02)
+    assert back == pytest.approx(-(1.0 - kc + 0.1) / D, rel=0.02)
+
+
 def test_cogging_holds_the_motor_at_a_ripple_minimum(params):
     eff = [{"type": "cogging", "amplitude": 0.5, "periods_per_rev": 40, "phase": 0.3}]
     model = CompliantModel(params, dt=DT, cables=False, friction=False, effects=build_effects(eff, params, DT))

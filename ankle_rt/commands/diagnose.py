@@ -12,8 +12,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "diagnose", help="find, name and fit the model discrepancy in measured data",
         description="Re-fit the baseline model (J, D, kc; cable stiffness) to an interchange CSV or a run log, "
                     "test every named effect (stribeck, asymmetric_friction, load_dependent_friction, backlash, "
-                    "cogging, delay, stiffness_nonlinear) and a catch-all, name the cause (or none / unknown), "
-                    "and report the validation gain of the extended model.")
+                    "cogging, delay, stiffness_nonlinear, torque_offset) and a catch-all after screening the data for "
+                    "sensor artefacts, name every effect present (or none / unknown), and report the validation "
+                    "gain of the extended model.")
     p.add_argument("data", nargs="?", help="identification data: interchange CSV or `ankle-rt run` log")
     p.add_argument("--batch", metavar="DIR", help="every log under DIR, one row each, with parameter trends "
                                                   "over time (docs/sweeps.md; --report DIR for the outputs)")
@@ -25,17 +26,26 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--config", metavar="FILE", help="nominal model config (optional for --plant actuator)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--report", metavar="DIR", help="write report.md and PNG plots here")
-    p.add_argument("--write-model", metavar="FILE", help="write the config fragment that switches the effect on")
+    p.add_argument("--write-model", metavar="FILE", help="write the config that switches the named effects on")
     p.add_argument("--no-closed-loop", action="store_true",
                    help="skip the free-run closed-loop simulation gain on daemon runs")
     p.set_defaults(handler=run)
 
 
 def _format(diag, closed) -> str:
-    lines = [f"cause: {diag.cause}  (confidence {diag.confidence:.2f}"
+    lines = [f"causes: {', '.join(diag.causes)}  (confidence {diag.confidence:.2f}"
              + (f", {diag.channel} channel)" if diag.channel else ")")]
-    for k, v in diag.parameters.items():
-        lines.append(f"  {k} = {v['value']:.6g} ± {v['sd']:.2g}")
+    for w in diag.data_warnings:
+        lines.append(f"data warning: {w}")
+    for e in diag.effects:
+        lines.append(f"effect {e['type']} ({e['channel']} channel, confidence {e['confidence']:.2f}, "
+                     f"validation gain {e['gain']:.2f}x, {100 * e['rss_share']:.1f} % of the baseline residual)"
+                     + (f": fits about as well as {e['alternative']}" if "alternative" in e else ""))
+        for k, v in e["parameters"].items():
+            lines.append(f"  {k} = {v['value']:.6g} ± {v['sd']:.2g}")
+    for name, u in (diag.unexplained or {}).items():
+        lines.append(f"unexplained ({name} channel): correlates with "
+                     + ", ".join(f"{c['with']} ({100 * c['share']:.0f} %)" for c in u["correlates_with"]))
     for label, fits in (("re-fitted alone", diag.baseline), ("within the extended model", diag.baseline_extended)):
         for name, params in (fits or {}).items():
             vals = ", ".join(f"{k} {', '.join(f'{x:.4g}' for x in p['value'])}" for k, p in params.items())
@@ -45,7 +55,7 @@ def _format(diag, closed) -> str:
     if closed is not None:
         lines.append(f"closed-loop position NRMSE ({closed.duration_s:.1f} s free run): baseline "
                      f"{closed.nrmse_baseline:.3g}, extended {closed.nrmse_extended:.3g}, gain {closed.gain:.2f}x")
-    lines.append("candidates (score = information-criterion gain over the baseline):")
+    lines.append("candidates, each alone (score = information-criterion gain over the baseline):")
     for c in diag.candidates:
         name = "unknown (catch-all)" if c.get("catch_all") else c["cause"]
         lines.append(f"  {name:<24} {c['channel'] or '-':<6} score {c['score']:>10.1f}  "
@@ -55,7 +65,7 @@ def _format(diag, closed) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    import json
+    from ankle_rt.commands import jsonout
 
     try:
         import scipy  # noqa: F401
@@ -72,10 +82,9 @@ def run(args: argparse.Namespace) -> int:
     from ankle_rt.config import load_config
     from ankle_rt.diagnosis import DiagnosisError, diagnose
     from ankle_rt.diagnosis.closed_loop import applicable, closed_loop_gain
-    from ankle_rt.identification.data import load_recording
     from ankle_rt.diagnosis.model_fragment import write_fragment
+    from ankle_rt.identification.data import load_recording
     from ankle_rt.interchange import InterchangeError
-
     from ankle_rt.progress import Progress
 
     cfg = load_config(args.config) if args.config else None
@@ -95,7 +104,7 @@ def run(args: argparse.Namespace) -> int:
         return 2
     closed = None
     run_data = valid if valid is not None else ident
-    if (not args.no_closed_loop and args.config and args.plant == "ankle" and diag.effect is not None
+    if (not args.no_closed_loop and args.config and args.plant == "ankle" and diag.effects
             and applicable(run_data)):
         progress.update(2, "closed-loop simulation of both models")
         closed = closed_loop_gain(run_data, args.config, diag)
@@ -110,7 +119,7 @@ def run(args: argparse.Namespace) -> int:
         out = diag.to_json()
         if closed is not None:
             out["closed_loop"] = closed.to_json()
-        print(json.dumps(out, indent=2, default=float))
+        print(jsonout.dumps(out, indent=2))
     else:
         print(_format(diag, closed))
     return 0

@@ -7,6 +7,6 @@ Offline tool: needs the analysis extra (scipy; matplotlib for reports). See docs
 from ankle_rt.diagnosis.core import Diagnosis, DiagnosisError, diagnose
 
 VOCABULARY = ("none", "stribeck", "asymmetric_friction", "load_dependent_friction", "backlash", "cogging",
-              "delay", "stiffness_nonlinear", "unknown")
+              "delay", "stiffness_nonlinear", "torque_offset", "unknown")
 
 __all__ = ["Diagnosis", "DiagnosisError", "VOCABULARY", "diagnose"]

@@ -39,6 +39,10 @@ class Candidate:
     def grid(self, ch: Channel) -> list[float]:
         return [0.0]
 
+    def search_grid(self, ch: Channel, residual: np.ndarray) -> list[float]:
+        """Values of the nonlinear parameter to score, given the current model's residual (stacked)."""
+        return self.grid(ch)
+
     def design(self, ch: Channel, nl: float) -> Design:
         raise NotImplementedError
 
@@ -93,32 +97,93 @@ class LoadDependentFriction(Candidate):
 
 
 class Cogging(Candidate):
+    """Torque ripple periodic in the motor angle: ``a sin(n theta) + b cos(n theta)``, n periods per
+    revolution (2 pi of the position unit), shared by the motors as the simulator effect is.
+
+    The count is found without a prior by the residual's spectrum in the angle domain: the residual is
+    taken back through the filter (its adjoint: the zero-phase filter again) to the raw samples, binned
+    onto a uniform grid of the angle modulo 2 pi and Fourier-transformed, which gives its projection on
+    every integer count at once (per speed band, each band weighted by the taper the regressor gives
+    a ripple at that speed); each count's projection is normalised by the variance it would have were
+    the residual noise. The strongest peaks are screened by the share of the residual their own
+    filtered columns explain, and the best of them, with their neighbours, scored by the regression.
+    Rotor cogging through the gearbox (e.g. 6 periods per motor turn x 81 = 486)
+    is found where the motion is slow enough for the ripple to stay in the pass band."""
+
     cause = "cogging"
     nonlinear = "periods_per_rev"
     integer = True
 
-    def grid(self, ch):
-        # up to where the ripple n |v| / 2 pi leaves the filter's pass band for slow-to-medium motion, in
-        # steps small enough that the ripple's phase drifts < pi/2 over the travel (every integer on a
-        # rotary axis; a linear axis in metres has large n and coarser steps), at most MAX_COGGING_POINTS
-        # A ripple is told from a slow position dependence (a spring, a preload: not cogging) only when the
-        # travel spans at least MIN_COGGING_PERIODS of it.
-        v_slow = float(np.percentile(np.abs(ch.vel), 25)) or 1.0
+    def count_range(self, ch) -> tuple[int, int]:
+        """(fewest, most) periods per revolution searched: at least MIN_COGGING_PERIODS in the travel
+        (fewer cannot be told from a spring or preload); at most where the ripple leaves the pass band at
+        the slowest tenth of the motion, and never fewer than MIN_COGGING_SEARCH."""
         span = max(float(np.ptp(ch.pos)), 1e-12)
-        step = max(1, int(0.5 * np.pi / span))
-        n_min = step * max(1, math.ceil(2.0 * np.pi * MIN_COGGING_PERIODS / span / step))
-        n_max = min(max(n_min + 8 * step, int(2.0 * np.pi * 25.0 / v_slow)), n_min + step * MAX_COGGING_POINTS)
-        return [float(n) for n in range(n_min, n_max + 1, step)]
+        n_min = max(1, math.ceil(2.0 * np.pi * MIN_COGGING_PERIODS / span))
+        v_slow = float(np.percentile(np.abs(ch.vel[ch.rows]), 10))
+        n_fast = 2.0 * np.pi * ch.sm.cutoff_hz / max(v_slow, 1e-12)
+        n_max = int(min(max(n_fast, MIN_COGGING_SEARCH, n_min + 300), MAX_COGGING_BINS // 8))
+        return n_min, n_max
 
-    def local_grid(self, ch, best: float) -> list[float]:
-        """Every integer between the coarse grid's neighbours of ``best``."""
-        grid = self.grid(ch)
-        step = int(grid[1] - grid[0]) if len(grid) > 1 else 1
-        return [float(n) for n in range(max(int(grid[0]), int(best) - step + 1), int(best) + step)] if step > 1 else []
+    def grid(self, ch):
+        n_min, n_max = self.count_range(ch)
+        return [float(n) for n in np.unique(np.geomspace(n_min, n_max, 40).round())]
+
+    def search_grid(self, ch, residual: np.ndarray) -> list[float]:
+        """Integer counts worth a regression: the angle-domain spectrum's strongest peaks (see the class
+        docstring) with their neighbours, and the config's prior when it gives one."""
+        n_min, n_max = self.count_range(ch)
+        full = np.zeros((ch.n_samples, ch.m))
+        full[ch.rows] = residual.reshape(ch.m, -1).T
+        back = ch.sm.smooth(full).ravel()                        # adjoint of "filter, keep rows"
+        bins = 1 << int(math.ceil(math.log2(8 * n_max)))
+        idx = (np.floor(np.mod(ch.pos, 2.0 * np.pi) * (bins / (2.0 * np.pi))).astype(np.int64) % bins).ravel()
+        speed = np.abs(ch.vel).ravel()
+        # speed bands, within which the taper of a count's ripple is nearly one number
+        edges = np.unique(np.quantile(speed, np.linspace(0.0, 1.0, SPEED_BANDS + 1)))
+        band = np.clip(np.searchsorted(edges, speed, side="right") - 1, 0, len(edges) - 2)
+        counts = np.arange(n_max + 1, dtype=float)
+        spectrum = np.zeros(n_max + 1, dtype=complex)
+        variance = np.zeros(n_max + 1)
+        for b in range(len(edges) - 1):
+            sel = band == b
+            if not sel.any():
+                continue
+            v_b = float(np.sqrt(max(edges[b], 1e-12) * max(edges[b + 1], 1e-12)))
+            w = self.taper(ch, counts * v_b)
+            spectrum += w * np.fft.fft(np.bincount(idx[sel], weights=back[sel], minlength=bins))[: n_max + 1]
+            variance += 0.5 * w ** 2 * float(back[sel] @ back[sel])
+        power = np.abs(spectrum) ** 2 / np.maximum(variance, 1e-300)
+        power[:n_min] = 0.0
+        peaks = np.flatnonzero((power[1:-1] > power[:-2]) & (power[1:-1] >= power[2:])) + 1
+        screened = peaks[np.argsort(power[peaks])[::-1][:COGGING_SCREENED]]
+        # the exact share of the residual each screened count's filtered sin/cos pair explains
+        explained = []
+        for n in screened:
+            X = self.design(ch, float(n)).X
+            g = X.T @ residual
+            explained.append(float(g @ np.linalg.lstsq(X.T @ X, g, rcond=None)[0]))
+        best = screened[np.argsort(explained)[::-1][:COGGING_PEAKS]]
+        picks = {int(n) for p in best for n in range(p - 1, p + 2) if n_min <= n <= n_max}
+        if ch.cogging_prior:
+            picks.add(int(round(ch.cogging_prior)))
+        return [float(n) for n in sorted(picks)]
+
+    @staticmethod
+    def taper(ch, angular_rate: np.ndarray) -> np.ndarray:
+        """Weight of the ripple at ``angular_rate`` = n |v| (rad/s of ripple phase): 1 well inside what
+        the sampled data resolve, 0 where it nears the Nyquist rate (a ripple there is aliased in the
+        sampled angle and in the measured acceleration alike, and beyond the filter's pass band anyway)."""
+        f = np.abs(angular_rate) / (2.0 * np.pi)
+        f1 = min(TAPER_START * ch.sm.cutoff_hz, 0.15 / ch.dt)
+        f2 = min(TAPER_END * ch.sm.cutoff_hz, 0.3 / ch.dt)
+        x = np.clip((f - f1) / (f2 - f1), 0.0, 1.0)
+        return 0.5 * (1.0 + np.cos(np.pi * x))
 
     def design(self, ch, nl):
         ang = nl * ch.pos
-        both = ch.sm.smooth(np.hstack([np.sin(ang), np.cos(ang)]))[ch.rows]   # one filter pass for both
+        w = self.taper(ch, nl * ch.vel)
+        both = ch.sm.smooth(np.hstack([w * np.sin(ang), w * np.cos(ang)]))[ch.rows]   # one filter pass for both
         return Design(np.column_stack([both[:, :ch.m].T.ravel(), both[:, ch.m:].T.ravel()]))
 
     def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
@@ -128,6 +193,19 @@ class Cogging(Candidate):
         amp_sd = float(np.sqrt(max(g @ cov[:2, :2] @ g, 0.0)))
         return {"amplitude": (amp, amp_sd), "periods_per_rev": (nl, 0.0),
                 "phase": (float(np.arctan2(c, s)), amp_sd / max(amp, 1e-300))}
+
+
+class TorqueOffset(Candidate):
+    """A constant load torque on each motor (gravity, preload): one column per motor. Unlike
+    asymmetric friction it keeps its sign through a reversal and may differ between the motors."""
+
+    cause = "torque_offset"
+
+    def design(self, ch, nl):
+        return Design(ch.per_column(np.ones((ch.n_samples, ch.m))))
+
+    def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
+        return {f"torque_{i + 1}": (float(coef[i]), _sd(cov, i)) for i in range(len(coef))}
 
 
 class Delay(Candidate):
@@ -181,45 +259,89 @@ class HardeningStiffness(Candidate):
 
 
 MOTOR_CANDIDATES: tuple[Candidate, ...] = (Stribeck(), AsymmetricFriction(), LoadDependentFriction(),
-                                           Cogging(), Delay())
+                                           Cogging(), Delay(), TorqueOffset())
 CABLE_CANDIDATES: tuple[Candidate, ...] = (Backlash(), HardeningStiffness())
 
-MAX_COGGING_POINTS = 300
 MIN_COGGING_PERIODS = 2.0
+MIN_COGGING_SEARCH = 2500          # periods per revolution searched at least (rotor cogging x gearbox)
+MAX_COGGING_BINS = 1 << 22         # angle-domain grid points per revolution, at most
+SPEED_BANDS = 16                   # speed bands of the angle-domain spectrum
+TAPER_START, TAPER_END = 3.0, 6.0  # x the filter's cut-off: the cogging regressor's taper (Cogging.taper)
+COGGING_SCREENED = 40              # angle-spectrum peaks whose filtered columns are built
+COGGING_PEAKS = 4                  # ... of which the best explaining are scored by the regression
 DELAY_LAGS_S = (0.001, 0.002, 0.004, 0.007, 0.011, 0.016, 0.022)
 
 
-def catch_all_motor(ch: MotorChannel) -> np.ndarray:
-    """Generic columns for the motor channel: a torque FIR (latency, dynamics), a torque-constant
-    nonlinearity, velocity and cable-torque shapes, slow position dependence (spring, preload, slow
-    harmonics) and an offset. No
-    low-speed shapes beyond the named Stribeck block: near zero speed the residual carries the
-    friction-transition error of any velocity estimate, which must not read as an unnamed effect."""
+def _time_shapes(ch: Channel) -> list[np.ndarray]:
+    """Slow shapes of time over the record (Legendre-like, per column): a drift."""
+    t = ch.t - ch.t[0]
+    u = (2.0 * t / max(float(t[-1]), 1e-12) - 1.0)[:, None] * np.ones((1, ch.m))
+    return [u, 1.5 * u ** 2 - 0.5, 2.5 * u ** 3 - 1.5 * u]
+
+
+def time_columns(ch: Channel) -> np.ndarray:
+    """The slow time shapes, one set per motor or axis (block diagonal): a sensor offset drifting."""
+    return np.hstack([ch.per_column(ch.sm.smooth(u)) for u in _time_shapes(ch)])
+
+
+def catch_all_motor(ch: MotorChannel) -> tuple[np.ndarray, list[str]]:
+    """Generic columns for the motor channel and what each correlates with: a torque FIR (latency,
+    dynamics), torque-constant nonlinearity, velocity and cable-torque shapes, slow position dependence
+    (spring, preload, slow harmonics, friction varying along the travel), slow drift in time (also of the
+    friction: temperature) and an offset. No low-speed shapes beyond the named Stribeck block: near zero
+    speed the residual carries the friction-transition error of any velocity estimate, which must not
+    read as an unnamed effect."""
     now = ch.torque()
     cols = [ch.torque(lag) - now for lag in DELAY_LAGS_S]
+    groups = ["latency (torque history)"] * len(cols)
     tau = ch.tau / max(float(np.max(np.abs(ch.tau))), 1e-12)
     v99 = max(float(np.percentile(np.abs(ch.vel), 99)), 1e-12)
     v = ch.vel / v99
-    raw = [tau * np.abs(tau), tau ** 3, v * np.abs(v), v ** 3, np.abs(v), np.abs(ch.sign)]
+    raw = [(tau * np.abs(tau), "torque level"), (tau ** 3, "torque level"), (v * np.abs(v), "velocity"),
+           (v ** 3, "velocity"), (np.abs(v), "velocity"), (np.abs(ch.sign), "velocity")]
     if np.any(ch.tc):
         tcs = ch.tc / max(float(np.max(np.abs(ch.tc))), 1e-12)
-        raw += [tcs, np.abs(tcs), tcs * np.abs(tcs), np.abs(tcs) * ch.sign]
+        # no tc |tc| beside tau |tau|: where the motor torque nearly balances the cable torque at a steady
+        # level (slow one-way motion) their difference is ~2 |tau| (tau - tc), the left side itself
+        raw += [(x, "load (cable torque)") for x in (tcs, np.abs(tcs), np.abs(tcs) * ch.sign)]
     span = max(float(np.ptp(ch.pos)), 1e-12)
     p = (ch.pos - ch.pos.mean(axis=0)) / span
-    raw += [p, p * np.abs(p)]
+    raw += [(p, "position"), (p * np.abs(p), "position"), (p * ch.sign, "position"),
+            (p * p * ch.sign, "position")]
     for n in (1, 2, 3):
-        raw += [np.sin(2 * np.pi * n * ch.pos / span), np.cos(2 * np.pi * n * ch.pos / span)]
-    raw.append(np.ones_like(ch.pos))
-    cols += [ch.filt(r) for r in raw]
-    return np.column_stack(cols)
+        ang = 2 * np.pi * n * ch.pos / span
+        raw += [(np.sin(ang), "position"), (np.cos(ang), "position")]
+    for u in _time_shapes(ch):
+        raw += [(u, "time (drift)"), (u * ch.sign, "time (drift)")]
+    raw.append((np.ones_like(ch.pos), "offset"))
+    cols += [ch.filt(r) for r, _ in raw]
+    groups += [g for _, g in raw]
+    return np.column_stack(cols), groups
 
 
-def catch_all_cable(ch: CableChannel) -> np.ndarray:
-    """Generic columns for the cable channel: even and odd stretch shapes, rate-dependent terms, and
-    soft dead zones (per axis)."""
+def without_groups(catch_all, dropped: set[str]):
+    """``catch_all`` without the columns of the ``dropped`` groups."""
+    def restricted(ch: Channel) -> tuple[np.ndarray, list[str]]:
+        X, groups = catch_all(ch)
+        keep = [j for j, g in enumerate(groups) if g not in dropped]
+        return X[:, keep], [groups[j] for j in keep]
+    return restricted
+
+
+#: in slow one-directional closed-loop motion the commanded torque mostly carries the controller's reaction
+#: to noise and varies little: shapes of it can rebuild the left side (tau - tc) and fit the noise
+INPUT_GROUPS = {"torque level", "latency (torque history)"}
+
+
+def catch_all_cable(ch: CableChannel) -> tuple[np.ndarray, list[str]]:
+    """Generic columns for the cable channel (per axis) and what each correlates with: even and odd
+    stretch shapes, rate-dependent terms, soft dead zones, and a slow drift in time."""
     scale = np.maximum(np.percentile(np.abs(ch.phi), 99, axis=0), 1e-12)
     p = ch.phi / scale
     d = ch.L_dphi / np.maximum(np.percentile(np.abs(ch.L_dphi), 99, axis=0), 1e-12)
-    raw = [p * np.abs(p), p ** 3, p ** 5, np.tanh(4 * p), np.tanh(d / 0.05), d * np.abs(d), p * np.abs(d),
-           np.clip(p, -0.1, 0.1), np.clip(p, -0.3, 0.3)]
-    return np.hstack([ch.per_column(ch.sm.smooth(r)) for r in raw])
+    raw = [(p * np.abs(p), "stretch"), (p ** 3, "stretch"), (p ** 5, "stretch"), (np.tanh(4 * p), "stretch"),
+           (np.tanh(d / 0.05), "stretch rate"), (d * np.abs(d), "stretch rate"), (p * np.abs(d), "stretch rate"),
+           (np.clip(p, -0.1, 0.1), "stretch"), (np.clip(p, -0.3, 0.3), "stretch")]
+    raw += [(u, "time (drift)") for u in _time_shapes(ch)]
+    X = np.hstack([ch.per_column(ch.sm.smooth(r)) for r, _ in raw])
+    return X, [g for _, g in raw for _axis in range(ch.m)]

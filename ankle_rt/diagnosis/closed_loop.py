@@ -55,7 +55,7 @@ def closed_loop_gain(rec: Recording, config_path: str | Path, diag: Diagnosis) -
     cols = tuple(c for c in POSITION_COLUMNS if c in rec)
     traces: dict[str, Any] = {"t": rec["t"], "measured": {c: rec[c] for c in cols}}
     out = {}
-    for name, effects in (("baseline", []), ("extended", [diag.effect] if diag.effect else [])):
+    for name, effects in (("baseline", []), ("extended", diag.sim_effects)):
         cfg = load_config(config_path, overrides={**refit, "sim": {"effects": effects}})
         run = run_lockstep(cfg, duration)
         sim = Recording(run.interchange(), f"{name} simulation")

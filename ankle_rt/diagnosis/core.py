@@ -1,17 +1,17 @@
-"""The diagnosis: from measured data to a named cause, fitted effect parameters and the gain.
+"""The diagnosis: from measured data to the set of effects the model lacks, each fitted, and the gain.
 
 Steps (docs/diagnosis.md explains the choices):
-1. Build the motor channel and, where joint angles are measured, the cable channel.
-2. In each channel re-fit the baseline (J, D, kc per motor; K, K beta, offset per ankle axis), score every
-   candidate block (nonlinear parameter on a grid) and a catch-all block by the information criterion
-   with the effective sample size.
-3. Verdict: ``none`` unless a model beats the baseline both statistically and in size; ``unknown`` when
-   the catch-all finds a discrepancy the best named candidate explains only in small part; otherwise the
-   best named candidate, if block cross-validation confirms it.
-4. Refine the named effect's nonlinear parameter with scipy.optimize.least_squares (variable projection)
-   and take parameter uncertainties from the Jacobian, inflated for autocorrelation.
-5. Measure the gain: inverse-model NRMSE of baseline and extended model on the validation data (or the
-   held-out last quarter of the identification data).
+1. Screen the data (sensor artefacts are warned about and masked, never named as physics).
+2. Build the motor channel and, where joint angles are measured, the cable channel; a strain-gauge
+   offset drift found on the cable side becomes a nuisance term of both baselines.
+3. In each channel re-fit the baseline and select a set of candidate blocks: forward selection by the
+   information criterion with the effective sample size, each addition confirmed by block
+   cross-validation, each chosen block kept only if it still earns its place with the others in.
+4. The catch-all on top of the chosen model: a significant remainder is ``unknown``, with what it
+   correlates with; a named set that explains only a small part of the catch-all's gain is not named.
+5. Refine the continuous nonlinear parameters (variable projection), take uncertainties from the
+   Jacobian inflated for autocorrelation, and measure the gain on the validation data (or the held-out
+   last quarter): an effect whose own validation gain is <= 1 is dropped.
 """
 
 from __future__ import annotations
@@ -23,29 +23,21 @@ from typing import Any
 import numpy as np
 
 from ankle_rt.config import Config
-from ankle_rt.diagnosis.candidates import (CABLE_CANDIDATES, MOTOR_CANDIDATES, Candidate, Channel,
-                                           catch_all_cable, catch_all_motor)
-from ankle_rt.diagnosis.regression import block_cv_mse, fit, rss_only
-from ankle_rt.diagnosis.selection import ChannelScores, Score, design_matrix, score_channel
+from ankle_rt.diagnosis.candidates import (CABLE_CANDIDATES, INPUT_GROUPS, MOTOR_CANDIDATES, Candidate, Channel,
+                                           catch_all_cable, catch_all_motor, time_columns, without_groups)
+from ankle_rt.diagnosis.regression import fit, rss_only
+from ankle_rt.diagnosis.screening import Screening, screen, strain_gauge_drift
+from ankle_rt.diagnosis.selection import (IC_THRESHOLD, MIN_REDUCTION, MIN_SIZE, MIN_SIZE_UNKNOWN,
+                                          MIN_UNKNOWN_REDUCTION, AMBIGUOUS_IC, ChannelResult, select_channel)
 from ankle_rt.diagnosis.signals import CableChannel, Geometry, MotorChannel
 from ankle_rt.interchange import InterchangeError, Recording
 
-#: a model must beat the baseline's information criterion by this much (nats x 2) to count
-IC_THRESHOLD = 20.0
-#: ... and remove at least this fraction of the baseline's residual sum of squares
-MIN_REDUCTION = 0.04
-#: the catch-all must remove this fraction before a discrepancy counts as real without a name
-MIN_UNKNOWN_REDUCTION = 0.10
-#: practical size: what a named effect explains must reach this NRMSE (RMS / std of the measured torque);
-#: on effect-free data the best named candidate explains <= 0.001
-MIN_SIZE = 0.003
-#: ... and what the catch-all explains, this much: on effect-free data it fits <= 0.0035 of noise and
-#: friction-transition error of the velocity estimate with its many columns
-MIN_SIZE_UNKNOWN = 0.006
-#: a named candidate must explain at least this fraction of what the catch-all removes
+#: a named set must explain at least this fraction of what the catch-all removes from the baseline
+#: residual when a remainder is left unexplained; else the discrepancy is ``unknown`` without names
 MIN_EXPLAINED = 0.6
 HOLDOUT_FRACTION = 0.25
-CV_FOLDS = 5
+#: baseline columns per motor (J, D, kc) or ankle axis (K, K beta, offset)
+PER = 3
 
 PLANTS = ("ankle", "actuator")
 
@@ -56,20 +48,40 @@ class DiagnosisError(ValueError):
 
 @dataclass
 class Diagnosis:
-    cause: str
+    causes: list[str]                # every named effect, strongest first; ["none"] or [..., "unknown"]
     confidence: float
-    channel: str | None
+    channel: str | None              # channel of causes[0]
     candidates: list[dict[str, Any]]
-    parameters: dict[str, dict[str, float]]
+    effects: list[dict[str, Any]]    # per named effect: type, channel, parameters, confidence, shares
     baseline: dict[str, Any]          # baseline-only re-fit, per channel
     nrmse_baseline: float
     nrmse_extended: float
     validation: str
     notes: list[str] = field(default_factory=list)
-    effect: dict[str, Any] | None = None        # the sim.effects entry, when a cause is named
+    data_warnings: list[str] = field(default_factory=list)
+    unexplained: dict[str, Any] | None = None   # channel -> what an unexplained remainder correlates with
+    adequacy: dict[str, Any] = field(default_factory=dict)   # channel -> what is left after the chosen model
     actuator_refit: dict[str, float] | None = None
     baseline_extended: dict[str, Any] | None = None   # the baseline part of the extended model's fit
     detail: dict[str, Any] = field(default_factory=dict, repr=False)   # fits and channels for the report
+
+    @property
+    def cause(self) -> str:
+        return self.causes[0]
+
+    @property
+    def parameters(self) -> dict[str, dict[str, float]]:
+        """Parameters of the strongest named effect (all effects: ``effects``)."""
+        return self.effects[0]["parameters"] if self.effects else {}
+
+    @property
+    def sim_effects(self) -> list[dict[str, Any]]:
+        """The ``sim.effects`` entries of every named effect."""
+        return [e["effect"] for e in self.effects]
+
+    @property
+    def effect(self) -> dict[str, Any] | None:
+        return self.effects[0]["effect"] if self.effects else None
 
     @property
     def gain(self) -> float:
@@ -77,9 +89,10 @@ class Diagnosis:
         return self.nrmse_baseline / self.nrmse_extended if self.nrmse_extended > 0 else 1.0
 
     def to_json(self) -> dict[str, Any]:
-        return {"cause": self.cause, "confidence": round(self.confidence, 4), "channel": self.channel,
-                "candidates": self.candidates, "parameters": self.parameters, "baseline": self.baseline,
-                "baseline_extended": self.baseline_extended,
+        return {"cause": self.cause, "causes": self.causes, "confidence": round(self.confidence, 4),
+                "channel": self.channel, "effects": self.effects, "data_warnings": self.data_warnings,
+                "unexplained": self.unexplained, "adequacy": self.adequacy, "candidates": self.candidates,
+                "parameters": self.parameters, "baseline": self.baseline, "baseline_extended": self.baseline_extended,
                 "nrmse_baseline": self.nrmse_baseline, "nrmse_extended": self.nrmse_extended,
                 "gain": self.gain, "validation": self.validation, "effect": self.effect,
                 "notes": self.notes}
@@ -110,6 +123,8 @@ class Inputs:
     v_eps: float
     geometry: Geometry | None
     notes: list[str]
+    cogging_prior: float | None = None      # periods per output revolution, from the config
+    current_limit: float | None = None      # A, the amplifier's peak limit, from the config
 
 
 def resolve_inputs(rec: Recording, plant: str, cfg: Config | None) -> Inputs:
@@ -131,7 +146,14 @@ def resolve_inputs(rec: Recording, plant: str, cfg: Config | None) -> Inputs:
     else:
         v_eps = fit_smoothing_velocity(rec, kt, geometry)
         notes.append(f"no config: Coulomb smoothing velocity fitted from the data: {v_eps:.3g} (position unit/s)")
-    return Inputs(kt, v_eps, geometry, notes)
+    prior = limit = None
+    if cfg is not None:
+        per_motor_rev = (cfg.get("diagnosis") or {}).get("cogging_periods_per_motor_rev")
+        if per_motor_rev:
+            prior = float(per_motor_rev) * cfg["actuator"]["gear_ratio"]
+        if rec.input_kind == "current":
+            limit = cfg["amplifier"]["current_limit_peak"]
+    return Inputs(kt, v_eps, geometry, notes, prior, limit)
 
 
 def fit_smoothing_velocity(rec: Recording, kt: float | None, geometry: Geometry | None) -> float:
@@ -151,140 +173,65 @@ def fit_smoothing_velocity(rec: Recording, kt: float | None, geometry: Geometry 
     return best[1]
 
 
-def build_channels(rec: Recording, inputs: Inputs) -> dict[str, Channel]:
-    chans: dict[str, Channel] = {"motor": MotorChannel(rec, inputs.kt, inputs.geometry, inputs.v_eps)}
+def build_channels(rec: Recording, inputs: Inputs, good: np.ndarray | None = None) -> dict[str, Channel]:
+    chans: dict[str, Channel] = {"motor": MotorChannel(rec, inputs.kt, inputs.geometry, inputs.v_eps, good,
+                                                       inputs.cogging_prior)}
     if inputs.geometry is not None and CableChannel.available(rec):
-        chans["cable"] = CableChannel(rec, inputs.geometry)
+        chans["cable"] = CableChannel(rec, inputs.geometry, good)
     return chans
 
 
-# -- verdict ------------------------------------------------------------------------------------------
-def _sigmoid(x: float) -> float:
-    return 1.0 / (1.0 + math.exp(-max(-50.0, min(50.0, x))))
-
-
-def significant(score: Score) -> bool:
-    return score.delta_ic > IC_THRESHOLD and score.reduction > MIN_REDUCTION and score.size > MIN_SIZE
-
-
-def cv_confirms(cs: ChannelScores, score: Score) -> tuple[bool, int]:
-    """Block cross-validation of baseline against the candidate: (confirmed, folds won)."""
-    ch = cs.channel
-    Xb = ch.baseline_design()
-    y, X = design_matrix(ch, Xb, score.candidate, score.nl)
-    base = block_cv_mse(ch.target(), Xb, ch.m, CV_FOLDS)
-    cand = block_cv_mse(y, X, ch.m, CV_FOLDS)
-    wins = int(np.sum(cand < base))
-    return bool(np.median(cand / base) < 1.0 - 0.5 * MIN_REDUCTION and wins >= CV_FOLDS - 1), wins
-
-
+# -- the chosen model of a channel, refined and fitted ---------------------------------------------------
 @dataclass
-class Verdict:
-    cause: str
-    confidence: float
-    channel: ChannelScores | None = None
-    score: Score | None = None
-    cv_wins: int = 0
-    reason: str = ""
+class ChannelFit:
+    """A channel's final model: its effects (candidate, nonlinear value, its sd) and their joint fit."""
 
-
-def catch_all_cv_reduction(cs: ChannelScores) -> float:
-    """1 - median over held-out time blocks of (catch-all error / baseline error): what the catch-all
-    predicts where it was not fitted (its in-sample gain partly fits noise: it has many columns)."""
-    ch = cs.channel
-    base = block_cv_mse(ch.target(), ch.baseline_design(), ch.m, CV_FOLDS)
-    full = block_cv_mse(ch.target(), cs.catch_all_X, ch.m, CV_FOLDS)
-    return 1.0 - float(np.median(full / base))
-
-
-def unexplained(cs: ChannelScores) -> bool:
-    """A discrepancy is real when the catch-all beats the baseline in the criterion and in held-out blocks."""
-    return (cs.catch_all_delta_ic > IC_THRESHOLD and cs.catch_all_reduction > MIN_UNKNOWN_REDUCTION
-            and cs.catch_all_size > MIN_SIZE_UNKNOWN and catch_all_cv_reduction(cs) > MIN_UNKNOWN_REDUCTION)
-
-
-def decide(channels: list[ChannelScores]) -> Verdict:
-    named = [(cs, s) for cs in channels for s in cs.scores if significant(s)]
-    if named:
-        # ranked by the share of its channel's residual removed (comparable across channels), then by the
-        # information criterion; the runner-up margin for the confidence is in the criterion
-        best_cs, best = max(named, key=lambda p: (p[1].reduction, p[1].delta_ic))
-        explained = best.reduction / max(best_cs.catch_all_reduction, 1e-12)
-        if explained < MIN_EXPLAINED and unexplained(best_cs):
-            return Verdict("unknown", (1.0 - explained) * min(1.0, best_cs.catch_all_reduction / 0.2), best_cs,
-                           reason=f"best named candidate {best.cause} explains only {100 * explained:.0f} % "
-                                  "of what the catch-all removes")
-        ok, wins = cv_confirms(best_cs, best)
-        if not ok:
-            return Verdict("none", 0.5, best_cs, best, wins,
-                           reason=f"{best.cause} not confirmed by block cross-validation ({wins}/{CV_FOLDS} folds)")
-        rivals = [s.delta_ic for s in best_cs.scores if s is not best]
-        margin = best.delta_ic - max(rivals) if rivals else best.delta_ic
-        conf = _sigmoid(margin / 4.0) * min(1.0, explained / 0.9) * wins / CV_FOLDS
-        return Verdict(best.cause, conf, best_cs, best, wins)
-    real = [cs for cs in channels if unexplained(cs)]
-    if real:
-        cs = max(real, key=lambda c: c.catch_all_reduction)
-        return Verdict("unknown", min(1.0, cs.catch_all_reduction / 0.2), cs,
-                       reason=f"catch-all removes {100 * cs.catch_all_reduction:.0f} % of the residual; "
-                              "no named candidate is significant")
-    named_hint = [min(s.reduction / MIN_REDUCTION, s.size / MIN_SIZE) for cs in channels for s in cs.scores]
-    unknown_hint = [min(cs.catch_all_reduction / MIN_UNKNOWN_REDUCTION, cs.catch_all_size / MIN_SIZE_UNKNOWN)
-                    for cs in channels]
-    hint = max(named_hint + unknown_hint + [0.0])
-    hint = min(1.0, hint)
-    return Verdict("none", 1.0 - 0.5 * max(0.0, hint))
-
-
-# -- refinement ---------------------------------------------------------------------------------------
-@dataclass
-class ExtendedFit:
-    candidate: Candidate
-    nl: float
-    nl_sd: float
+    result: ChannelResult
+    specs: list[tuple[Candidate, float, float]]      # (candidate, nonlinear value, its sd)
     coef: np.ndarray
     cov: np.ndarray
+    slices: list[slice]                              # each effect's coefficients in coef
     n_base: int
 
+    @property
+    def name(self) -> str:
+        return self.result.name
 
-def refine(cs: ChannelScores, score: Score) -> ExtendedFit:
-    """Continuous nonlinear parameter by variable projection around the grid optimum."""
-    from scipy.optimize import least_squares
 
-    ch, cand = cs.channel, score.candidate
+def system(ch: Channel, specs: list[tuple[Candidate, float]]) -> tuple[np.ndarray, np.ndarray, list[slice]]:
+    """(y, X, each effect's column slice) of the baseline extended by ``specs`` on channel ``ch``."""
     Xb = ch.baseline_design()
-    nl, nl_sd = score.nl, 0.0
-    if cand.nonlinear is not None and not cand.integer:
-        grid = [g for g, _ in score.profile]
-        i = grid.index(score.nl)
-        lo, hi = grid[max(0, i - 1)], grid[min(len(grid) - 1, i + 1)]
-        if hi > lo:
-            def resid(p: np.ndarray) -> np.ndarray:
-                y, X = design_matrix(ch, Xb, cand, float(p[0]))
-                return fit(y, X).residual
-            sol = least_squares(resid, [score.nl], bounds=([lo], [hi]), x_scale=[score.nl],
-                                diff_step=[1e-3])
-            nl = float(sol.x[0])
-            jtj = float(sol.jac[:, 0] @ sol.jac[:, 0])
-            r = sol.fun
-            sigma2 = float(r @ r) / max(1, len(r) - score.k)
-            nl_sd = math.sqrt(sigma2 / jtj * len(r) / cs.n_eff) if jtj > 0 else math.inf
-    y, X = design_matrix(ch, Xb, cand, nl)
+    y, blocks, slices, k = ch.target(), [Xb], [], Xb.shape[1]
+    for cand, nl in specs:
+        d = cand.design(ch, nl)
+        if d.y is not None:
+            y = d.y
+        blocks.append(d.X)
+        slices.append(slice(k, k + d.X.shape[1]))
+        k += d.X.shape[1]
+    return y, np.hstack(blocks), slices
+
+
+def joint_fit(result: ChannelResult, specs: list[tuple[Candidate, float, float]]) -> ChannelFit:
+    """The baseline and ``specs`` (candidate, nonlinear value, its sd) fitted jointly, with the
+    coefficient covariance inflated for the residual's autocorrelation."""
+    y, X, slices = system(result.channel, [(c, v) for c, v, _ in specs])
     f = fit(y, X)
-    return ExtendedFit(cand, nl, nl_sd, f.coef, f.covariance(cs.n_eff), Xb.shape[1])
+    return ChannelFit(result, specs, f.coef, f.covariance(result.n_eff), slices,
+                      result.channel.baseline_design().shape[1])
 
 
-# -- gain ---------------------------------------------------------------------------------------------
-def nrmse(ch: Channel, coef: np.ndarray, cand: Candidate | None = None, nl: float = 0.0) -> float:
+def nrmse(ch: Channel, specs: list[tuple[Candidate, float]], coef: np.ndarray) -> float:
     """RMS error of the inverse model's prediction / std of the measured side (filtered alike)."""
-    Xb = ch.baseline_design()
-    if cand is None:
-        y, X = ch.target(), Xb
-    else:
-        y, X = design_matrix(ch, Xb, cand, nl)
-    scale = ch.measured()
+    y, X, _ = system(ch, specs)
     err = y - X @ coef
-    return float(np.sqrt(np.mean(err ** 2)) / max(np.std(scale), 1e-300))
+    return float(np.sqrt(np.mean(err ** 2)) / max(np.std(ch.measured()), 1e-300))
+
+
+def validation_nrmse(result: ChannelResult, vch: Channel, specs: list[tuple[Candidate, float]]) -> float:
+    """Fit ``specs`` on the identification channel, predict the validation channel."""
+    y, X, _ = system(result.channel, specs)
+    return nrmse(vch, specs, fit(y, X).coef)
 
 
 # -- reporting helpers ---------------------------------------------------------------------------------
@@ -292,14 +239,15 @@ BASELINE_NAMES = {"motor": (("inertia", "kg m^2"), ("damping", "N m s/rad"), ("c
                   "cable": (("stiffness", "N m/rad"), ("stiffness_times_beta", "N m s/rad"), ("offset", "N m"))}
 
 
-def baseline_dict(name: str, coef: np.ndarray, cov: np.ndarray, per: int) -> dict[str, Any]:
+def baseline_dict(name: str, coef: np.ndarray, cov: np.ndarray, m: int) -> dict[str, Any]:
+    """The physical baseline parameters per motor or axis (nuisance columns of a sensor drift left out)."""
     out = {}
     sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
     for j, (key, unit) in enumerate(BASELINE_NAMES[name]):
-        idx = [j + per * i for i in range(len(coef) // per)]
+        idx = [j + PER * i for i in range(m)]
         out[key] = {"value": [float(coef[i]) for i in idx], "sd": [float(sd[i]) for i in idx], "unit": unit}
     if name == "cable":
-        out["beta"] = {"value": [float(coef[1 + per * i] / coef[per * i]) for i in range(2)], "unit": "s"}
+        out["beta"] = {"value": [float(coef[1 + PER * i] / coef[PER * i]) for i in range(m)], "unit": "s"}
     return out
 
 
@@ -308,6 +256,119 @@ def effect_entry(cause: str, params: dict[str, tuple[float, float]]) -> dict[str
     for k, (v, _) in params.items():
         entry[k] = int(round(v)) if k == "periods_per_rev" else float(v)
     return entry
+
+
+def candidate_table(results: list[ChannelResult]) -> list[dict[str, Any]]:
+    """Every candidate alone against its channel's baseline, strongest first; then ``none`` and the
+    catch-all ``unknown`` of each channel, which are verdicts, not causes, and never outrank one."""
+    named, tail = [], [{"cause": "none", "channel": None, "score": 0.0, "rss_reduction": 0.0, "size": 0.0}]
+    for res in results:
+        for s in res.first:
+            item = {"cause": s.cause, "channel": res.name, "score": round(s.delta_ic, 2),
+                    "rss_reduction": round(s.reduction, 5), "size": round(s.size, 5)}
+            if s.candidate.nonlinear:
+                item[s.candidate.nonlinear] = s.nl
+            named.append(item)
+        tail.append({"cause": "unknown", "channel": res.name, "score": round(res.catch_all_delta_ic, 2),
+                     "rss_reduction": round(res.catch_all_reduction, 5), "size": round(res.catch_all_size, 5),
+                     "catch_all": True})
+    named.sort(key=lambda c: -c["score"])
+    return named + tail
+
+
+def _none_confidence(results: list[ChannelResult]) -> float:
+    """1 - 1/2 x how close the best candidate (or the catch-all) came to the thresholds."""
+    hint = [min(s.reduction / MIN_REDUCTION, s.size / MIN_SIZE, max(0.0, s.delta_ic) / IC_THRESHOLD)
+            for r in results for s in r.first]
+    hint += [min(r.catch_all_reduction / MIN_UNKNOWN_REDUCTION, r.catch_all_size / MIN_SIZE_UNKNOWN) for r in results]
+    return 1.0 - 0.5 * min(1.0, max(hint + [0.0]))
+
+
+def _describe_remainder(res: ChannelResult) -> dict[str, Any]:
+    top = [(g, s) for g, s in res.correlates if s >= 0.25][:3] or res.correlates[:1]
+    return {"channel": res.name, "residual_removed_by_catch_all": round(res.catch_all_reduction, 4),
+            "size": round(res.catch_all_size, 5),
+            "correlates_with": [{"with": g, "share": round(s, 3)} for g, s in top]}
+
+
+def _add_drift_nuisance(ch: Channel) -> None:
+    """A strain-gauge drift as nuisance columns of the channel's baseline: slow shapes of time per motor
+    or axis, and on the motor side the gauges' constant offset as well (the cable side has its own)."""
+    ch.nuisance = time_columns(ch)
+    if isinstance(ch, MotorChannel):
+        ch.nuisance = np.hstack([ch.nuisance, ch.per_column(np.ones((ch.n_samples, ch.m)))])
+
+
+def _named_sets(results: list[ChannelResult], notes: list[str],
+                unusable: bool) -> tuple[dict[str, list[tuple[Candidate, float]]], dict[str, Any]]:
+    """Per channel the effects to name, and the channels with an unexplained remainder. A named set that
+    explains less than MIN_EXPLAINED of the catch-all's gain is a partial proxy: not named."""
+    chosen: dict[str, list[tuple[Candidate, float]]] = {}
+    unexplained: dict[str, Any] = {}
+    for res in results:
+        specs = [(ts.term.candidate, ts.term.nl) for ts in res.terms]
+        if res.unexplained:
+            unexplained[res.name] = _describe_remainder(res)
+            explained = sum(ts.share for ts in res.terms) / max(res.catch_all_total, 1e-12)
+            if specs and explained < MIN_EXPLAINED:
+                notes.append(f"{res.name} channel: {', '.join(c.cause for c, _ in specs)} explain only "
+                             f"{100 * explained:.0f} % of what the catch-all removes: not named")
+                specs = []
+        chosen[res.name] = [] if unusable else specs
+    return chosen, unexplained
+
+
+def _validated(res: ChannelResult, vch: Channel, specs: list[tuple[Candidate, float]],
+               notes: list[str]) -> list[tuple[Candidate, float]]:
+    """Drop, one at a time, the effect whose removal does not make the validation prediction worse."""
+    specs = list(specs)
+    while specs:
+        full = validation_nrmse(res, vch, specs)
+        gains = [validation_nrmse(res, vch, specs[:i] + specs[i + 1:]) / full for i in range(len(specs))]
+        worst = int(np.argmin(gains))
+        if gains[worst] > 1.0:
+            break
+        notes.append(f"{specs[worst][0].cause} dropped: it does not improve the prediction of the "
+                     f"validation data (gain {gains[worst]:.3f})")
+        del specs[worst]
+    return specs
+
+
+def _effect_entries(results: list[ChannelResult], fits: dict[str, ChannelFit], vchans: dict[str, Channel],
+                    notes: list[str]) -> list[dict[str, Any]]:
+    """The ``effects`` list: each named effect's parameters, confidence, shares and own validation gain."""
+    stats = {(res.name, ts.term.cause): ts for res in results for ts in res.terms}
+    effects: list[dict[str, Any]] = []
+    for res in results:
+        cf = fits[res.name]
+        vch = vchans[res.name]
+        full = nrmse(vch, [(c, v) for c, v, _ in cf.specs], cf.coef)
+        for i, (cand, nl, nl_sd) in enumerate(cf.specs):
+            sl = cf.slices[i]
+            params = cand.parameters(cf.coef[sl], cf.cov[sl, sl], nl, nl_sd, res.channel, cf.coef[:cf.n_base])
+            others = [(c, v) for j, (c, v, _) in enumerate(cf.specs) if j != i]
+            ts = stats[(res.name, cand.cause)]
+            entry = {"type": cand.cause, "channel": res.name,
+                     "parameters": {k: {"value": v, "sd": sd} for k, (v, sd) in params.items()},
+                     "confidence": round(ts.confidence, 4), "rss_share": round(ts.share, 5), "size": round(ts.size, 5),
+                     "gain": validation_nrmse(res, vch, others) / full if full > 0 else 1.0,
+                     "effect": effect_entry(cand.cause, params)}
+            if ts.rival is not None and ts.rival_margin < AMBIGUOUS_IC:
+                entry["alternative"] = ts.rival
+                notes.append(f"{cand.cause} and {ts.rival} fit these data nearly equally well (criterion "
+                             f"{ts.rival_margin:.1f} apart: nearly collinear regressors): confidence shared")
+            effects.append(entry)
+    return sorted(effects, key=lambda e: -e["size"])
+
+
+def _adequacy(results: list[ChannelResult]) -> dict[str, Any]:
+    """Per channel, what the catch-all still finds beyond the chosen model, and the residual's share of
+    independent samples (its whiteness)."""
+    return {r.name: {"catch_all_reduction": round(r.catch_all_reduction, 4),
+                     "catch_all_cv_reduction": round(r.catch_all_cv_reduction, 4),
+                     "catch_all_size": round(r.catch_all_size, 5),
+                     "independent_share": round(r.n_eff / len(r.channel.target()), 4),
+                     "adequate": not r.unexplained} for r in results}
 
 
 # -- the whole -----------------------------------------------------------------------------------------
@@ -324,64 +385,72 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
             raise InterchangeError("validation file has a different number of motors", validation.source,
                                    "motor_pos_2", 0)
         vname = validation.source
-    chans = build_channels(ident, inputs)
-    vchans = build_channels(validation, inputs)
+    scr: Screening = screen(ident, inputs.v_eps, inputs.current_limit, f"identification data ({ident.source})")
+    vscr: Screening = screen(validation, inputs.v_eps, inputs.current_limit, f"validation data ({vname})")
+    unusable = scr.unusable or vscr.unusable
+    warnings = scr.warnings + vscr.warnings
+    chans = build_channels(ident, inputs, scr.good)
+    vchans = build_channels(validation, inputs, vscr.good)
     if plant == "ankle" and "cable" not in chans:
         notes.append("no joint angles (ankle_dp, ankle_ie): cable side (backlash, stiffness) not diagnosed")
-    scored = [score_channel("motor", chans["motor"], MOTOR_CANDIDATES, catch_all_motor)]
+    if "cable" in chans and (drift := strain_gauge_drift(chans["cable"])) is not None:
+        warnings.append("the strain-gauge offsets drift over the record (peak to peak "
+                        + ", ".join(f"{d:.3g} N m" for d in drift) + " on DP, IE): fitted as a sensor drift "
+                        "in both channels, not as an effect; a load offset on the motors cannot then be told "
+                        "from the gauges' own offset, so torque_offset is not tried")
+        for ch in list(chans.values()) + list(vchans.values()):
+            _add_drift_nuisance(ch)
+        scr.skip.add("torque_offset")
+    skip = scr.skip | vscr.skip
+    motor_pool = tuple(c for c in MOTOR_CANDIDATES if c.cause not in skip)
+    motor_catch_all = without_groups(catch_all_motor, INPUT_GROUPS) if scr.one_way or vscr.one_way else catch_all_motor
+    results = [select_channel("motor", chans["motor"], motor_pool, motor_catch_all)]
     if "cable" in chans and "cable" in vchans:
-        scored.append(score_channel("cable", chans["cable"], CABLE_CANDIDATES, catch_all_cable))
-    verdict = decide(scored)
-    if verdict.reason:
-        notes.append(verdict.reason)
+        results.append(select_channel("cable", chans["cable"], CABLE_CANDIDATES, catch_all_cable))
 
-    candidates = [{"cause": "none", "channel": None, "score": 0.0, "rss_reduction": 0.0, "size": 0.0}]
-    for cs in scored:
-        for s in cs.scores:
-            item = {"cause": s.cause, "channel": cs.name, "score": round(s.delta_ic, 2),
-                    "rss_reduction": round(s.reduction, 5), "size": round(s.size, 5)}
-            if s.candidate.nonlinear:
-                item[s.candidate.nonlinear] = s.nl
-            candidates.append(item)
-        candidates.append({"cause": "unknown", "channel": cs.name, "score": round(cs.catch_all_delta_ic, 2),
-                           "rss_reduction": round(cs.catch_all_reduction, 5), "size": round(cs.catch_all_size, 5),
-                           "catch_all": True})
-    candidates.sort(key=lambda c: -c["score"])
+    chosen, unexplained = _named_sets(results, notes, unusable)
+    for res in results:
+        chosen[res.name] = _validated(res, vchans[res.name], chosen[res.name], notes)
+    sd_of = {res.name: {ts.term.cause: sd for ts, sd in zip(res.terms, res.nl_sd)} for res in results}
+    fits = {res.name: joint_fit(res, [(c, v, sd_of[res.name][c.cause]) for c, v in chosen[res.name]])
+            for res in results}
+    effects = _effect_entries(results, fits, vchans, notes)
+    causes = [e["type"] for e in effects] + (["unknown"] if unexplained else [])
+    if unusable and not causes:
+        causes = ["unknown"]
+    causes = causes or ["none"]
+    if effects:
+        confidence = min(e["confidence"] for e in effects)
+    elif unexplained:
+        confidence = min(1.0, max(r.catch_all_reduction for r in results if r.name in unexplained) / 0.2)
+    elif unusable:
+        confidence = 0.0
+    else:
+        confidence = _none_confidence(results)
+    for name, u in unexplained.items():
+        notes.append(f"{name} channel: a significant residual is left unexplained (the catch-all removes "
+                     f"{100 * u['residual_removed_by_catch_all']:.0f} % of it); it correlates with "
+                     + ", ".join(f"{c['with']} ({100 * c['share']:.0f} %)" for c in u["correlates_with"]))
 
-    main = verdict.channel or scored[0]
-    per = 3
-    base_fit = main.baseline
-    baseline = {cs.name: baseline_dict(cs.name, cs.baseline.coef, cs.baseline.covariance(cs.n_eff), per)
-                for cs in scored}
-    vch = vchans[main.name]
-    nrmse_base = nrmse(vch, base_fit.coef)
-    nrmse_ext = nrmse_base
-    parameters: dict[str, dict[str, float]] = {}
-    effect = None
+    main = [r for r in results if fits[r.name].specs] or [r for r in results if r.name in unexplained] or results[:1]
+    base_v = [validation_nrmse(r, vchans[r.name], []) for r in main]
+    ext_v = [nrmse(vchans[r.name], [(c, v) for c, v, _ in fits[r.name].specs], fits[r.name].coef) for r in main]
+    nrmse_base = float(np.sqrt(np.mean(np.square(base_v))))
+    nrmse_ext = float(np.sqrt(np.mean(np.square(ext_v)))) if effects else nrmse_base
+    baseline = {r.name: baseline_dict(r.name, r.baseline.coef, r.baseline.covariance(r.n_eff), r.channel.m)
+                for r in results}
+    baseline_extended = {name: baseline_dict(name, cf.coef, cf.cov, cf.result.channel.m)
+                         for name, cf in fits.items() if cf.specs} or None
     actuator_refit = None
-    baseline_extended = None
-    detail: dict[str, Any] = {"channels": scored, "validation_channels": vchans, "verdict": verdict}
-    motor = scored[0]
-    motor_coef = motor.baseline.coef
-    if verdict.score is not None and verdict.cause not in ("none", "unknown"):
-        ext = refine(main, verdict.score)
-        k0 = ext.n_base
-        params = ext.candidate.parameters(ext.coef[k0:], ext.cov[k0:, k0:], ext.nl, ext.nl_sd, main.channel,
-                                          ext.coef[:k0])
-        parameters = {k: {"value": v, "sd": sd} for k, (v, sd) in params.items()}
-        effect = effect_entry(verdict.cause, params)
-        nrmse_ext = nrmse(vch, ext.coef, ext.candidate, ext.nl)
-        detail["extended"] = ext
-        baseline_extended = {main.name: baseline_dict(main.name, ext.coef[:k0], ext.cov[:k0, :k0], per)}
-        if main.name == "motor":
-            motor_coef = ext.coef[:k0]
     if cfg is not None:
-        m = len(motor_coef) // per
-        actuator_refit = {key: float(np.mean([motor_coef[j + per * i] for i in range(m)]))
+        mc = fits["motor"].coef
+        m = chans["motor"].m
+        actuator_refit = {key: float(np.mean([mc[j + PER * i] for i in range(m)]))
                           for j, (key, _) in enumerate(BASELINE_NAMES["motor"])}
-    return Diagnosis(cause=verdict.cause, confidence=float(verdict.confidence),
-                     channel=verdict.channel.name if verdict.channel and verdict.cause != "none" else None,
-                     candidates=candidates, parameters=parameters, baseline=baseline,
+    channel = effects[0]["channel"] if effects else (next(iter(unexplained)) if unexplained else None)
+    detail = {"results": results, "fits": fits, "validation_channels": vchans}
+    return Diagnosis(causes=causes, confidence=float(confidence), channel=channel,
+                     candidates=candidate_table(results), effects=effects, baseline=baseline,
                      nrmse_baseline=nrmse_base, nrmse_extended=nrmse_ext, validation=vname, notes=notes,
-                     effect=effect, actuator_refit=actuator_refit, baseline_extended=baseline_extended,
-                     detail=detail)
+                     data_warnings=warnings, unexplained=unexplained or None, adequacy=_adequacy(results),
+                     actuator_refit=actuator_refit, baseline_extended=baseline_extended, detail=detail)

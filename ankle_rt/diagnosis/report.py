@@ -11,9 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ankle_rt.diagnosis.candidates import Candidate
-from ankle_rt.diagnosis.core import Diagnosis
-from ankle_rt.diagnosis.selection import ChannelScores, design_matrix
+from ankle_rt.diagnosis.core import ChannelFit, Diagnosis, system
+from ankle_rt.diagnosis.selection import ChannelResult
 from ankle_rt.diagnosis.signals import MotorChannel
 from ankle_rt.plotting import MISSING, pyplot
 
@@ -35,15 +34,15 @@ def _scatter(plt, path: Path, x: np.ndarray, r: np.ndarray, xlabel: str, title: 
     return path.name
 
 
-def _extended_residual(cs: ChannelScores, cand: Candidate | None, nl: float) -> np.ndarray | None:
-    if cand is None:
+def _extended_residual(cf: ChannelFit) -> np.ndarray | None:
+    """The residual of the channel's extended model on the identification data (None without effects)."""
+    if not cf.specs:
         return None
-    y, X = design_matrix(cs.channel, cs.channel.baseline_design(), cand, nl)
-    coef, *_ = np.linalg.lstsq(X, y, rcond=None)
-    return y - X @ coef
+    y, X, _ = system(cf.result.channel, [(c, v) for c, v, _ in cf.specs])
+    return y - X @ cf.coef
 
 
-def _spectrum(plt, path: Path, cs: ChannelScores, ext: np.ndarray | None) -> str:
+def _spectrum(plt, path: Path, cs: ChannelResult, ext: np.ndarray | None) -> str:
     from scipy.signal import welch
     ch = cs.channel
     fs = 1.0 / (ch.dt * ch.sm.step)
@@ -65,17 +64,18 @@ def _spectrum(plt, path: Path, cs: ChannelScores, ext: np.ndarray | None) -> str
 
 
 def _overlay(plt, path: Path, diag: Diagnosis) -> str:
-    cs = diag.detail["verdict"].channel or diag.detail["channels"][0]
+    results = diag.detail["results"]
+    cs = next((r for r in results if r.name == diag.channel), results[0])
+    cf = diag.detail["fits"][cs.name]
     vch = diag.detail["validation_channels"][cs.name]
     Xb = vch.baseline_design()
     measured = vch.torque() if isinstance(vch, MotorChannel) else vch.target()
     offset = measured - vch.target()          # the cable torque the motor feels (zero for the cable side)
     base = Xb @ cs.baseline.coef + offset
     ext = None
-    if "extended" in diag.detail:
-        e = diag.detail["extended"]
-        y, X = design_matrix(vch, Xb, e.candidate, e.nl)
-        ext = X @ e.coef + offset + (measured - offset - y)   # back to the undelayed torque
+    if cf.specs:
+        y, X, _ = system(vch, [(c, v) for c, v, _ in cf.specs])
+        ext = X @ cf.coef + offset + (measured - offset - y)   # back to the undelayed torque
     k = len(measured) // vch.m
     t = np.arange(k) * vch.dt * vch.sm.step
     show = t < OVERLAY_S
@@ -84,7 +84,7 @@ def _overlay(plt, path: Path, diag: Diagnosis) -> str:
     ax.plot(t[show], base[:k][show], lw=1, label=f"baseline (NRMSE {diag.nrmse_baseline:.4f})")
     if ext is not None:
         ax.plot(t[show], ext[:k][show], "--", lw=1, label=f"extended (NRMSE {diag.nrmse_extended:.4f})")
-    ax.set_xlabel("time (s) from the first kept row")
+    ax.set_xlabel("kept rows (s, decimated; masked samples left out)")
     ax.set_ylabel("torque (N m), filtered")
     ax.set_title(f"validation, {cs.name} channel ({'motor 1' if cs.name == 'motor' else 'DP axis'})")
     ax.grid(alpha=0.3)
@@ -124,8 +124,7 @@ def write_report(directory: str | Path, diag: Diagnosis, closed=None) -> Path:
     out = Path(directory)
     out.mkdir(parents=True, exist_ok=True)
     images: list[tuple[str, str]] = []
-    verdict = diag.detail["verdict"]
-    for cs in diag.detail["channels"]:
+    for cs in diag.detail["results"]:
         ch, r = cs.channel, cs.baseline.residual
         motors = [f"motor {i + 1}" for i in range(ch.m)]
         if cs.name == "motor":
@@ -145,9 +144,7 @@ def write_report(directory: str | Path, diag: Diagnosis, closed=None) -> Path:
                            _scatter(plt, out / "cable_residual_vs_stretch.png", ch.pick(ch.phi), r,
                                     "cable stretch phi (rad, ankle coordinates)", "cable residual vs stretch",
                                     ["DP", "IE"])))
-        chosen = verdict.score if verdict.channel is cs else None
-        ext = _extended_residual(cs, chosen.candidate, diag.detail["extended"].nl) \
-            if chosen is not None and "extended" in diag.detail else None
+        ext = _extended_residual(diag.detail["fits"][cs.name])
         images.append((f"{cs.name.capitalize()} residual spectrum",
                        _spectrum(plt, out / f"{cs.name}_residual_spectrum.png", cs, ext)))
     images.append(("Validation overlay", _overlay(plt, out / "validation_overlay.png", diag)))
@@ -155,12 +152,23 @@ def write_report(directory: str | Path, diag: Diagnosis, closed=None) -> Path:
         images.append(("Closed-loop free run", _closed_loop(plt, out / "closed_loop.png", closed)))
 
     lines = ["# Model discrepancy diagnosis", "",
-             f"**Cause: `{diag.cause}`** (confidence {diag.confidence:.2f}"
-             + (f", {diag.channel} channel)" if diag.channel else ")"), ""]
-    if diag.parameters:
-        lines += ["| parameter | value | sd |", "|---|---|---|"]
-        lines += [f"| {k} | {v['value']:.6g} | {v['sd']:.2g} |" for k, v in diag.parameters.items()]
+             f"**Causes: {', '.join(f'`{c}`' for c in diag.causes)}** (confidence {diag.confidence:.2f}"
+             + (f", strongest in the {diag.channel} channel)" if diag.channel else ")"), ""]
+    if diag.data_warnings:
+        lines += ["## Data warnings", ""] + [f"- {w}" for w in diag.data_warnings] + [""]
+    for e in diag.effects:
+        lines += [f"## Effect `{e['type']}` ({e['channel']} channel)", "",
+                  f"Confidence {e['confidence']:.2f}; removes {100 * e['rss_share']:.1f} % of the baseline residual "
+                  f"with the other effects in; validation NRMSE without it / with all: {e['gain']:.2f}x"
+                  + (f"; fits about as well as `{e['alternative']}`" if "alternative" in e else "") + ".", "",
+                  "| parameter | value | sd |", "|---|---|---|"]
+        lines += [f"| {k} | {v['value']:.6g} | {v['sd']:.2g} |" for k, v in e["parameters"].items()]
         lines.append("")
+    for name, u in (diag.unexplained or {}).items():
+        lines += [f"## Unexplained residual ({name} channel)", "",
+                  f"The catch-all removes {100 * u['residual_removed_by_catch_all']:.0f} % of what the named effects "
+                  "leave; it correlates with " + ", ".join(f"{c['with']} ({100 * c['share']:.0f} %)"
+                                                            for c in u["correlates_with"]) + ".", ""]
     lines += [f"Inverse-model NRMSE on {diag.validation}: baseline {diag.nrmse_baseline:.4f}, extended "
               f"{diag.nrmse_extended:.4f} (gain {diag.gain:.2f}x).", ""]
     if closed is not None:

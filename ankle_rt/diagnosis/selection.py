@@ -1,9 +1,11 @@
-"""Fit the baseline and every candidate of one residual channel and score them.
+"""Select the set of effects one residual channel holds: forward selection over the candidate blocks,
+confirmed by block cross-validation, pruned by a drop-one test, then the catch-all on top of the chosen
+model to see what is left unexplained.
 
-For each candidate the nonlinear parameter is searched on its grid (smallest residual sum of squares),
-then every model is scored with the information criterion of :mod:`~ankle_rt.diagnosis.regression`
-using one effective sample size: the one of the catch-all model's residual, the best available
-estimate of how many independent samples the noise holds."""
+Every model is the channel's baseline regression extended by some candidate blocks (each at a value of
+its nonlinear parameter); all are scored with the information criterion of
+:mod:`~ankle_rt.diagnosis.regression` using one effective sample size: the one of the catch-all model's
+residual, the best available estimate of how many independent samples the noise holds."""
 
 from __future__ import annotations
 
@@ -12,87 +14,319 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ankle_rt.diagnosis.candidates import Candidate, Channel
-from ankle_rt.diagnosis.regression import Fit, effective_samples, fit, information_criterion, rss_only
+from ankle_rt.diagnosis.candidates import Candidate, Channel, Design
+from ankle_rt.diagnosis.regression import Fit, block_cv_mse, effective_samples, fit, information_criterion, rss_only
+
+#: a block must beat the model without it by this much in the information criterion (nats x 2) ...
+IC_THRESHOLD = 20.0
+#: ... remove at least this fraction of that model's residual sum of squares ...
+MIN_REDUCTION = 0.04
+#: ... and be of practical size: what it explains must reach this NRMSE (RMS / std of the measured
+#: torque); on effect-free data the best named candidate explains <= 0.001
+MIN_SIZE = 0.003
+#: a block removing this share of the residual counts whatever its size
+LARGE_REDUCTION = 0.25
+#: the catch-all must remove this fraction (in-sample and in held-out blocks) before a discrepancy counts
+#: as real without a name ...
+MIN_UNKNOWN_REDUCTION = 0.10
+#: ... and explain this much: on effect-free data it fits <= 0.0035 of noise and friction-transition error
+MIN_SIZE_UNKNOWN = 0.006
+#: ... and predict held-out time blocks this much better: in closed loop the controller's reaction to past
+#: noise makes the torque history correlate with the residual, which the catch-all's latency columns fit
+#: in-sample (up to ~20 % in held-out blocks on effect-free slow motion); an effect outside the vocabulary
+#: predicts held-out blocks by >= 50 % in the tests
+MIN_UNKNOWN_CV = 0.4
+#: a remainder the catch-all predicts this well in held-out blocks counts whatever its size (strong
+#: motion can make a clear discrepancy small against the measured torque)
+LARGE_UNKNOWN_CV = 0.6
+#: two hypotheses whose criteria differ by less than this are reported as ambiguous
+AMBIGUOUS_IC = 10.0
+CV_FOLDS = 5
+MAX_EFFECTS = 4
+
+
+@dataclass
+class Term:
+    """One candidate block at one value of its nonlinear parameter."""
+
+    candidate: Candidate
+    nl: float
+    design: Design
+
+    @property
+    def cause(self) -> str:
+        return self.candidate.cause
 
 
 @dataclass
 class Score:
+    """A candidate scored against a reference model (the baseline, or the model chosen so far)."""
+
     cause: str
     candidate: Candidate
-    nl: float                      # best grid value of the nonlinear parameter (0 when none)
+    nl: float
     rss: float
-    k: int                         # parameters, nonlinear one included
+    k: int
     profile: list[tuple[float, float]] = field(default_factory=list)   # (grid value, rss)
-    ic: float = 0.0
-    delta_ic: float = 0.0          # baseline IC - this IC (> 0: better than the baseline)
-    reduction: float = 0.0         # 1 - rss / rss_baseline
+    delta_ic: float = 0.0          # reference IC - this IC (> 0: better than the reference)
+    reduction: float = 0.0         # 1 - rss / rss_reference
     size: float = 0.0              # RMS of what it explains / std of the measured side (an NRMSE)
 
 
 @dataclass
-class ChannelScores:
+class TermStats:
+    """What a chosen effect earns with the others in (drop-one), and how close its best rival came."""
+
+    term: Term
+    delta_ic: float
+    reduction: float               # share of the model-without-it's residual it removes
+    share: float                   # share of the baseline residual it removes (with the others in)
+    size: float
+    cv_wins: int
+    rival: str | None = None       # the candidate that fits nearly as well in its place, if any
+    rival_margin: float = math.inf
+
+    @property
+    def confidence(self) -> float:
+        margin = min(self.rival_margin, self.delta_ic)
+        return 1.0 / (1.0 + math.exp(-max(-50.0, min(50.0, margin / 4.0)))) * self.cv_wins / CV_FOLDS
+
+
+@dataclass
+class ChannelResult:
     name: str                      # "motor" or "cable"
     channel: Channel
     baseline: Fit
-    scores: list[Score]
-    catch_all_rss: float
+    first: list[Score]             # every candidate alone against the baseline (the candidate table)
     n_eff: float
-    catch_all_delta_ic: float = 0.0
+    terms: list[TermStats] = field(default_factory=list)
+    model: Fit | None = None
+    notes: list[str] = field(default_factory=list)
+    catch_all_delta_ic: float = 0.0        # catch-all on top of the chosen model
     catch_all_reduction: float = 0.0
-    catch_all_X: np.ndarray | None = field(default=None, repr=False)
     catch_all_size: float = 0.0
+    catch_all_cv_reduction: float = 0.0
+    catch_all_total: float = 0.0           # catch-all's reduction of the baseline residual
+    correlates: list[tuple[str, float]] = field(default_factory=list)
+    nl_sd: list[float] = field(default_factory=list)     # sd of each term's nonlinear parameter
+
+    @property
+    def unexplained(self) -> bool:
+        """A discrepancy the chosen effects leave: the catch-all beats them in the criterion and in
+        held-out blocks, by a practical size (or predicts the held-out blocks far better)."""
+        return (self.catch_all_delta_ic > IC_THRESHOLD and self.catch_all_reduction > MIN_UNKNOWN_REDUCTION
+                and self.catch_all_cv_reduction > MIN_UNKNOWN_CV
+                and (self.catch_all_size > MIN_SIZE_UNKNOWN or self.catch_all_cv_reduction > LARGE_UNKNOWN_CV))
 
 
-def design_matrix(ch: Channel, Xb: np.ndarray, cand: Candidate, nl: float) -> tuple[np.ndarray, np.ndarray]:
-    """(y, X) of the baseline extended by ``cand`` at ``nl``."""
-    d = cand.design(ch, nl)
-    y = d.y if d.y is not None else ch.target()
-    return y, np.hstack([Xb, d.X])
+class ChannelModels:
+    """Models of one channel: the baseline plus candidate blocks, with designs cached by (cause, value)."""
 
+    def __init__(self, ch: Channel):
+        self.ch = ch
+        self.Xb = ch.baseline_design()
+        self.y0 = ch.target()
+        self.n = len(self.y0)
+        self.scale = max(float(np.std(ch.measured())), 1e-300)
+        self._designs: dict[tuple[str, float], Design] = {}
 
-def score_channel(name: str, ch: Channel, candidates: tuple[Candidate, ...],
-                  catch_all) -> ChannelScores:
-    y0 = ch.target()
-    Xb = ch.baseline_design()
-    base = fit(y0, Xb)
-    scores: list[Score] = []
-    best_blocks = []
-    for cand in candidates:
-        if not cand.applies(ch):
-            continue
-        profile = []
-        for nl in cand.grid(ch):
-            y, X = design_matrix(ch, Xb, cand, nl)
-            profile.append((nl, rss_only(y, X)))
+    def term(self, cand: Candidate, nl: float) -> Term:
+        key = (cand.cause, float(nl))
+        if key not in self._designs:
+            self._designs[key] = cand.design(self.ch, nl)
+        return Term(cand, float(nl), self._designs[key])
+
+    def system(self, terms: list[Term]) -> tuple[np.ndarray, np.ndarray]:
+        """(y, X) of the baseline extended by ``terms``."""
+        y = next((t.design.y for t in terms if t.design.y is not None), self.y0)
+        return y, np.hstack([self.Xb] + [t.design.X for t in terms])
+
+    def k(self, terms: list[Term]) -> int:
+        return self.Xb.shape[1] + sum(t.design.X.shape[1] + (t.candidate.nonlinear is not None) for t in terms)
+
+    def rss(self, terms: list[Term]) -> float:
+        return rss_only(*self.system(terms))
+
+    def size(self, rss_without: float, rss_with: float) -> float:
+        return math.sqrt(max(0.0, rss_without - rss_with) / self.n) / self.scale
+
+    def best_of(self, cand: Candidate, others: list[Term], residual: np.ndarray) -> Score:
+        """``cand`` added to ``others`` at the value of its nonlinear parameter with the smallest RSS."""
+        profile = [(nl, self.rss(others + [self.term(cand, nl)])) for nl in cand.search_grid(self.ch, residual)]
         nl, rss = min(profile, key=lambda p: p[1])
-        for extra in getattr(cand, "local_grid", lambda _c, _b: [])(ch, nl):
-            y, X = design_matrix(ch, Xb, cand, extra)
-            profile.append((extra, rss_only(y, X)))
         profile.sort()
-        nl, rss = min(profile, key=lambda p: p[1])
-        d = cand.design(ch, nl)
-        if d.X.shape[1]:
-            best_blocks.append(d.X)
-        scores.append(Score(cand.cause, cand, nl, rss, Xb.shape[1] + d.X.shape[1] + (cand.nonlinear is not None),
-                            profile))
-    Xc = np.hstack([Xb, catch_all(ch)] + best_blocks)
-    full = fit(y0, Xc)
+        return Score(cand.cause, cand, nl, rss, self.k(others + [self.term(cand, nl)]), profile)
+
+
+def score_against(models: ChannelModels, score: Score, ref_rss: float, ref_k: int, n_eff: float) -> Score:
+    ic = information_criterion(score.rss, models.n, score.k, n_eff)
+    score.delta_ic = information_criterion(ref_rss, models.n, ref_k, n_eff) - ic
+    score.reduction = 1.0 - score.rss / ref_rss
+    score.size = models.size(ref_rss, score.rss)
+    return score
+
+
+def significant(score: Score) -> bool:
+    """Beats the reference in the criterion, by a share of its residual, and by a practical size (or by
+    a large share: a strong motion can make a clear effect small against the measured torque)."""
+    return (score.delta_ic > IC_THRESHOLD and score.reduction > MIN_REDUCTION
+            and (score.size > MIN_SIZE or score.reduction > LARGE_REDUCTION))
+
+
+def cv_wins(models: ChannelModels, without: list[Term], with_: list[Term]) -> tuple[bool, int]:
+    """Block cross-validation of the model without against the model with a block: (confirmed, folds won)."""
+    m = models.ch.m
+    a = block_cv_mse(*models.system(without), m, CV_FOLDS)
+    b = block_cv_mse(*models.system(with_), m, CV_FOLDS)
+    wins = int(np.sum(b < a))
+    return bool(np.median(b / a) < 1.0 - 0.5 * MIN_REDUCTION and wins >= CV_FOLDS - 1), wins
+
+
+def select_channel(name: str, ch: Channel, candidates: tuple[Candidate, ...], catch_all) -> ChannelResult:
+    """Forward selection, drop-one pruning, re-gridding of the chosen blocks, and the catch-all on top."""
+    models = ChannelModels(ch)
+    base = fit(models.y0, models.Xb)
+    pool = [c for c in candidates if c.applies(ch)]
+    first = [models.best_of(c, [], base.residual) for c in pool]
+    C, groups = catch_all(ch)
+    best_blocks = [models.term(s.candidate, s.nl).design.X for s in first]
+    full = fit(models.y0, np.hstack([models.Xb, C] + best_blocks))
     n_eff = effective_samples(full.residual, ch.m)
-    n = len(y0)
-    ic_base = information_criterion(base.rss, n, Xb.shape[1], n_eff)
-    scale = float(np.std(ch.measured()))
+    k0 = models.Xb.shape[1]
+    for s in first:
+        score_against(models, s, base.rss, k0, n_eff)
+    out = ChannelResult(name, ch, base, first, n_eff)
 
-    def size(rss: float) -> float:
-        return math.sqrt(max(0.0, base.rss - rss) / n) / max(scale, 1e-300)
-
-    for s in scores:
-        s.ic = information_criterion(s.rss, n, s.k, n_eff)
-        s.delta_ic = ic_base - s.ic
-        s.reduction = 1.0 - s.rss / base.rss
-        s.size = size(s.rss)
-    out = ChannelScores(name, ch, base, scores, full.rss, n_eff, catch_all_X=Xc)
-    out.catch_all_delta_ic = ic_base - information_criterion(full.rss, n, Xc.shape[1], n_eff)
-    out.catch_all_reduction = 1.0 - full.rss / base.rss
-    out.catch_all_size = size(full.rss)
+    chosen: list[Term] = []
+    current = base
+    while len(chosen) < MAX_EFFECTS:
+        left = [c for c in pool if all(t.candidate is not c for t in chosen)]
+        trials = [score_against(models, models.best_of(c, chosen, current.residual), current.rss,
+                                models.k(chosen), n_eff) for c in left]
+        added = False
+        for s in sorted(filter(significant, trials), key=lambda s: -s.delta_ic):
+            term = models.term(s.candidate, s.nl)
+            ok, _ = cv_wins(models, chosen, chosen + [term])
+            if ok:
+                chosen.append(term)
+                current = fit(*models.system(chosen))
+                added = True
+                break
+        if not added:
+            break
+    chosen = _prune(models, chosen, n_eff)
+    chosen = _regrid(models, chosen)
+    chosen, out.nl_sd = _refine(models, chosen, n_eff)
+    out.terms = [_term_stats(models, chosen, i, pool, n_eff, base.rss) for i in range(len(chosen))]
+    out.model = fit(*models.system(chosen))
+    _catch_all_on_top(out, models, chosen, C, groups, n_eff, base)
     return out
+
+
+def _drop_score(models: ChannelModels, chosen: list[Term], i: int, n_eff: float) -> Score:
+    rest = chosen[:i] + chosen[i + 1:]
+    t = chosen[i]
+    s = Score(t.cause, t.candidate, t.nl, models.rss(chosen), models.k(chosen))
+    return score_against(models, s, models.rss(rest), models.k(rest), n_eff)
+
+
+def _prune(models: ChannelModels, chosen: list[Term], n_eff: float) -> list[Term]:
+    """Drop-one test: every block must still earn its place with the others in; drop the weakest that
+    does not, and test again."""
+    while chosen:
+        drops = [_drop_score(models, chosen, i, n_eff) for i in range(len(chosen))]
+        weak = [i for i, s in enumerate(drops) if not significant(s)]
+        if not weak:
+            break
+        del chosen[min(weak, key=lambda i: drops[i].delta_ic)]
+    return chosen
+
+
+def _regrid(models: ChannelModels, chosen: list[Term]) -> list[Term]:
+    """Search each chosen block's nonlinear parameter again with the others in (one coordinate pass):
+    a value chosen alone is biased by the effects not yet in the model."""
+    for i, t in enumerate(chosen):
+        if t.candidate.nonlinear is None:
+            continue
+        others = chosen[:i] + chosen[i + 1:]
+        residual = fit(*models.system(others)).residual
+        s = models.best_of(t.candidate, others, residual)
+        chosen[i] = models.term(t.candidate, s.nl)
+    return chosen
+
+
+def _refine(models: ChannelModels, chosen: list[Term], n_eff: float) -> tuple[list[Term], list[float]]:
+    """Each continuous nonlinear parameter by variable projection (the linear coefficients solved inside)
+    between its grid neighbours, the others held (one coordinate pass); its uncertainty from the
+    Jacobian, sigma^2 (J^T J)^-1 inflated by n / n_eff."""
+    from scipy.optimize import least_squares
+
+    sds = [0.0] * len(chosen)
+    for i, t in enumerate(chosen):
+        cand = t.candidate
+        if cand.nonlinear is None or cand.integer:
+            continue
+        grid = sorted(cand.grid(models.ch))
+        lo = max([g for g in grid if g < t.nl], default=t.nl)
+        hi = min([g for g in grid if g > t.nl], default=t.nl)
+        if hi <= lo:
+            continue
+        others = chosen[:i] + chosen[i + 1:]
+
+        def resid(p: np.ndarray) -> np.ndarray:
+            y, X = models.system(others + [Term(cand, float(p[0]), cand.design(models.ch, float(p[0])))])
+            return fit(y, X).residual
+
+        sol = least_squares(resid, [t.nl], bounds=([lo], [hi]), x_scale=[t.nl], diff_step=[1e-3])
+        chosen[i] = models.term(cand, float(sol.x[0]))
+        jtj = float(sol.jac[:, 0] @ sol.jac[:, 0])
+        r = sol.fun
+        sigma2 = float(r @ r) / max(1, len(r) - models.k(chosen))
+        sds[i] = math.sqrt(sigma2 / jtj * len(r) / n_eff) if jtj > 0 else math.inf
+    return chosen, sds
+
+
+def _term_stats(models: ChannelModels, chosen: list[Term], i: int, pool: list[Candidate], n_eff: float,
+                rss_base: float) -> TermStats:
+    s = _drop_score(models, chosen, i, n_eff)
+    rest = chosen[:i] + chosen[i + 1:]
+    _, wins = cv_wins(models, rest, chosen)
+    stats = TermStats(chosen[i], s.delta_ic, s.reduction, (models.rss(rest) - s.rss) / rss_base, s.size, wins)
+    ic_full = information_criterion(s.rss, models.n, models.k(chosen), n_eff)
+    residual = fit(*models.system(rest)).residual
+    for rival in pool:
+        if any(t.candidate is rival for t in chosen):
+            continue
+        r = models.best_of(rival, rest, residual)
+        margin = information_criterion(r.rss, models.n, r.k, n_eff) - ic_full
+        if margin < stats.rival_margin:
+            stats.rival, stats.rival_margin = rival.cause, margin
+    return stats
+
+
+def _catch_all_on_top(out: ChannelResult, models: ChannelModels, chosen: list[Term], C: np.ndarray,
+                      groups: list[str], n_eff: float, base: Fit) -> None:
+    """What the catch-all still finds beyond the chosen model, and which of its groups (position,
+    velocity, load, time, ...) that remainder correlates with."""
+    y, X = models.system(chosen)
+    model = out.model
+    Xc = np.hstack([X, C])
+    full = fit(y, Xc)
+    n = models.n
+    out.catch_all_delta_ic = (information_criterion(model.rss, n, X.shape[1], n_eff)
+                              - information_criterion(full.rss, n, Xc.shape[1], n_eff))
+    out.catch_all_reduction = 1.0 - full.rss / model.rss
+    out.catch_all_size = models.size(model.rss, full.rss)
+    out.catch_all_total = 1.0 - fit(models.y0, np.hstack([models.Xb, C])).rss / base.rss
+    if out.catch_all_reduction > MIN_UNKNOWN_REDUCTION:
+        m = models.ch.m
+        cv_model = block_cv_mse(y, X, m, CV_FOLDS)
+        cv_full = block_cv_mse(y, Xc, m, CV_FOLDS)
+        out.catch_all_cv_reduction = 1.0 - float(np.median(cv_full / cv_model))
+        removed = model.rss - full.rss
+        names = list(dict.fromkeys(groups))
+        shares = []
+        for g in names:
+            cols = [j for j, gj in enumerate(groups) if gj == g]
+            shares.append((g, (model.rss - rss_only(y, np.hstack([X, C[:, cols]]))) / max(removed, 1e-300)))
+        out.correlates = sorted(shares, key=lambda p: -p[1])

@@ -41,6 +41,7 @@ class Smoother:
     """The one zero-phase filter of the diagnosis (scipy imported lazily: analysis extra)."""
 
     dt: float
+    cutoff_hz: float
     sos: np.ndarray
     fast_window: int
     step: int          # decimation factor
@@ -52,7 +53,7 @@ class Smoother:
         cutoff = min(CUTOFF_HZ, 0.2 / dt)
         sos = butter(2, cutoff, fs=1.0 / dt, output="sos")
         step = max(1, int(round(1.0 / (dt * DECIMATED_RATE_HZ))))
-        return cls(dt, sos, _odd_window(FAST_WINDOW_S, dt, ORDER + 2), step, int(round(EDGE_S / dt)) + 2)
+        return cls(dt, cutoff, sos, _odd_window(FAST_WINDOW_S, dt, ORDER + 2), step, int(round(EDGE_S / dt)) + 2)
 
     def smooth(self, x: np.ndarray, deriv: int = 0) -> np.ndarray:
         """L[x], or L of the first / second central difference of x (per second, per second^2)."""
@@ -69,8 +70,16 @@ class Smoother:
         from scipy.signal import savgol_filter
         return savgol_filter(x, self.fast_window, ORDER, deriv=1, delta=self.dt, axis=0, mode="interp")
 
-    def rows(self, n: int) -> slice:
-        return slice(self.margin, n - self.margin, self.step)
+    def rows(self, n: int, good: np.ndarray | None = None) -> np.ndarray:
+        """Indices of the rows kept for the regressions: decimated, without the filter's edge transients,
+        and (``good``: per-sample flags from the data screening) only where no masked sample lies within
+        the filter's reach."""
+        idx = np.arange(self.margin, n - self.margin, self.step)
+        if good is None or bool(np.all(good)):
+            return idx
+        reach = self.margin
+        bad = np.convolve((~good).astype(float), np.ones(2 * reach + 1), mode="same") > 0.5
+        return idx[~bad[idx]]
 
 
 def shift_rows(x: np.ndarray, samples: float) -> np.ndarray:
@@ -100,16 +109,22 @@ class _StackedChannel:
     """What both channels share: the recording's smoother, the rows kept for the regressions, and
     stacking samples x columns (motors or axes) into one vector, column after column."""
 
-    def __init__(self, rec: Recording):
+    def __init__(self, rec: Recording, good: np.ndarray | None = None):
         self.source = rec.source
         self.dt = rec.dt
         self.sm = Smoother.for_period(self.dt)
         self.n_samples = len(rec)
-        self.rows = self.sm.rows(self.n_samples)
+        self.rows = self.sm.rows(self.n_samples, good)
+        self.t = np.asarray(rec["t"], dtype=float)
+        #: extra baseline columns of a known sensor artefact (a strain-gauge drift), not of the physics
+        self.nuisance: np.ndarray | None = None
+
+    def with_nuisance(self, X: np.ndarray) -> np.ndarray:
+        return X if self.nuisance is None else np.hstack([X, self.nuisance])
 
     @property
     def n_rows(self) -> int:
-        return len(range(*self.rows.indices(self.n_samples)))
+        return len(self.rows)
 
     def filt(self, x: np.ndarray) -> np.ndarray:
         """L[x] at the kept rows, stacked column after column (x: samples x columns)."""
@@ -132,12 +147,14 @@ class _StackedChannel:
 class MotorChannel(_StackedChannel):
     """Motor-side signals of all motors in a recording (columns = motors)."""
 
-    def __init__(self, rec: Recording, kt: float | None, geometry: Geometry | None, v_eps: float):
-        super().__init__(rec)
+    def __init__(self, rec: Recording, kt: float | None, geometry: Geometry | None, v_eps: float,
+                 good: np.ndarray | None = None, cogging_prior: float | None = None):
+        super().__init__(rec, good)
+        self.cogging_prior = cogging_prior      # periods per output revolution from the config, if known
         sm = self.sm
         n = self.n_samples
-        if n < 2 * sm.margin + 20 * sm.step:
-            raise InterchangeError(f"too short for the diagnosis: {n} rows, need at least "
+        if n < 2 * sm.margin + 20 * sm.step or self.n_rows < 20:
+            raise InterchangeError(f"too short for the diagnosis: {n} rows ({self.n_rows} usable), need at least "
                                    f"{2 * sm.margin + 20 * sm.step}", rec.source, "t", n)
         self.m = 2 if rec.two_motors else 1
         self.pos = np.column_stack([rec[f"motor_pos_{i}"] for i in range(1, self.m + 1)])
@@ -182,7 +199,7 @@ class MotorChannel(_StackedChannel):
         for i in range(self.m):
             for j, sig in enumerate(per):
                 X[i * k:(i + 1) * k, 3 * i + j] = sig[self.rows, i]
-        return X
+        return self.with_nuisance(X)
 
 
 class CableChannel(_StackedChannel):
@@ -190,8 +207,8 @@ class CableChannel(_StackedChannel):
 
     AXES = ("dp", "ie")
 
-    def __init__(self, rec: Recording, geometry: Geometry):
-        super().__init__(rec)
+    def __init__(self, rec: Recording, geometry: Geometry, good: np.ndarray | None = None):
+        super().__init__(rec, good)
         sm = self.sm
         self.geometry = geometry
         pos_m = np.column_stack([rec["motor_pos_1"], rec["motor_pos_2"]])
@@ -221,4 +238,4 @@ class CableChannel(_StackedChannel):
             X[a * k:(a + 1) * k, 3 * a] = self.L_phi[self.rows, a]
             X[a * k:(a + 1) * k, 3 * a + 1] = self.L_dphi[self.rows, a]
             X[a * k:(a + 1) * k, 3 * a + 2] = 1.0
-        return X
+        return self.with_nuisance(X)

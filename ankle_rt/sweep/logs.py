@@ -53,15 +53,16 @@ def diagnose_log(task: tuple[str, str, str | None, str]) -> dict[str, Any]:
     except (InterchangeError, DiagnosisError, ConfigError, OSError, ValueError) as exc:
         row.update({"started_utc": row.get("started_utc", ""), "cause": "error", "error": str(exc)})
         return row
-    row.update({"cause": diag["cause"], "confidence": diag["confidence"], "error": "",
+    row.update({"cause": diag["cause"], "causes": "+".join(diag["causes"]), "confidence": diag["confidence"], "error": "",
                 "nrmse_baseline": diag["nrmse_baseline"], "nrmse_extended": diag["nrmse_extended"],
                 "gain": diag["gain"]})
     for channel, params in (diag["baseline"] or {}).items():
         for name, p in params.items():
             for i, v in enumerate(p["value"], 1):
                 row[f"{channel}.{name}.{i}"] = float(v)
-    for name, p in (diag["parameters"] or {}).items():
-        row[f"effect.{name}"] = float(p["value"])
+    for effect in diag["effects"]:
+        for name, p in effect["parameters"].items():
+            row[f"effect.{effect['type']}.{name}"] = float(p["value"])
     return row
 
 
@@ -245,6 +246,6 @@ def _write_and_print(rows: list[dict[str, Any]], out: Path, as_json: bool) -> in
             continue
         params = ", ".join(f"{c} {r[c]:.4g}" for c in cols if isinstance(r.get(c), float))
         confidence = f" ({r['confidence']:.2f})" if "confidence" in r else ""
-        print(f"{r['device']}  {r['started_utc']}  {Path(r['file']).name}: {r['cause']}{confidence}; {params}")
+        print(f"{r['device']}  {r['started_utc']}  {Path(r['file']).name}: {r.get('causes', r['cause'])}{confidence}; {params}")
     print(f"{len(rows)} recordings; table {table}" + (f", trends {plot}" if plot else ""))
     return 0

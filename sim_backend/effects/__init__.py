@@ -8,6 +8,7 @@ from sim_backend.effects.base import EFFECTS, Effect, build_effects, register_ef
 from sim_backend.effects import friction  # noqa: F401  (registers the friction effects)
 from sim_backend.effects import (  # noqa: F401  (each module registers its effect)
     asymmetric_friction, backlash, cogging, delay, load_dependent_friction, stiffness_nonlinear, stribeck,
+    torque_offset,
 )
 
 __all__ = ["EFFECTS", "Effect", "build_effects", "register_effect"]

@@ -1,0 +1,193 @@
+"""Screen measured data before the diagnosis fits anything: sensor artefacts must be said, masked where
+that is sound, and never read as physics.
+
+Found here (each a plain sentence in ``data_warnings``):
+- time gaps and dropouts (a sample period far above the median): the samples around them are masked;
+- held or repeated samples of the strain gauges or the amplifier input (a run of identical values that a
+  noisy or continuously varying signal does not produce): masked;
+- clipping / rail values: a column flat at its own extreme (strain gauges at the end of their range, the
+  set current at the amplifier's limit, where the applied current no longer follows it): masked;
+- motion in one direction only (friction asymmetry and a load offset then look like the Coulomb term:
+  those two candidates are not tried), too little motion, a record too short to diagnose.
+Slow strain-gauge drift is found by the cable channel (see :func:`strain_gauge_drift`), where the joint
+angles make the gauges' expected torque known.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ankle_rt.interchange import Recording
+
+GAP_FACTOR = 1.5              # a sample period above this x the median is a gap
+HOLD_SAMPLES = 8              # identical consecutive values of a noisy signal: a held sensor
+RAIL_SHARE = 0.005            # share of samples flat at the column's extreme that counts as a rail
+RAIL_RUN = 3                  # ... in runs at least this long
+ONE_WAY_SHARE = 0.03          # the rarer direction of travel below this share of the moving samples
+MOVING_SHARE = 0.2            # moving less than this share of the record: too little motion
+MIN_RECORD_S = 2.0            # shorter: nothing is named
+SHORT_RECORD_S = 5.0          # shorter: a warning (weak effects may be missed)
+MASK_S = 0.01                 # s masked either side of a gap
+MIN_USABLE = 0.15             # share of the record that must stay usable after masking
+
+
+@dataclass
+class Screening:
+    good: np.ndarray                               # per sample: usable for the regressions
+    warnings: list[str] = field(default_factory=list)
+    skip: set[str] = field(default_factory=set)    # candidates that cannot be told apart on these data
+    unusable: bool = False        # too short, or too much of it masked: nothing is named
+    one_way: bool = False         # a motor moves in one direction only
+
+
+def _runs(flags: np.ndarray) -> list[tuple[int, int]]:
+    """(start, stop) of the runs of True in ``flags``."""
+    d = np.diff(np.concatenate([[0], flags.astype(np.int8), [0]]))
+    return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
+
+
+def _flat_at_extreme(x: np.ndarray) -> np.ndarray:
+    """Samples equal to the column's maximum or minimum, where that extreme is held in runs (a rail)."""
+    out = np.zeros(len(x), dtype=bool)
+    for v in (np.max(x), np.min(x)):
+        at = x == v
+        runs = [(a, b) for a, b in _runs(at) if b - a >= RAIL_RUN]
+        if sum(b - a for a, b in runs) >= max(RAIL_RUN, RAIL_SHARE * len(x)):
+            for a, b in runs:
+                out[a:b] = True
+    return out
+
+
+def _held(x: np.ndarray, rail: np.ndarray) -> np.ndarray:
+    """Runs of >= HOLD_SAMPLES identical values, in a column that otherwise changes almost every sample
+    (a noisy sensor or a continuously varying set value). Not held: the column's extremes (a limit,
+    however brief) and exact zeros (an amplifier switched off, e.g. while the gauges are tared)."""
+    same = np.concatenate([[False], np.diff(x) == 0.0]) & (x != np.max(x)) & (x != np.min(x)) & (x != 0.0)
+    if np.mean(same & ~rail) > 0.5:        # a signal that is piecewise constant by nature
+        return np.zeros(len(x), dtype=bool)
+    out = np.zeros(len(x), dtype=bool)
+    for a, b in _runs(same & ~rail):
+        if b - a + 1 >= HOLD_SAMPLES:
+            out[max(0, a - 1):b] = True
+    return out
+
+
+def _pct(share: float) -> str:
+    return f"{100 * share:.1f} %"
+
+
+def screen(rec: Recording, v_eps: float, current_limit: float | None = None, label: str = "data") -> Screening:
+    """Screen ``rec`` (see the module docstring); ``v_eps`` sets the speed that counts as moving,
+    ``current_limit`` (A, from the config) the amplifier limit; ``label`` starts every warning."""
+    n = len(rec)
+    t = np.asarray(rec["t"], dtype=float)
+    dt = rec.dt
+    good = np.ones(n, dtype=bool)
+    out = Screening(good)
+    duration = float(t[-1] - t[0]) + dt
+    if duration < MIN_RECORD_S:
+        out.unusable = True
+        out.warnings.append(f"{label}: the record is {duration:.2f} s long, too short to diagnose "
+                            f"(at least {MIN_RECORD_S:g} s): nothing is named")
+    elif duration < SHORT_RECORD_S:
+        out.warnings.append(f"{label}: the record is short ({duration:.1f} s): weak effects may be "
+                            "missed")
+    gaps = np.flatnonzero(np.diff(t) > GAP_FACTOR * dt)
+    if gaps.size:
+        reach = max(1, int(round(MASK_S / dt)))
+        for g in gaps:
+            good[max(0, g - reach):g + reach + 2] = False
+        longest = float(np.max(np.diff(t)[gaps]))
+        out.warnings.append(f"{label}: {gaps.size} time gap(s) (dropped samples), the longest "
+                            f"{1e3 * longest:.0f} ms: the samples around them are masked")
+    inputs = [c for c in ("current_cmd_1", "current_cmd_2", "motor_torque_1", "motor_torque_2") if c in rec]
+    gauges = [c for c in ("sg_torque_dp", "sg_torque_ie") if c in rec]
+    for col in inputs + gauges:
+        x = np.asarray(rec[col], dtype=float)
+        rail = _flat_at_extreme(x)
+        if col.startswith("current") and current_limit is not None:
+            rail |= np.abs(x) >= 0.999 * current_limit
+        held = _held(x, rail)
+        what = "set current" if col.startswith("current") else ("motor torque" if col in inputs else "strain gauge")
+        if rail.any():
+            level = float(np.max(np.abs(x[rail])))
+            reason = ("at the amplifier's limit: the applied current need not follow the set value" if col in inputs
+                      else "clipped at the end of its range")
+            out.warnings.append(f"{label}: {what} {col} flat at +/-{level:.4g} in {_pct(float(np.mean(rail)))} "
+                                f"of the samples ({reason}); those samples are masked")
+        if held.any():
+            out.warnings.append(f"{label}: {what} {col} holds the same value for {HOLD_SAMPLES}+ samples in "
+                                f"{_pct(float(np.mean(held)))} of the record (held or repeated samples); masked")
+        good &= ~(rail | held)
+    motors = [c for c in ("motor_pos_1", "motor_pos_2") if c in rec]
+    if motors:
+        from scipy.signal import savgol_filter
+        window = max(5, int(round(0.021 / dt)) | 1)
+        vel = np.column_stack([savgol_filter(rec[c], window, 3, deriv=1, delta=dt) for c in motors])
+        v99 = float(np.percentile(np.abs(vel), 99))
+        moving = np.abs(vel) > max(5.0 * v_eps, 0.01 * v99)
+        share = float(np.mean(moving))
+        if share < MOVING_SHARE:
+            out.warnings.append(f"{label}: the motors move in only {_pct(share)} of the record: too little "
+                                "motion to separate friction, load and inertia well")
+        for i, c in enumerate(motors):
+            m = moving[:, i]
+            if m.sum() < 10:
+                continue
+            fwd = float(np.mean(vel[m, i] > 0.0))
+            if min(fwd, 1.0 - fwd) < ONE_WAY_SHARE:
+                out.warnings.append(f"{label}: {c} moves in one direction only ({_pct(max(fwd, 1 - fwd))} of "
+                                    "its motion): direction-dependent friction and a load offset cannot be told "
+                                    "from the Coulomb term, so neither is tried; shapes of the commanded "
+                                    "torque are left out of the adequacy test")
+                out.skip |= {"asymmetric_friction", "torque_offset"}
+                out.one_way = True
+    usable = float(np.mean(_reach_of_masks(good, dt)))
+    if usable < MIN_USABLE:
+        out.warnings.append(f"{label}: only {_pct(usable)} of the record is free of the artefacts above: too "
+                            "little to diagnose, nothing is named")
+        out.unusable = True
+        out.good[:] = True
+    elif np.mean(good) < 0.5:
+        out.warnings.append(f"{label}: {_pct(1.0 - float(np.mean(good)))} of the samples are masked: the "
+                            "diagnosis rests on the rest")
+    return out
+
+
+def _reach_of_masks(good: np.ndarray, dt: float) -> np.ndarray:
+    """Samples not within the filter's reach of a masked sample (what the regressions can use)."""
+    reach = int(round(0.06 / dt)) + 2
+    bad = np.convolve((~good).astype(float), np.ones(2 * reach + 1), mode="same") > 0.5
+    return ~bad
+
+
+#: strain-gauge drift: the time shapes must remove this share of the cable baseline's residual ...
+DRIFT_REDUCTION = 0.2
+#: ... and span this many times the RMS of what is left (the noise floor)
+DRIFT_SIZE = 5.0
+
+
+def strain_gauge_drift(cable) -> list[float] | None:
+    """Peak-to-peak drift (N m, per ankle axis) of the strain gauges' offset over the record, when the
+    cable channel's residual follows slow shapes of time strongly; else None. The cable law has no slow
+    time dependence (the catch-all's stretch shapes stand in for any cable effect while testing), so a
+    residual that follows time is the gauges', not the cables'."""
+    from ankle_rt.diagnosis.candidates import catch_all_cable, time_columns
+    from ankle_rt.diagnosis.regression import fit
+
+    C, groups = catch_all_cable(cable)
+    shapes = C[:, [j for j, g in enumerate(groups) if g != "time (drift)"]]
+    y, Xb = cable.target(), np.hstack([cable.baseline_design(), shapes])
+    T = time_columns(cable)
+    base = fit(y, Xb)
+    full = fit(y, np.hstack([Xb, T]))
+    if 1.0 - full.rss / base.rss < DRIFT_REDUCTION:
+        return None
+    drift = (T @ full.coef[Xb.shape[1]:]).reshape(cable.m, -1)
+    span = np.ptp(drift, axis=1)
+    if float(np.max(span)) < DRIFT_SIZE * math.sqrt(full.rss / len(y)):
+        return None
+    return [float(s) for s in span]
