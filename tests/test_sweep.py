@@ -64,6 +64,9 @@ def _same(a: list[dict], b: list[dict]) -> None:
     ({"sampling": {"method": "halton", "runs": 4}}, "sampling.method"),
     ({"scenarios": ["stairs"]}, "scenarios.0"),
     ({"colour": "red"}, "colour"),
+    ({"overrides": {"controller": {"type": "impedance"}},      # beyond what the joint-torque loop renders stably
+      "parameters": {"controller.impedance.stiffness_dp": {"dist": "uniform", "low": 5000.0, "high": 6000.0}}},
+     "parameters.controller.impedance.stiffness_dp"),
 ])
 def test_a_bad_spec_is_refused_naming_the_key_before_any_run(tmp_path, capsys, changes, key):
     spec = _spec(tmp_path, **changes)
@@ -164,6 +167,29 @@ def test_runs_of_different_structure_go_to_different_batches(tmp_path):
     for t in tasks:
         assert len(t.runs) <= study.batch_size
         assert len({(c["sim"]["substeps"], c["controller"]["type"]) for c in t.configs}) == 1
+
+
+def test_impedance_runs_open_and_closed_loop_go_to_different_batches_and_run(tmp_path):
+    """The batched cycle runs one impedance law per batch, the joint-torque loop closed or not; closed,
+    it renders the commanded stiffness under the disturbance (friction holds the ankle open loop)."""
+    from ankle_rt.sweep.engine import plan
+
+    study = load_study(_spec(tmp_path, duration_s=2.5, scenarios=["disturbance"], batch_size=8,
+                             sampling={"method": "random", "runs": 4, "seed": 2},
+                             overrides={"controller": {"type": "impedance"}},
+                             parameters={"controller.impedance.torque_feedback": {"dist": "choice",
+                                                                                  "values": ["on", "off"]}}))
+    feedback = [r.config["controller"]["impedance"]["torque_feedback"] for r in study.runs]
+    assert set(feedback) == {"on", "off"}
+    tasks = plan(study)
+    assert sorted(len({c["controller"]["impedance"]["torque_feedback"] for c in t.configs}) for t in tasks) == [1, 1]
+    rows = execute(study, tmp_path / "out", workers=1, progress=False)
+    assert [r["run_id"] for r in rows] == list(range(4))
+    for r, closed in zip(rows, feedback):
+        assert r["fault"] == "none" and r["stable"], r
+        for axis in ("dp", "ie"):
+            error = abs(r[f"impedance_error_{axis}_pct"])
+            assert (error < 40.0) if closed == "on" else (error > 100.0), (axis, r)
 
 
 def test_the_table_falls_back_to_csv_without_pyarrow(tmp_path, monkeypatch):

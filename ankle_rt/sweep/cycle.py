@@ -27,7 +27,6 @@ from ankle_rt.config import ConfigError
 from ankle_rt.control import build_controller
 from ankle_rt.control.friction import FrictionFeedForward
 from ankle_rt.control.impedance import ImpedanceController
-from ankle_rt.control.pd import MotorPD
 from ankle_rt.control.torque_loop import JointTorqueLoop, torque_feedback
 from ankle_rt.estimation import Estimator
 from ankle_rt.kinematics import Kinematics
@@ -69,11 +68,19 @@ def first_fault(code: np.ndarray, checks: list[tuple[np.ndarray, int]]) -> np.nd
     return np.where(code == 0, first, code)
 
 
+BATCHED_CONTROLLERS = ("pd", "impedance")    # built-ins win over plugins of the same name
+
+
 def batch_key(cfg: Mapping[str, Any]) -> tuple:
     """Configs with equal keys can run in one :class:`BatchRun`: the plant's structure, the
-    controller type and, for impedance, whether the joint-torque loop is closed."""
-    impedance = cfg["controller"]["type"] == "impedance"
-    return structure_key(cfg) + (cfg["controller"]["type"], torque_feedback(cfg) if impedance else None)
+    controller type and, for impedance, whether the joint-torque loop is closed. Raises ConfigError
+    naming ``controller.type`` for a controller the batch does not run (a plugin)."""
+    name = cfg["controller"]["type"]
+    if name not in BATCHED_CONTROLLERS:
+        raise ConfigError(f"the batched daemon cycle runs the built-in pd and impedance controllers, not {name!r} "
+                          "(a plugin runs in the daemon: ankle-rt run --fast)", getattr(cfg, "source", None),
+                          "controller.type")
+    return structure_key(cfg) + (name, torque_feedback(cfg) if name == "impedance" else None)
 
 
 def _column(objects: Sequence[Any], get) -> np.ndarray:
@@ -104,8 +111,8 @@ class BatchRun:
         self.auto_activate = np.array([c["safety"]["auto_activate"] for c in cfgs])
 
         refs = [reference_from_config(c) for c in cfgs]
+        self._check_controllers(cfgs)
         ctls = [build_controller(c, k, r.ref) for c, k, r in zip(cfgs, kins, refs)]
-        self._check_controllers(cfgs, ctls)
         self.impedance = isinstance(ctls[0], ImpedanceController)
         self.gains = np.array([c.gains.values for c in ctls]).T      # (gains, plants) in the law's order
         self.soft_step = _column(ctls, lambda c: c.gains.soft_step)
@@ -131,13 +138,8 @@ class BatchRun:
         self.ref_tables, self.ref_index = self._reference_tables(refs)
 
     @staticmethod
-    def _check_controllers(cfgs: Sequence[Mapping[str, Any]], ctls: Sequence[Any]) -> None:
-        """ConfigError naming the key unless the batch runs every plant's controller exactly."""
-        for c, ctl in zip(cfgs, ctls):
-            if type(ctl) not in (MotorPD, ImpedanceController):
-                raise ConfigError(f"the batched daemon cycle runs the built-in pd and impedance controllers, "
-                                  f"not {c['controller']['type']!r} (run it with ankle-rt run --fast)",
-                                  getattr(c, "source", None), "controller.type")
+    def _check_controllers(cfgs: Sequence[Mapping[str, Any]]) -> None:
+        """ConfigError naming the key unless the batch runs every plant's controller as the daemon does."""
         keys = {batch_key(c)[-2:] for c in cfgs}
         if len(keys) != 1:
             key = "controller.type" if len({k[0] for k in keys}) > 1 else "controller.impedance.torque_feedback"

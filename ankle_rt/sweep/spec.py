@@ -396,10 +396,14 @@ def _get_or_none(data: Any, key: str) -> Any:
 
 
 def _preflight(cfg: Config, run_id: int, sample: int, scenario: str, study: Study) -> None:
-    """What the config validation leaves to the plant and the reference (effect parameters, the
-    disturbance times, the profile), checked before any run starts."""
-    from ankle_rt.params import PlantParams
+    """What the config validation leaves to the plant, the reference and the controller (effect
+    parameters, the disturbance times, the profile, a controller the batch runs, impedance gains
+    inside the joint-torque loop's limits, the friction model), checked before any run starts."""
+    from ankle_rt.control import build_controller
+    from ankle_rt.kinematics import Kinematics
+    from ankle_rt.params import PlantParams, TransmissionParams
     from ankle_rt.references import reference_from_config
+    from ankle_rt.sweep.cycle import batch_key
     from sim_backend.effects import build_effects
 
     try:
@@ -407,7 +411,9 @@ def _preflight(cfg: Config, run_id: int, sample: int, scenario: str, study: Stud
         for i, d in enumerate(cfg["sim"]["disturbances"]):
             if d["stop"] <= d["start"]:
                 raise ConfigError("stop must be after start", cfg.source, f"sim.disturbances.{i}.stop")
-        reference_from_config(cfg)
+        ref = reference_from_config(cfg)
+        batch_key(cfg)
+        build_controller(cfg, Kinematics.from_params(TransmissionParams(**cfg["transmission"])), ref.ref)
     except ConfigError as exc:
         hint = next((p.key for p in study.parameters if exc.key and p.key.startswith(exc.key.rsplit(".", 1)[0])), None)
         raise SpecError(f"parameters.{hint}" if hint else "overrides",
