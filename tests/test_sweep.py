@@ -67,6 +67,9 @@ def _same(a: list[dict], b: list[dict]) -> None:
     ({"overrides": {"controller": {"type": "impedance"}},      # beyond what the joint-torque loop renders stably
       "parameters": {"controller.impedance.stiffness_dp": {"dist": "uniform", "low": 5000.0, "high": 6000.0}}},
      "parameters.controller.impedance.stiffness_dp"),
+    ({"overrides": {"controller": {"type": "impedance"}},      # the loop's limits move with the sampled plant
+      "parameters": {"actuator.damping": {"dist": "uniform", "low": 0.05, "high": 0.06}}},
+     "actuator.damping=0.05"),
 ])
 def test_a_bad_spec_is_refused_naming_the_key_before_any_run(tmp_path, capsys, changes, key):
     spec = _spec(tmp_path, **changes)
@@ -215,8 +218,10 @@ def test_every_sampling_method_maps_each_distribution_into_its_support(tmp_path,
     }
     if method == "grid":
         parameters.pop("actuator.coulomb")         # a normal distribution has no grid
+    # the joint-torque loop's least impedance damping grows as the sampled actuator damping falls
     spec = _spec(tmp_path, parameters=parameters, scenarios=["step"],
-                 sampling={"method": method, "runs": 16, "seed": 3})
+                 sampling={"method": method, "runs": 16, "seed": 3},
+                 overrides={"controller": {"impedance": {"damping_dp": 1.0}}})
     study = load_study(spec)
     again = load_study(spec)
     assert [r.values for r in study.runs] == [r.values for r in again.runs]

@@ -380,7 +380,7 @@ def expand(study: Study) -> list[Run]:
                                 f"run {run_id} (sample {sample}, {scen_name}): the config rejects it: "
                                 f"{exc.key}: {exc.message}") from None
             cfg.source = source
-            _preflight(cfg, run_id, sample, scen_name, study)
+            _preflight(cfg, run_id, sample, scen_name, values, study)
             runs.append(Run(run_id, sample, scen_name, cfg["sim"]["seed"], values, cfg))
     return runs
 
@@ -395,10 +395,12 @@ def _get_or_none(data: Any, key: str) -> Any:
         return None
 
 
-def _preflight(cfg: Config, run_id: int, sample: int, scenario: str, study: Study) -> None:
+def _preflight(cfg: Config, run_id: int, sample: int, scenario: str, values: dict[str, Any], study: Study) -> None:
     """What the config validation leaves to the plant, the reference and the controller (effect
     parameters, the disturbance times, the profile, a controller the batch runs, impedance gains
-    inside the joint-torque loop's limits, the friction model), checked before any run starts."""
+    inside the joint-torque loop's limits, the friction model), checked before any run starts. The
+    error names the key and the run's sampled values (a sampled plant parameter can move the impedance
+    limits, which the daemon derives from the config's actuator)."""
     from ankle_rt.control import build_controller
     from ankle_rt.kinematics import Kinematics
     from ankle_rt.params import PlantParams, TransmissionParams
@@ -416,6 +418,7 @@ def _preflight(cfg: Config, run_id: int, sample: int, scenario: str, study: Stud
         build_controller(cfg, Kinematics.from_params(TransmissionParams(**cfg["transmission"])), ref.ref)
     except ConfigError as exc:
         hint = next((p.key for p in study.parameters if exc.key and p.key.startswith(exc.key.rsplit(".", 1)[0])), None)
+        sampled = "".join(f", {k}={v:g}" if isinstance(v, float) else f", {k}={v}" for k, v in values.items())
         raise SpecError(f"parameters.{hint}" if hint else "overrides",
-                        f"run {run_id} (sample {sample}, {scenario}): the config rejects it: "
+                        f"run {run_id} (sample {sample}, {scenario}{sampled}): the config rejects it: "
                         f"{exc.key}: {exc.message}") from None
