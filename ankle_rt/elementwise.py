@@ -11,11 +11,14 @@ daemon's own code on arrays).
 from __future__ import annotations
 
 import math
+from typing import Union
 
 import numpy as np
 
 _tanh, _exp, _sin = math.tanh, math.exp, math.sin
 _ARRAY = np.ndarray
+
+Value = Union[float, np.ndarray]     # a float for one device, an array over a batch
 
 
 def tanh(x):

@@ -24,7 +24,7 @@ import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterable, Mapping, Sequence
 
-from ankle_rt.elementwise import clip, exp, stack
+from ankle_rt.elementwise import Value, clip, exp, stack
 
 if TYPE_CHECKING:
     from ankle_rt.config import Config
@@ -77,7 +77,7 @@ class FrictionFeedForward:
         off = cls(0.0, 0.0, 1.0)
         return stack([f if f.enabled else off for f in feed_forwards])
 
-    def torque(self, v, tc=0.0):
+    def torque(self, v: Value, tc: Value = 0.0) -> Value:
         """N m for motor velocity ``v`` rad/s and felt cable torque ``tc`` N m (0 when switched off).
         Element-wise (:mod:`ankle_rt.elementwise`): floats for one device, arrays for a :meth:`stack`."""
         if not self.enabled:

@@ -33,9 +33,11 @@ import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
-from ankle_rt.elementwise import clip, select, stack
+from ankle_rt.elementwise import Value, clip, select, stack
 
 if TYPE_CHECKING:
+    import numpy as np
+
     from ankle_rt.config import Config
 
 MIN_DAMPING_RATIO = 0.05        # of the rendered impedance against the reflected inertia / (1 + kp)
@@ -86,7 +88,7 @@ class JointTorqueLoop:
         over the batch (``gains``, descriptive only, is the first device's)."""
         return stack(loops, shared=("gains",))
 
-    def reset_state(self, tau_dp, tau_ie, where=True) -> None:
+    def reset_state(self, tau_dp: Value, tau_ie: Value, where: bool | np.ndarray = True) -> None:
         """Start from the measured torques (N m) with an empty integrator (on activation); for a
         batch, only where ``where`` (bool per device) holds."""
         self.f0 = select(where, tau_dp, self.f0)
@@ -94,7 +96,8 @@ class JointTorqueLoop:
         self.i0 = select(where, 0.0, self.i0)
         self.i1 = select(where, 0.0, self.i1)
 
-    def update(self, tau_dp, tau_ie, sg_dp, sg_ie, integrate):
+    def update(self, tau_dp: Value, tau_ie: Value, sg_dp: Value, sg_ie: Value,
+               integrate: bool | np.ndarray) -> tuple[Value, Value]:
         """Desired joint torques and tared strain-gauge torques (N m, [DP, IE]) in, the ankle-side
         motor torques (N m, [DP, IE]) out. ``integrate`` False holds the integrator (soft start)."""
         a = self.alpha
