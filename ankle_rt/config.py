@@ -2,183 +2,78 @@
 
 A configuration is one YAML file, optionally pulling in others with ``include:`` (paths relative to
 the including file; later files and the including file override earlier ones, key by key). Every key
-is checked against a declarative schema: a typo, a missing key, a wrong type or an out-of-range value
-stops loading with a :class:`ConfigError` that names the file, the dotted key and what was expected.
-Physical parameters never get silent defaults; only software options do.
+is checked against a declarative schema (:mod:`ankle_rt.config_schema`, built from
+:mod:`ankle_rt.schema`): a typo, a missing key, a wrong type, a non-finite number or an out-of-range
+value stops loading with a :class:`ConfigError` that names the file, the dotted key and what was
+expected. Physical parameters never get silent defaults; only software options do.
+
+Files are read as regular files only (a FIFO or ``/dev/zero`` named by ``include:`` fails at once),
+at most :data:`MAX_CONFIG_BYTES` each and :data:`MAX_CONFIG_FILES` in all, as UTF-8 text; nesting is
+bounded by :data:`MAX_CONFIG_DEPTH`. Every such problem is a ConfigError naming the file.
 """
 
 from __future__ import annotations
 
 import copy
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Mapping
 
 import yaml
 
-KeyPath = tuple[str, ...]
+from ankle_rt.config_schema import SCHEMA, check_consistency
+from ankle_rt.schema import (  # noqa: F401  (re-exported: the schema vocabulary's historical home)
+    ConfigError, Field, KeyPath, ListOf, Section, non_negative, numeric_fields, positive, validate,
+)
+from ankle_rt.textfile import TextFileError, read_text
+
+MAX_CONFIG_BYTES = 1 << 20
+"""Largest config file read (1 MiB; the shipped ones are a few kB)."""
+MAX_CONFIG_DEPTH = 16
+"""Deepest nesting of mappings and lists accepted (the schema needs 4)."""
+MAX_CONFIG_FILES = 32
+"""Most files one config may pull in through ``include:`` (nested includes counted)."""
 
 
-class ConfigError(ValueError):
-    """A configuration value is missing, unknown, of the wrong type or out of range."""
-
-    def __init__(self, message: str, source: str | None = None, key: str | None = None):
-        self.message = message   # without the "source: key: " prefix, for callers that re-key the error
-        self.source = source
-        self.key = key
-        where = ": ".join(part for part in (source, key) if part)
-        super().__init__(f"{where}: {message}" if where else message)
-
-
-@dataclass(frozen=True)
-class Field:
-    """One leaf of the schema.
-
-    ``kind`` is the expected Python type (``float`` accepts ints). A field without ``default`` is
-    required. ``check`` may raise ValueError for constraints that bounds cannot express.
-    """
-
-    kind: type | tuple[type, ...]
-    doc: str = ""
-    default: Any = ...
-    low: float | None = None
-    high: float | None = None
-    low_open: bool = False
-    choices: tuple[Any, ...] | None = None
-    check: Callable[[Any], None] | None = None
-
-
-@dataclass(frozen=True)
-class Section:
-    """A mapping with a fixed set of keys. ``open=True`` accepts any extra keys unchecked (their
-    owner validates them later, e.g. an effect's parameters or a backend's transport settings).
-    ``optional=True`` lets the whole section be omitted; its fields' defaults then apply."""
-
-    fields: Mapping[str, "Field | Section | ListOf"]
-    doc: str = ""
-    optional: bool = False
-    open: bool = False
-
-
-@dataclass(frozen=True)
-class ListOf:
-    """A list whose items all follow one schema."""
-
-    item: "Field | Section"
-    doc: str = ""
-    default: Any = field(default_factory=list)
-    length: int | None = None
-
-
-def positive(doc: str, **kw: Any) -> Field:
-    return Field(float, doc, low=0.0, low_open=True, **kw)
-
-
-def non_negative(doc: str, **kw: Any) -> Field:
-    return Field(float, doc, low=0.0, **kw)
-
-
-def _type_name(kind: type | tuple[type, ...]) -> str:
-    kinds = kind if isinstance(kind, tuple) else (kind,)
-    names = {float: "a number", int: "an integer", bool: "true/false", str: "a string",
-             list: "a list", dict: "a mapping"}
-    return " or ".join(names.get(k, k.__name__) for k in kinds)
-
-
-def _coerce_leaf(value: Any, spec: Field, where: str, source: str) -> Any:
-    kinds = spec.kind if isinstance(spec.kind, tuple) else (spec.kind,)
-    ok = False
-    if isinstance(value, bool):
-        ok = bool in kinds
-    elif isinstance(value, int) and (int in kinds or float in kinds):
-        ok = True
-        if float in kinds and int not in kinds:
-            value = float(value)
-    else:
-        ok = isinstance(value, kinds)
-    if not ok:
-        raise ConfigError(f"expected {_type_name(spec.kind)}, got {value!r}", source, where)
-    if spec.choices is not None and value not in spec.choices:
-        raise ConfigError(f"expected one of {list(spec.choices)}, got {value!r}", source, where)
-    if spec.low is not None and (value <= spec.low if spec.low_open else value < spec.low):
-        op = ">" if spec.low_open else ">="
-        raise ConfigError(f"must be {op} {spec.low:g}, got {value!r}", source, where)
-    if spec.high is not None and value > spec.high:
-        raise ConfigError(f"must be <= {spec.high:g}, got {value!r}", source, where)
-    if spec.check is not None:
-        try:
-            spec.check(value)
-        except ValueError as exc:
-            raise ConfigError(str(exc), source, where) from None
-    return value
-
-
-def validate(data: Any, schema: Section, origin: Callable[[KeyPath], str], path: KeyPath = ()) -> dict:
-    """Return a validated copy of ``data`` with software defaults filled in.
-
-    ``origin(path)`` names the file a key came from, for error messages.
-    """
-    where = ".".join(path) or "<top level>"
-    if not isinstance(data, dict):
-        raise ConfigError(f"expected a mapping, got {data!r}", origin(path), where)
-    out: dict[str, Any] = {}
-    unknown = [k for k in data if k not in schema.fields]
-    if unknown and not schema.open:
-        key = ".".join(path + (str(unknown[0]),))
-        raise ConfigError(f"unknown key (expected one of: {', '.join(schema.fields)})",
-                          origin(path + (str(unknown[0]),)), key)
-    for name in unknown:
-        out[name] = data[name]
-    for name, spec in schema.fields.items():
-        sub = path + (name,)
-        key = ".".join(sub)
-        if name not in data:
-            if isinstance(spec, Section):
-                if spec.optional:
-                    out[name] = validate({}, spec, origin, sub)
-                    continue
-                raise ConfigError(f"missing section ({spec.doc or 'required'})", origin(path), key)
-            default = spec.default
-            if default is ...:
-                raise ConfigError(f"missing key: expected {_type_name(spec.kind)}"
-                                  f"{' (' + spec.doc + ')' if spec.doc else ''}", origin(path), key)
-            out[name] = copy.deepcopy(default)
-            continue
-        value = data[name]
-        if isinstance(spec, Section):
-            out[name] = validate(value, spec, origin, sub)
-        elif isinstance(spec, ListOf):
-            if not isinstance(value, list):
-                raise ConfigError(f"expected a list, got {value!r}", origin(sub), key)
-            if spec.length is not None and len(value) != spec.length:
-                raise ConfigError(f"expected a list of {spec.length} items, got {len(value)}", origin(sub), key)
-            items = []
-            for i, item in enumerate(value):
-                item_path = sub + (str(i),)
-                if isinstance(spec.item, Section):
-                    items.append(validate(item, spec.item, origin, item_path))
-                else:
-                    items.append(_coerce_leaf(item, spec.item, ".".join(item_path), origin(sub)))
-            out[name] = items
-        else:
-            out[name] = _coerce_leaf(value, spec, key, origin(sub))
-    return out
+_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)   # libyaml when present: the same documents, faster
 
 
 def _read_yaml(path: Path) -> dict:
+    """One config file as a mapping: a regular file of at most MAX_CONFIG_BYTES, UTF-8, valid YAML."""
     try:
-        text = path.read_text()
-    except OSError as exc:
-        raise ConfigError(f"cannot read config file: {exc.strerror}", str(path)) from None
+        text = read_text(path, MAX_CONFIG_BYTES)
+    except TextFileError as exc:
+        raise ConfigError(f"cannot use as a config file: {exc}", str(path)) from None
+    return parse_yaml(text, str(path))
+
+
+def parse_yaml(text: str, source: str) -> dict:
+    """A config document's text as a mapping (``{}`` when empty); ConfigError naming ``source`` when
+    it is not valid YAML or not a mapping."""
     try:
-        data = yaml.safe_load(text)
+        data = yaml.load(text, Loader=_LOADER)
     except yaml.YAMLError as exc:
-        raise ConfigError(f"not valid YAML: {exc}", str(path)) from None
+        raise ConfigError(f"not valid YAML: {exc}", source) from None
+    except RecursionError:
+        raise ConfigError("not valid YAML: nested too deeply", source) from None
     if data is None:
         return {}
     if not isinstance(data, dict):
-        raise ConfigError("expected a mapping at the top level", str(path))
+        raise ConfigError("expected a mapping at the top level", source)
+    if _depth(data) > MAX_CONFIG_DEPTH:
+        raise ConfigError(f"nested deeper than {MAX_CONFIG_DEPTH} levels", source)
     return data
+
+
+def _depth(data: object) -> int:
+    """How deeply lists and mappings nest in ``data`` (iteratively: no recursion limit to hit)."""
+    deepest, stack, seen = 0, [(data, 1)], set()
+    while stack:
+        item, level = stack.pop()
+        if isinstance(item, (dict, list)) and id(item) not in seen:   # YAML aliases share objects
+            seen.add(id(item))
+            deepest = max(deepest, level)
+            if level <= MAX_CONFIG_DEPTH:
+                stack.extend((v, level + 1) for v in (item.values() if isinstance(item, dict) else item))
+    return deepest
 
 
 def merge(into: dict, new: dict, origins: dict[KeyPath, str] | None = None, source: str = "",
@@ -195,9 +90,15 @@ def merge(into: dict, new: dict, origins: dict[KeyPath, str] | None = None, sour
                 origins[sub] = source
 
 
-def read_with_includes(path: Path, origins: dict[KeyPath, str], stack: tuple[Path, ...] = ()) -> dict:
-    """Read ``path`` and the files it includes into one mapping, recording where each key came from."""
+def read_with_includes(path: Path, origins: dict[KeyPath, str], stack: tuple[Path, ...] = (),
+                       files: list[Path] | None = None) -> dict:
+    """Read ``path`` and the files it includes into one mapping, recording where each key came from
+    (``files`` collects every file read, to bound their number)."""
     path = path.resolve()
+    files = [] if files is None else files
+    if len(files) >= MAX_CONFIG_FILES:
+        raise ConfigError(f"more than {MAX_CONFIG_FILES} config files through include", str(stack[-1]), "include")
+    files.append(path)
     if path in stack:
         chain = " -> ".join(p.name for p in stack + (path,))
         raise ConfigError(f"include cycle: {chain}", str(stack[-1]), "include")
@@ -212,7 +113,7 @@ def read_with_includes(path: Path, origins: dict[KeyPath, str], stack: tuple[Pat
         inc_path = (path.parent / inc)
         if not inc_path.exists():
             raise ConfigError(f"included file {inc!r} not found (looked in {path.parent})", str(path), "include")
-        merge(merged, read_with_includes(inc_path, origins, stack + (path,)), origins, str(inc_path.resolve()))
+        merge(merged, read_with_includes(inc_path, origins, stack + (path,), files), origins, str(inc_path.resolve()))
     merge(merged, raw, origins, str(path))
     return merged
 
@@ -231,8 +132,6 @@ class Config(dict):
 
 def load_config(path: str | Path, overrides: dict | None = None) -> Config:
     """Load, merge includes, apply ``overrides`` (a nested mapping) and validate a config file."""
-    from ankle_rt.config_schema import SCHEMA
-
     path = Path(path)
     origins: dict[KeyPath, str] = {}
     data = read_with_includes(path, origins)
@@ -246,5 +145,6 @@ def load_config(path: str | Path, overrides: dict | None = None) -> Config:
         return str(path.resolve())
 
     cfg = Config(validate(data, SCHEMA, origin))
+    check_consistency(cfg, origin)
     cfg.source = str(path)
     return cfg

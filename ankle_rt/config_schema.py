@@ -1,59 +1,79 @@
 """The schema every configuration is validated against (see :mod:`ankle_rt.config`).
 
 One section per concern. Physical parameters are required (no defaults); software options have
-stated defaults. Backend transport sections (``serial``, ``canopen``) and effect parameters are
-validated by their owners when they are configured.
+stated defaults. Every number has both bounds: a physically plausible range for quantities (the
+amplifier's ratings for currents, what the 1 kHz loop can stabilise for gains, positive and bounded
+times and masses); ``tests/test_config_safety.py`` walks the schema to keep it that way. Backend
+transport sections (``serial``, ``canopen``) and effect parameters are validated by their owners
+when they are configured. :func:`check_consistency` checks what one key alone cannot (peak >=
+continuous current, configured gains within the run-time gain limits).
 """
 
 from __future__ import annotations
 
-from ankle_rt.config import Field, ListOf, Section, non_negative, positive
-from ankle_rt.control.plugins import check_controller_name
+from typing import Any, Callable, Mapping
+
+from ankle_rt.controller_registry import check_controller_name
 from ankle_rt.references import PROFILE_PARAMS
+from ankle_rt.schema import ConfigError, Field, KeyPath, ListOf, Section, non_negative, positive
+
+# Gains the motor-side loop can stabilise at 250-2000 Hz on the nominal actuator (J = 0.048 kg m^2): beyond
+# these the discrete loop rings or the current saturates at every encoder count (bang-bang).
+MAX_KP = 1000.0     # N m/rad, motor side
+MAX_KD = 20.0       # N m s/rad, motor side
+MAX_STIFFNESS = 500.0   # N m/rad at the ankle (a stiff human ankle is ~300)
+MAX_DAMPING = 20.0      # N m s/rad at the ankle
+ESCON_CONTINUOUS_A = 5.0   # maxon ESCON 50/5 ratings
+ESCON_PEAK_A = 15.0
+ESCON_PEAK_S = 20.0        # s the peak current may flow
+DAY_S = 86400.0
 
 GAINS = Section({
-    "kp": non_negative("N m/rad, motor-side position gain"),
-    "kd": non_negative("N m s/rad, motor-side velocity gain"),
+    "kp": non_negative("N m/rad, motor-side position gain", high=MAX_KP),
+    "kd": non_negative("N m s/rad, motor-side velocity gain", high=MAX_KD),
 })
 
 ACTUATOR = Section({
-    "inertia": positive("kg m^2, J at the gearbox output"),
-    "damping": non_negative("N m s/rad, viscous friction D (counted once)"),
-    "coulomb": non_negative("N m, Coulomb friction kc"),
-    "torque_constant": positive("N m/A at the gearbox output"),
-    "gear_ratio": positive("gearbox reduction"),
-    "encoder_counts_per_rev": Field(int, "counts per revolution at the gearbox output", low=1),
-    "friction_smoothing_velocity": positive("rad/s, Coulomb term = kc tanh(v / this) in simulation"),
+    "inertia": positive("kg m^2, J at the gearbox output", high=10.0),
+    "damping": non_negative("N m s/rad, viscous friction D (counted once)", high=100.0),
+    "coulomb": non_negative("N m, Coulomb friction kc", high=100.0),
+    "torque_constant": positive("N m/A at the gearbox output", high=100.0),
+    "gear_ratio": positive("gearbox reduction", high=10_000.0),
+    "encoder_counts_per_rev": Field(int, "counts per revolution at the gearbox output", low=1, high=2**32),
+    "friction_smoothing_velocity": positive("rad/s, Coulomb term = kc tanh(v / this) in simulation", high=100.0),
 })
 
 TRANSMISSION = Section({
-    "cable_stiffness": positive("N/m, k = EA/L"),
-    "pulley_radius": positive("m, r"),
-    "lever_dp": positive("m, R_DP"),
-    "lever_ie": positive("m, R_IE"),
-    "stiffness_proportional_damping": non_negative("s, beta"),
+    "cable_stiffness": positive("N/m, k = EA/L", high=1e8),
+    "pulley_radius": positive("m, r", high=0.5),
+    "lever_dp": positive("m, R_DP", high=0.5),
+    "lever_ie": positive("m, R_IE", high=0.5),
+    "stiffness_proportional_damping": non_negative("s, beta", high=0.1),
     "form": Field(str, "motor-side cable torque: 'reciprocal' R^-T tau_j, or the paper's eq. 4 k r^2 (theta_m - R theta)",
                   default="reciprocal", choices=("reciprocal", "paper")),
 })
 
 FOOT = Section({
-    "mass": non_negative("kg"),
-    "com_dp": Field(float, "m, centre of mass offset for gravity in DP"),
-    "inertia_dp": positive("kg m^2"),
-    "inertia_ie": positive("kg m^2"),
+    "mass": non_negative("kg", high=20.0),
+    "com_dp": Field(float, "m, centre of mass offset for gravity in DP", low=-0.5, high=0.5),
+    "inertia_dp": positive("kg m^2", high=1.0),
+    "inertia_ie": positive("kg m^2", high=1.0),
 })
 
 AMPLIFIER = Section({
-    "current_limit_continuous": positive("A, ESCON 50/5 continuous limit"),
-    "current_limit_peak": positive("A, ESCON 50/5 peak limit (< 20 s)"),
+    "current_limit_continuous": positive("A, continuous limit (ESCON 50/5: at most 5 A)", high=ESCON_CONTINUOUS_A),
+    "current_limit_peak": positive("A, peak limit for < 20 s (ESCON 50/5: at most 15 A; >= the continuous limit)",
+                                   high=ESCON_PEAK_A),
 })
 
 FRICTION_FF = Section({
     "enabled": Field(bool, "add Coulomb + viscous friction feed-forward to the motor torques", default=False),
-    "coulomb": Field(float, "N m; default: actuator.coulomb (the identified value)", default=None, low=0.0),
-    "viscous": Field(float, "N m s/rad; default: actuator.damping (the identified value)", default=None, low=0.0),
+    "coulomb": Field(float, "N m; default: actuator.coulomb (the identified value)", default=None, low=0.0,
+                     high=100.0),
+    "viscous": Field(float, "N m s/rad; default: actuator.damping (the identified value)", default=None, low=0.0,
+                     high=100.0),
     "velocity_band": positive("rad/s; the Coulomb term fades linearly to zero inside +/- this band (no chatter)",
-                              default=0.05),
+                              default=0.05, high=10.0),
     "model": Field(str, "coulomb_viscous: Coulomb + viscous only; identified: also the Stribeck, asymmetric and "
                         "load-dependent friction effects of model_file", default="coulomb_viscous",
                    choices=("coulomb_viscous", "identified")),
@@ -64,30 +84,42 @@ FRICTION_FF = Section({
 # The joint-torque loop's shipped gains (margins in docs/daemon.md, `ankle-rt bench impedance`).
 KP_DEFAULT, KI_DEFAULT, KD_DP_DEFAULT, KD_IE_DEFAULT = 6.0, 10.0, 0.03, 0.06
 CUTOFF_DEFAULT, MAX_CORRECTION_DEFAULT = 80.0, 20.0
+# Plausible ceilings of the torque loop's gains: far beyond what the loop's margins allow (docs/daemon.md),
+# so a typo or a non-finite value is refused while any tuning a study might try still loads.
+MAX_TORQUE_KP, MAX_TORQUE_KI, MAX_TORQUE_RATE, MAX_CORRECTION = 100.0, 1000.0, 1.0, 100.0
 
 IMPEDANCE = Section({
-    "stiffness_dp": non_negative("N m/rad at the ankle", default=20.0),
-    "stiffness_ie": non_negative("N m/rad at the ankle", default=10.0),
-    "damping_dp": non_negative("N m s/rad at the ankle", default=0.5),
-    "damping_ie": non_negative("N m s/rad at the ankle", default=0.25),
+    "stiffness_dp": non_negative("N m/rad at the ankle", default=20.0, high=MAX_STIFFNESS),
+    "stiffness_ie": non_negative("N m/rad at the ankle", default=10.0, high=MAX_STIFFNESS),
+    "damping_dp": non_negative("N m s/rad at the ankle", default=0.5, high=MAX_DAMPING),
+    "damping_ie": non_negative("N m s/rad at the ankle", default=0.25, high=MAX_DAMPING),
     "torque_feedback": Field(str, "joint-torque loop on the strain gauges (controller.torque_loop): auto = on when "
                                   "strain gauges are configured (simulator, or strain_gauges.matrix); off = open loop",
                              default="auto", choices=("auto", "on", "off")),
 }, optional=True)
 
+GAIN_LIMITS = Section({
+    "kp": non_negative("N m/rad; largest motor-side kp a set_gains command may ask for", default=500.0, high=MAX_KP),
+    "kd": non_negative("N m s/rad; largest motor-side kd a set_gains command may ask for", default=10.0, high=MAX_KD),
+    "stiffness": non_negative("N m/rad; largest ankle stiffness (DP and IE) a command may ask for", default=200.0,
+                              high=MAX_STIFFNESS),
+    "damping": non_negative("N m s/rad; largest ankle damping (DP and IE) a command may ask for", default=5.0,
+                            high=MAX_DAMPING),
+}, optional=True, doc="run-time gain maxima (the configured gains must lie within them too)")
+
 TORQUE_LOOP = Section({
-    "kp_dp": non_negative("N m per N m of joint-torque error, DP", default=KP_DEFAULT),
-    "kp_ie": non_negative("N m per N m of joint-torque error, IE", default=KP_DEFAULT),
-    "ki_dp": non_negative("1/s, integral gain on the DP torque error", default=KI_DEFAULT),
-    "ki_ie": non_negative("1/s, integral gain on the IE torque error", default=KI_DEFAULT),
+    "kp_dp": non_negative("N m per N m of joint-torque error, DP", default=KP_DEFAULT, high=MAX_TORQUE_KP),
+    "kp_ie": non_negative("N m per N m of joint-torque error, IE", default=KP_DEFAULT, high=MAX_TORQUE_KP),
+    "ki_dp": non_negative("1/s, integral gain on the DP torque error", default=KI_DEFAULT, high=MAX_TORQUE_KI),
+    "ki_ie": non_negative("1/s, integral gain on the IE torque error", default=KI_DEFAULT, high=MAX_TORQUE_KI),
     "torque_rate_dp": non_negative("s, gain on the rate of the measured DP torque (damps the motor-on-cable mode)",
-                                   default=KD_DP_DEFAULT),
-    "torque_rate_ie": non_negative("s, gain on the rate of the measured IE torque", default=KD_IE_DEFAULT),
+                                   default=KD_DP_DEFAULT, high=MAX_TORQUE_RATE),
+    "torque_rate_ie": non_negative("s, gain on the rate of the measured IE torque", default=KD_IE_DEFAULT, high=MAX_TORQUE_RATE),
     "cutoff_hz": Field(float, "Hz, first-order low-pass of the measured joint torque (below the 77-98 Hz cable modes)",
                        default=CUTOFF_DEFAULT, low=1.0, high=400.0),
     "max_correction_dp": positive("N m at the ankle the DP feedback may add (anti-windup; bounds a wrong reading)",
-                                  default=MAX_CORRECTION_DEFAULT),
-    "max_correction_ie": positive("N m at the ankle the IE feedback may add", default=MAX_CORRECTION_DEFAULT),
+                                  default=MAX_CORRECTION_DEFAULT, high=MAX_CORRECTION),
+    "max_correction_ie": positive("N m at the ankle the IE feedback may add", default=MAX_CORRECTION_DEFAULT, high=MAX_CORRECTION),
 }, optional=True, doc="joint-torque feedback of the impedance controller (docs/daemon.md)")
 
 CONTROLLER = Section({
@@ -102,8 +134,11 @@ CONTROLLER = Section({
     "impedance": IMPEDANCE,
     "friction_ff": FRICTION_FF,
     "torque_loop": TORQUE_LOOP,
-    "gain_ramp_s": non_negative("s; run-time gain changes ramp linearly over this time (bumpless)", default=0.2),
-    "soft_start_s": non_negative("s; the controller output ramps in over this time after activation", default=0.2),
+    "gain_limits": GAIN_LIMITS,
+    "gain_ramp_s": Field(float, "s; run-time gain changes ramp linearly over this time (bumpless; also the rate "
+                                "limit of gain changes, so it cannot be 0)", default=0.2, low=0.01, high=10.0),
+    "soft_start_s": non_negative("s; the controller output ramps in over this time after activation", default=0.2,
+                                 high=10.0),
 })
 
 ESTIMATION = Section({
@@ -117,24 +152,30 @@ REFERENCE = Section({
     "profile": Field(str, "the ankle reference run from start-up", default="step",
                      choices=tuple(PROFILE_PARAMS)),
     **PROFILE_PARAMS,
-    "ramp_s": non_negative("s; default ramp of a set_reference command", default=1.0),
+    "ramp_s": non_negative("s; default ramp of a set_reference command", default=1.0, high=60.0),
+    "max_rate_rad_s": positive("rad/s; a commanded reference (set_reference, start_profile) moves at most this fast "
+                               "(2 rad/s: what the nominal ankle follows at 15 A without the motor-speed fault)",
+                               default=2.0, high=20.0),
 }, optional=True)
 
 REALTIME = Section({
     "priority": Field(int, "SCHED_FIFO priority of the loop thread; 0 = normal scheduling", default=0,
                       low=0, high=99),
-    "cpus": ListOf(Field(int), "CPU affinity of the daemon (empty: any CPU)", default=[]),
+    "cpus": ListOf(Field(int, low=0, high=4095), "CPU affinity of the daemon (empty: any CPU)", default=[]),
     "lock_memory": Field(bool, "mlockall(MCL_CURRENT | MCL_FUTURE) so the loop never page-faults", default=False),
     "timer_slack_ns": Field(int, "prctl(PR_SET_TIMERSLACK) for the loop thread; 0 = leave the default",
-                            default=1, low=0),
+                            default=1, low=0, high=10_000_000),
     "spin_us": Field(int, "sleep until this long before a deadline, then spin (real clock)", default=200,
                      low=0, high=2000),
 }, optional=True)
 
 LOOP = Section({
-    "duration_s": non_negative("s the run lasts; 0 = until stopped (SIGINT/SIGTERM/stop)", default=0.0),
+    "duration_s": non_negative("s the run lasts; 0 = until stopped (SIGINT/SIGTERM/stop)", default=0.0,
+                               high=365 * DAY_S),
     "max_consecutive_overruns": Field(int, "fault (MISSED_DEADLINES) after this many overruns in a row",
-                                      default=5, low=1),
+                                      default=5, low=1, high=1_000_000),
+    "max_stall_s": Field(float, "s; fault (MISSED_DEADLINES) when one stall of the loop misses deadlines for "
+                                "longer than this", default=0.05, low=0.001, high=10.0),
     "realtime": REALTIME,
 }, optional=True)
 
@@ -142,20 +183,21 @@ SAFETY = Section({
     "auto_activate": Field(bool, "activate by itself once the strain gauges are tared (else wait for a command)",
                            default=True),
     "max_motor_speed_rad_s": positive("rad/s at the gearbox output; a larger encoder jump is a fault",
-                                      default=30.0),
-    "max_sg_step_nm": positive("N m; a larger strain-gauge change between two samples is a fault", default=20.0),
-    "sg_rail_nm": positive("N m; a strain-gauge torque this large is a sensor at its rail", default=60.0),
+                                      default=30.0, high=200.0),
+    "max_sg_step_nm": positive("N m; a larger strain-gauge change between two samples is a fault", default=20.0,
+                               high=500.0),
+    "sg_rail_nm": positive("N m; a strain-gauge torque this large is a sensor at its rail", default=60.0, high=500.0),
     "stale_cycles": Field(int, "fault when the sample sequence does not advance for this many cycles",
-                          default=5, low=1),
-    "i2t_peak_duration_s": positive("s the peak current may flow (ESCON 50/5: 20 s); sets the I^2 t budget",
-                                    default=20.0),
+                          default=5, low=1, high=1000),
+    "i2t_peak_duration_s": positive("s the peak current may flow (ESCON 50/5: at most 20 s); sets the I^2 t budget",
+                                    default=20.0, high=ESCON_PEAK_S),
 }, optional=True)
 
 LOGGING = Section({
     "enabled": Field(bool, "write a run log", default=True),
     "directory": Field(str, "where timestamped logs go (relative: to the working directory)", default="logs"),
     "ring_records": Field(int, "records the in-memory ring holds (at 1 kHz, 16384 = 16 s of disk stall)",
-                          default=16384, low=256),
+                          default=16384, low=256, high=1 << 20),
     "flush_interval_s": Field(float, "s between writes of the ring to disk", default=0.05, low=0.005, high=1.0),
 }, optional=True)
 
@@ -164,14 +206,14 @@ LIMITS = Section({
 })
 
 SENSORS = Section({
-    "strain_gauge_noise_rms": non_negative("N m per ankle axis"),
+    "strain_gauge_noise_rms": non_negative("N m per ankle axis", high=10.0),
 })
 
 DISTURBANCE = Section({
-    "start": non_negative("s, from the start of the simulation"),
-    "stop": positive("s"),
-    "torque_dp": Field(float, "N m at the ankle, DP"),
-    "torque_ie": Field(float, "N m at the ankle, IE"),
+    "start": non_negative("s, from the start of the simulation", high=365 * DAY_S),
+    "stop": positive("s", high=365 * DAY_S),
+    "torque_dp": Field(float, "N m at the ankle, DP", low=-200.0, high=200.0),
+    "torque_ie": Field(float, "N m at the ankle, IE", low=-200.0, high=200.0),
 })
 
 EFFECT = Section({
@@ -182,13 +224,13 @@ SIM = Section({
     "friction": Field(bool, "baseline Coulomb friction (actuator.coulomb, tanh-smoothed)", default=True),
     "quantization": Field(bool, "encoder quantisation to 2 pi / counts_per_rev", default=True),
     "sensor_noise": Field(bool, "strain-gauge noise of sensors.strain_gauge_noise_rms", default=True),
-    "seed": Field(int, "noise seed", default=0),
+    "seed": Field(int, "noise seed", default=0, low=0, high=2**63 - 1),
     "substeps": Field(int, "integration substeps per control tick (an effect may raise it to its minimum)",
                       default=2, low=1, high=100),
     "cables": Field(bool, "false: motors off the cables (actuator identification)", default=True),
     "effects": ListOf(EFFECT, "extra effects switched on, each {type: NAME, ...parameters}"),
     "disturbances": ListOf(DISTURBANCE, "ankle disturbance torque pulses"),
-    "strain_gauge_offset": ListOf(Field(float), "N m [DP, IE] added to the strain-gauge readings (tared away by the daemon)",
+    "strain_gauge_offset": ListOf(Field(float, low=-200.0, high=200.0), "N m [DP, IE] added to the strain-gauge readings (tared away by the daemon)",
                                   default=[0.0, 0.0], length=2),
 }, optional=True)
 
@@ -208,7 +250,7 @@ CANOPEN = Section({
                           default=400, low=0, high=5000),
     "rpdo_timeout_ms": Field(int, "the node's RPDO deadline monitoring (0x1400 sub5): no set values for this long "
                                   "-> outputs to their error values, EMCY 0x8250; 0 = off", default=5, low=0, high=1000),
-    "sdo_timeout_s": positive("SDO response timeout during configuration", default=0.5),
+    "sdo_timeout_s": positive("SDO response timeout during configuration", default=0.5, high=10.0),
     "emulator": Field(str, "lockstep: run the device emulator in this process on the virtual bus, stepped by "
                            "the backend's SYNC (bench tests without hardware); none: a real node",
                       default="none", choices=("none", "lockstep")),
@@ -231,7 +273,10 @@ SERVICE = Section({
                          default="0660", check=_octal_mode),
     "poll_period_s": Field(float, "s between command-socket polls from the loop", default=0.01, low=0.001, high=0.1),
     "command_timeout_s": non_negative("s; while active, fault when no valid request arrives for this long "
-                                    "(a lost command channel); 0 = off", default=0.0),
+                                      "(a lost command channel); 0 = off", default=0.0, high=DAY_S),
+    "client_timeout_s": Field(float, "s; a client that sends no complete request for this long is disconnected "
+                                     "(idle or half-line clients cannot hold the slots)", default=10.0, low=0.1,
+                              high=3600.0),
     "watchdog": Field(bool, "feed systemd's watchdog (WATCHDOG=1) from the loop's health when WatchdogSec is set",
                       default=True),
 }, optional=True)
@@ -242,20 +287,20 @@ SERVICE = Section({
 # hardware backend refuses to start without them, naming the key (hardware/config_values.py).
 
 def _number_row(value: list) -> None:
-    if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
-        raise ValueError(f"expected a list of numbers, got {value!r}")
+    if not all(isinstance(v, (int, float)) and not isinstance(v, bool) and abs(v) < 1e6 for v in value):
+        raise ValueError(f"expected a list of finite numbers (|x| < 1e6 N m per count), got {value!r}")
 
 
 ESCON_AMPLIFIER = Section({
     "mode": Field(str, "set-value input as set in ESCON Studio: analog (+/-10 V) or pwm (10-90 % duty)",
                   choices=("analog", "pwm")),
-    "current_at_min": Field(float, "A the amplifier drives at -10 V / 10 % duty (ESCON Studio)"),
-    "current_at_max": Field(float, "A the amplifier drives at +10 V / 90 % duty (ESCON Studio)"),
+    "current_at_min": Field(float, "A the amplifier drives at -10 V / 10 % duty (ESCON Studio)", low=-50.0, high=50.0),
+    "current_at_max": Field(float, "A the amplifier drives at +10 V / 90 % duty (ESCON Studio)", low=-50.0, high=50.0),
     "sign": Field(int, "+1/-1: motor turns the model's positive way for positive amplifier current (wiring)",
                   choices=(-1, 1)),
-    "offset": Field(float, "A driven at the nominal zero set value (measured), compensated"),
+    "offset": Field(float, "A driven at the nominal zero set value (measured), compensated", low=-5.0, high=5.0),
     "scale": positive("measured current / current of the ESCON Studio map (gain error), compensated; "
-                      "1.0: as mapped", default=1.0),
+                      "1.0: as mapped", default=1.0, high=2.0),
     "enable_active_high": Field(bool, "ESCON Studio digital input: Enable, high active", default=True),
     "ready_active_high": Field(bool, "ESCON Studio digital output: Ready, high active", default=True),
 })
@@ -273,22 +318,24 @@ ENCODERS = Section({
     "counter_bits": Field(int, "width of the bridge's quadrature counters (required on hardware)",
                           default=None, choices=(16, 32)),
     "stuck_torque": positive("N m of unbalanced motor torque (kt i - R^-T tau_sg) that must move the motor",
-                             default=2.0),
-    "stuck_time": positive("s without a count while unbalanced: encoder fault", default=0.01),
+                             default=2.0, high=100.0),
+    "stuck_time": positive("s without a count while unbalanced: encoder fault", default=0.01, high=10.0),
 }, optional=True)
 
 JOINT_ENCODERS = Section({
-    "counts_per_rev": Field(int, "absolute joint encoders on a bench; absent: none", default=None, low=1),
+    "counts_per_rev": Field(int, "absolute joint encoders on a bench; absent: none", default=None, low=1, high=2**32),
     "sign": ListOf(Field(int, "+1/-1", choices=(-1, 1)), "[DP, IE]", default=[1, 1], length=2),
 }, optional=True)
 
 STRAIN_GAUGES = Section({
     "matrix": ListOf(Field(list, "N m per count from [channel 1, channel 2]", check=_number_row),
                      "rows DP, IE (required on hardware)", default=None, length=2),
-    "tare": ListOf(Field(float), "N m [DP, IE] subtracted after the matrix; recorded by ankle-rt calibrate",
+    "tare": ListOf(Field(float, low=-200.0, high=200.0), "N m [DP, IE] subtracted after the matrix; recorded by ankle-rt calibrate",
                    default=None, length=2),
-    "rail_low": Field(int, "raw count at or below which a channel is at its rail (broken wire)", default=None),
-    "rail_high": Field(int, "raw count at or above which a channel is at its rail", default=None),
+    "rail_low": Field(int, "raw count at or below which a channel is at its rail (broken wire)", default=None,
+                      low=-2**31, high=2**31),
+    "rail_high": Field(int, "raw count at or above which a channel is at its rail", default=None,
+                       low=-2**31, high=2**31),
     "adc_bits": Field(int, "signed ADC resolution (emulator saturation)", default=24, low=8, high=32),
 }, optional=True)
 
@@ -296,13 +343,14 @@ SERIAL = Section({
     "port": Field(str, "serial device of the bridge (/dev/ttyACM0) or a pyserial URL (socket://host:port)",
                   default=None),
     "baudrate": Field(int, "bit/s on a UART link (ignored by USB CDC); the 1 kHz frames must fit in 70 %",
-                      default=2_000_000, low=9600),
+                      default=2_000_000, low=9600, high=100_000_000),
     "watchdog_s": Field(float, "the bridge zeroes set values and drops enables after this long without a "
                                "valid command (sent in the CONFIG frame)", default=0.005, low=0.001, high=1.0),
     "sample_wait_s": Field(float, "read() waits at most this long for a new sample (< one period)",
                            default=0.0008, low=0.0, high=0.01),
     "link_timeout_s": Field(float, "no new sample for this long: LINK_LOST", default=0.003, low=0.001, high=1.0),
-    "open_timeout_s": positive("wait this long for the bridge to acknowledge its configuration", default=1.0),
+    "open_timeout_s": positive("wait this long for the bridge to acknowledge its configuration", default=1.0,
+                               high=60.0),
     "emulator": Field(str, "lockstep: run the bridge emulator in this process on a pty pair, stepped by each "
                            "command (bench tests; serial.port is then ignored); none: a bridge on serial.port",
                       default="none", choices=("none", "lockstep")),
@@ -332,3 +380,24 @@ SCHEMA = Section({
     "strain_gauges": STRAIN_GAUGES,
     "serial": SERIAL,
 }, open=False)
+
+
+def check_consistency(cfg: Mapping[str, Any], origin: Callable[[KeyPath], str]) -> None:
+    """What one key alone cannot state: the peak current is not below the continuous one, and the
+    configured gains lie within the run-time gain limits (``controller.gain_limits``)."""
+    amp = cfg["amplifier"]
+    if amp["current_limit_peak"] < amp["current_limit_continuous"]:
+        raise ConfigError(f"must be >= amplifier.current_limit_continuous ({amp['current_limit_continuous']:g} A), "
+                          f"got {amp['current_limit_peak']:g}", origin(("amplifier", "current_limit_peak")),
+                          "amplifier.current_limit_peak")
+    ctl = cfg["controller"]
+    limits = ctl["gain_limits"]
+    checks = [((set_name, gain), limits[gain], ctl[set_name][gain])
+              for set_name in ("validation_gains", "step_gains") for gain in ("kp", "kd")]
+    checks += [(("impedance", name), limits[name.split("_")[0]], ctl["impedance"][name])
+               for name in ("stiffness_dp", "stiffness_ie", "damping_dp", "damping_ie")]
+    for (section, name), limit, value in checks:
+        if value > limit:
+            limit_key = f"controller.gain_limits.{name.split('_')[0]}"
+            raise ConfigError(f"must be <= {limit_key} ({limit:g}), got {value:g}",
+                              origin(("controller", section, name)), f"controller.{section}.{name}")

@@ -32,9 +32,12 @@ from ankle_rt.log.reader import interchange_columns
 from ankle_rt.log.writer import LogWriter, log_metadata
 from ankle_rt.loop import FixedRateLoop
 from ankle_rt.params import TransmissionParams
-from ankle_rt.references import Hold, Profile, RampTo, ReferenceGenerator, make_profile, reference_from_config
+from ankle_rt.references import (Hold, Profile, RampTo, ReferenceGenerator, make_profile,
+                                  reference_from_config, validate_profile_params)
 from ankle_rt.safety import Fault, Safety, State
 from ankle_rt.service import protocol as proto
+from ankle_rt.service.loader import BackgroundLoader, Job, pause
+from ankle_rt.service.profile_process import load_csv_profile
 
 if TYPE_CHECKING:
     from ankle_rt.service.link import ServiceLink
@@ -76,9 +79,13 @@ class Daemon:
             self.reference = ReferenceGenerator(Hold(math.nan, math.nan))
             self.controller = controller
         self.safety = Safety(cfg, self.dt)
+        self.max_reference_step = cfg["reference"]["max_rate_rad_s"] * self.dt   # rad per cycle, commanded
+        self.gain_maxima = proto.gain_maxima(cfg["controller"]["gain_limits"])
+        self.loader = BackgroundLoader()
         self.torque = np.zeros(2)
         self.loop = FixedRateLoop(clock, self.period_ns, cfg["loop"]["max_consecutive_overruns"],
-                                  on_overrun_limit=self._missed_deadlines)
+                                  on_overrun_limit=self._missed_deadlines,
+                                  max_stall_ns=round(cfg["loop"]["max_stall_s"] * 1e9))
         self.recorder = recorder
         self.service = service
         self.auto_activate = cfg["safety"]["auto_activate"]
@@ -102,6 +109,9 @@ class Daemon:
             if code == 0 and state == CONFIGURED and self.auto_activate and est.tared and self.activations == 0:
                 self.activate()
                 state = ACTIVE
+            if code == 0 and state == ACTIVE and self.own_controller:
+                ref = self.reference.ref
+                code = safety.check_reference(ref.item(0), ref.item(1))
             if code == 0 and state == ACTIVE:
                 self.controller.update(est, torque)
                 code = safety.limit_currents(torque[0] * self.inv_kt, torque[1] * self.inv_kt)
@@ -193,14 +203,52 @@ class Daemon:
         self.loop.stop()
 
     def set_gains(self, **gains: float) -> None:
+        """Ramp to new gains (over controller.gain_ramp_s: the rate limit). Raises GainError naming a
+        gain that is not finite or beyond controller.gain_limits; nothing changes then."""
         setter = getattr(self.controller, "set_gains", None)
         if setter is None:
             raise ValueError("this controller has no run-time gains")
+        for name, value in gains.items():
+            limit = self.gain_maxima.get(name, math.inf)
+            if not (isinstance(value, (int, float)) and 0.0 <= value <= limit):   # False for NaN
+                raise GainError(name, f"gain {name!r} must be a finite number in [0, {limit:g}] "
+                                      f"(controller.gain_limits), got {value!r}")
         setter(**gains)
 
+    def _command_reference(self, profile: Profile) -> None:
+        """Start a commanded reference; from now on the reference is rate limited."""
+        self.reference.start(profile)
+        self.reference.max_step = self.max_reference_step
+        self.reference_commanded = True
+
+    def _start_csv(self, params: dict) -> proto.Pending:
+        """Load a CSV profile off the loop thread (parsed in a child process, handed over by the
+        background loader); the reply comes when it is loaded and started."""
+        running = self.loader.pending()
+        if running is not None:
+            raise proto.CommandError("params.path", f"busy: still loading {running.what}")
+        checked = validate_profile_params("csv", params)
+        path = checked["path"]
+        job = self.loader.submit(lambda: load_csv_profile(path, pause), path)
+        return proto.Pending(lambda: self._finish_csv(job))
+
+    def _finish_csv(self, job: Job) -> dict | None:
+        """The Pending reply's poll: None while loading, else start the profile (or refuse it)."""
+        if not job.done:
+            return None
+        if isinstance(job.error, InterchangeError):
+            raise proto.CommandError("params.path", str(job.error))
+        if job.error is not None:
+            raise job.error
+        self._check_reach(job.result)
+        self._command_reference(job.result)
+        return {"state": State(self.safety.state).name.lower(), "loaded_rows": len(job.result.t)}
+
     # -- the command interface ---------------------------------------------------------------------
-    def handle(self, command: proto.Command) -> dict:
-        """Execute one parsed command (from the socket, in the loop thread); reply data or CommandError."""
+    def handle(self, command: proto.Command) -> dict | proto.Pending:
+        """Execute one parsed command (from the socket, in the loop thread); reply data or CommandError.
+        A CSV profile is read by the background loader: the reply is then a Pending one (never a file
+        read in the loop thread)."""
         try:
             if isinstance(command, proto.Status):
                 return self.status()
@@ -214,15 +262,19 @@ class Daemon:
                 self.request_stop()
             elif isinstance(command, proto.SetReference):
                 ramp = self.cfg["reference"]["ramp_s"] if command.ramp is None else command.ramp
-                self.reference.start(RampTo(command.dp, command.ie, ramp))
-                self.reference_commanded = True
+                limit = self.safety.ankle_limit
+                if not (abs(command.dp) <= limit and abs(command.ie) <= limit):
+                    raise proto.CommandError("dp" if not abs(command.dp) <= limit else "ie",
+                                             f"outside the ankle range +/-{limit:.4g} rad")
+                self._command_reference(RampTo(command.dp, command.ie, ramp))
             elif isinstance(command, proto.SetGains):
                 self.set_gains(**command.given())
+            elif isinstance(command, proto.StartProfile) and command.name == "csv":
+                return self._start_csv(dict(command.params))
             elif isinstance(command, proto.StartProfile):
                 profile = make_profile(command.name, command.params)
                 self._check_reach(profile)
-                self.reference.start(profile)
-                self.reference_commanded = True
+                self._command_reference(profile)
             else:
                 raise proto.CommandError("cmd", f"not supported: {type(command).__name__}")
         except proto.CommandError:   # already names its field (a ValueError: keep it from the catch-all below)
@@ -296,6 +348,7 @@ class Daemon:
             self.recorder.close()
         if self.service is not None:
             self.service.close()
+        self.loader.close()
 
     def open_log(self, path: str | Path) -> None:
         """Record every cycle into a run log file at ``path`` (``logging.ring_records`` and

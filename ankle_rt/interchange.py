@@ -1,9 +1,11 @@
 """The measured-data interchange format (docs/design.md): one CSV row per control cycle, SI units.
 
-Reading checks the file the way a person would want it checked: a missing required column, a
-non-numeric cell or time that does not increase is an :class:`InterchangeError` naming the column
-and the row (1-based data row, the header being row 0... reported as the file's line number too).
-Unknown columns are ignored.
+Reading checks the file the way a person would want it checked: a file that is not UTF-8 text (a
+leading byte-order mark is fine), a missing required column, a row with more or fewer cells than the
+header, a non-numeric, non-finite or implausibly large cell, or time that does not increase is an
+:class:`InterchangeError` naming the column and the row (1-based data row, the header being row 0;
+reported as the file's line number too). Unknown columns are ignored. Whether the sampling and the
+units fit a configuration is :mod:`ankle_rt.sampling`'s check.
 """
 
 from __future__ import annotations
@@ -15,6 +17,8 @@ from pathlib import Path
 from typing import Callable, Iterable, Mapping
 
 import numpy as np
+
+from ankle_rt.textfile import TextFileError, iter_lines
 
 KNOWN_COLUMNS = (
     "t", "motor_pos_1", "motor_pos_2", "current_cmd_1", "current_cmd_2",
@@ -93,21 +97,37 @@ def _required_columns(header: list[str], path: str | Path) -> None:
                                "current_cmd_1", 0)
 
 
-def read_table(path: str | Path, columns: Iterable[str], check_header: Callable[[list[str]], None],
-               min_rows: int = 2) -> dict[str, np.ndarray]:
-    """Read the named ``columns`` of a CSV with a header row as float arrays, checking every cell.
+MAX_CSV_BYTES = 256 << 20
+"""Largest interchange file read (256 MiB: about 2.5 hours at 1 kHz with every column)."""
+
+# Largest magnitude a value of each column can plausibly have (SI units); beyond it the file is not in
+# the units this format states (or is damaged), and numerical tools would fail on it further down.
+PLAUSIBLE_ABS: dict[str, tuple[float, str]] = {
+    "t": (1e7, "s"),                                                   # 115 days
+    "motor_pos_1": (1e4, "rad"), "motor_pos_2": (1e4, "rad"),          # at the gearbox output
+    "current_cmd_1": (100.0, "A"), "current_cmd_2": (100.0, "A"),
+    "motor_torque_1": (1e3, "N m"), "motor_torque_2": (1e3, "N m"),
+    "sg_torque_dp": (1e3, "N m"), "sg_torque_ie": (1e3, "N m"),
+    "ankle_dp": (2 * math.pi, "rad"), "ankle_ie": (2 * math.pi, "rad"),
+    "ref_dp": (2 * math.pi, "rad"), "ref_ie": (2 * math.pi, "rad"),
+}
+_UNIT_HINTS = {"s": "time in ms rather than s?", "rad": "degrees or counts rather than rad?",
+               "A": "mA rather than A?", "N m": "N mm rather than N m?"}
+
+
+def read_columns(path: str | Path, columns: Iterable[str], check_header: Callable[[list[str]], None],
+                 min_rows: int = 2, *, limit_bytes: int = MAX_CSV_BYTES,
+                 plausible: Mapping[str, tuple[float, str]] = PLAUSIBLE_ABS) -> dict[str, list[float]]:
+    """Read the named ``columns`` of a CSV with a header row as lists of floats, checking every cell.
 
     ``check_header(header)`` raises for missing required columns; names in ``columns`` that the
-    header lacks are skipped. Raises :class:`InterchangeError` naming column and row for an unreadable
-    file, a non-numeric or non-finite cell, a short row, a file shorter than ``min_rows`` data rows,
-    or a ``t`` column that does not increase."""
-    path = Path(path)
+    header lacks are skipped. Raises :class:`InterchangeError` naming column and row for a file that
+    is not a regular UTF-8 text file of at most ``limit_bytes``, a non-numeric or non-finite cell, a
+    value beyond the column's ``plausible`` magnitude, a row with fewer or more cells than the
+    header, a file shorter than ``min_rows`` data rows, or a ``t`` column that does not increase.
+    The file is streamed (:func:`ankle_rt.textfile.iter_lines`), never read whole into memory."""
     try:
-        handle = path.open(newline="")
-    except OSError as exc:
-        raise InterchangeError(f"cannot read: {exc.strerror}", path) from None
-    with handle:
-        reader = csv.reader(handle)
+        reader = csv.reader(iter_lines(path, limit_bytes))
         try:
             header = [h.strip() for h in next(reader)]
         except StopIteration:
@@ -117,32 +137,44 @@ def read_table(path: str | Path, columns: Iterable[str], check_header: Callable[
         dupes = {h for h in header if header.count(h) > 1 and h in wanted}
         if dupes:
             raise InterchangeError("column appears more than once", path, sorted(dupes)[0], 0)
-        keep = [(i, h) for i, h in enumerate(header) if h in wanted]
-        data: dict[str, list[float]] = {h: [] for _, h in keep}
+        keep = [(i, h, *plausible.get(h, (math.inf, ""))) for i, h in enumerate(header) if h in wanted]
+        data: dict[str, list[float]] = {h: [] for _, h, _, _ in keep}
+        times = data.get("t")
+        width = len(header)
         for row_no, row in enumerate(reader, start=1):
             if not row or all(not c.strip() for c in row):
                 continue
-            if len(row) < len(header):
-                raise InterchangeError(f"row has {len(row)} cells, header has {len(header)}", path,
-                                       header[len(row)], row_no)
-            for i, name in keep:
+            if len(row) != width:
+                column = header[len(row)] if len(row) < width else f"#{width + 1} (no header)"
+                raise InterchangeError(f"row has {len(row)} cells, header has {width}", path, column, row_no)
+            for i, name, bound, unit in keep:
                 cell = row[i].strip()
                 try:
                     value = float(cell)
                 except ValueError:
-                    raise InterchangeError(f"not a number: {cell!r}", path, name, row_no) from None
+                    raise InterchangeError(f"not a number: {cell[:40]!r}", path, name, row_no) from None
                 if not math.isfinite(value):
-                    raise InterchangeError(f"not a finite number: {cell!r}", path, name, row_no)
+                    raise InterchangeError(f"not a finite number: {cell[:40]!r}", path, name, row_no)
+                if not -bound <= value <= bound:
+                    raise InterchangeError(f"implausible value {value:.6g}: beyond +/-{bound:g} {unit} "
+                                           f"({_UNIT_HINTS[unit]} or a damaged file)", path, name, row_no)
                 data[name].append(value)
-    table = {k: np.asarray(v, dtype=float) for k, v in data.items()}
-    n = len(next(iter(table.values()))) if table else 0
+            if times is not None and len(times) > 1 and times[-1] <= times[-2]:
+                raise InterchangeError("time does not increase", path, "t", row_no)
+    except TextFileError as exc:
+        raise InterchangeError(str(exc), path) from None
+    except csv.Error as exc:
+        raise InterchangeError(f"not a CSV file ({exc})", path) from None
+    n = len(next(iter(data.values()))) if data else 0
     if n < min_rows:
         raise InterchangeError(f"too short: {n} data rows, need at least {min_rows}", path, "t", n)
-    if "t" in table:
-        bad = np.flatnonzero(np.diff(table["t"]) <= 0)
-        if bad.size:
-            raise InterchangeError("time does not increase", path, "t", int(bad[0]) + 2)
-    return table
+    return data
+
+
+def read_table(path: str | Path, columns: Iterable[str], check_header: Callable[[list[str]], None],
+               min_rows: int = 2) -> dict[str, np.ndarray]:
+    """:func:`read_columns` as float arrays."""
+    return {k: np.asarray(v, dtype=float) for k, v in read_columns(path, columns, check_header, min_rows).items()}
 
 
 def read_csv(path: str | Path, min_rows: int = 2) -> Recording:

@@ -8,9 +8,11 @@ Overrun policy. A cycle *overruns* when it ends after the next deadline. Every o
 The missed deadlines are skipped, not caught up: the next cycle starts at the first grid point after
 the overrun ended (a burst of back-to-back cycles would only make the control worse, and the
 backend's sample time tells the estimator how much time passed). After
-``max_consecutive_overruns`` overruns in a row the loop reports it (``on_overrun_limit``; the daemon
-trips the MISSED_DEADLINES fault) and carries on in the safe state, so the log keeps recording.
-A single long stall (a VM hiccup) is one overrun however many deadlines it covers.
+``max_consecutive_overruns`` overruns in a row, or one stall longer than ``max_stall_ns``, the loop
+reports it (``on_overrun_limit``; the daemon trips the MISSED_DEADLINES fault) and carries on in the
+safe state, so the log keeps recording. A short stall (a VM hiccup of a few periods) is one overrun
+however many deadlines it covers; a loop that stood still for a second with the motors on must not
+just carry on from a stale state.
 """
 
 from __future__ import annotations
@@ -23,8 +25,9 @@ from ankle_rt.loop_stats import LoopStats
 
 class FixedRateLoop:
     def __init__(self, clock: Clock, period_ns: int, max_consecutive_overruns: int,
-                 on_overrun_limit: Callable[[], None] | None = None):
+                 on_overrun_limit: Callable[[], None] | None = None, max_stall_ns: int | None = None):
         self.clock = clock
+        self.max_stall_ns = max_stall_ns
         self.period_ns = period_ns
         self.max_consecutive = max_consecutive_overruns
         self.on_overrun_limit = on_overrun_limit
@@ -65,7 +68,8 @@ class FixedRateLoop:
                 stats.skipped += steps - 1
                 deadline += steps * period
                 self.consecutive_overruns += 1
-                if self.consecutive_overruns == self.max_consecutive and self.on_overrun_limit is not None:
+                stalled = self.max_stall_ns is not None and (steps - 1) * period > self.max_stall_ns
+                if (self.consecutive_overruns == self.max_consecutive or stalled) and self.on_overrun_limit is not None:
                     self.on_overrun_limit()
             else:
                 deadline += period

@@ -14,12 +14,12 @@ from __future__ import annotations
 import bisect
 import math
 from pathlib import Path
-from typing import Any, Callable, Mapping
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
-from ankle_rt.config import ConfigError, Field, Section, non_negative, positive, validate
-from ankle_rt.interchange import InterchangeError, read_table
+from ankle_rt.schema import ConfigError, Field, Section, non_negative, positive, validate
+from ankle_rt.interchange import InterchangeError, read_columns
 
 DEG = math.pi / 180.0
 
@@ -189,7 +189,11 @@ class Gait(Profile):
 
 class CsvProfile(Profile):
     """Absolute references from a CSV with columns ``t`` (s), ``ref_dp``, ``ref_ie`` (rad), linearly
-    interpolated and held at the last row. Bad files raise InterchangeError naming column and row."""
+    interpolated and held at the last row. Bad files raise InterchangeError naming column and row.
+
+    Loading reads a regular file of at most :data:`MAX_PROFILE_BYTES` and computes everything the
+    loop needs (tables as plain lists, the reach) up front: the daemon has it parsed in a child
+    process and hands it to the loop ready (never a file read in the loop thread)."""
 
     relative = False
 
@@ -201,8 +205,19 @@ class CsvProfile(Profile):
                 if name not in header:
                     raise InterchangeError("required column missing", path, name, 0)
 
-        data = {k: v.tolist() for k, v in read_table(path, self.COLUMNS, require, min_rows=1).items()}
+        data = read_columns(path, self.COLUMNS, require, min_rows=1, limit_bytes=MAX_PROFILE_BYTES)
         self.t, self.dp, self.ie = data["t"], data["ref_dp"], data["ref_ie"]
+        self._bounds = ((min(self.dp), max(self.dp)), (min(self.ie), max(self.ie)))
+
+    @classmethod
+    def from_columns(cls, t: Sequence[float], dp: Sequence[float], ie: Sequence[float],
+                     bounds: tuple[tuple[float, float], tuple[float, float]]) -> "CsvProfile":
+        """A profile from columns already read and checked (by a child process:
+        :mod:`ankle_rt.service.profile_process`), as lists or ``array('d')``; ``bounds`` as
+        :meth:`bounds` returns them."""
+        profile = cls.__new__(cls)
+        profile.t, profile.dp, profile.ie, profile._bounds = t, dp, ie, bounds
+        return profile
 
     def value(self, tau: float) -> tuple[float, float]:
         t = self.t
@@ -216,7 +231,11 @@ class CsvProfile(Profile):
                 self.ie[i - 1] + f * (self.ie[i] - self.ie[i - 1]))
 
     def bounds(self) -> tuple[tuple[float, float], tuple[float, float]]:
-        return (min(self.dp), max(self.dp)), (min(self.ie), max(self.ie))
+        return self._bounds
+
+
+MAX_PROFILE_BYTES = 64 << 20
+"""Largest reference CSV accepted (64 MiB, about 2 hours of 1 kHz references)."""
 
 
 PROFILES: dict[str, Callable[..., Profile]] = {
@@ -224,6 +243,7 @@ PROFILES: dict[str, Callable[..., Profile]] = {
 }
 
 _ANGLE = 0.7   # rad (40 deg): the largest amplitude a profile accepts; the safety limit still applies
+_LONGEST_S = 86400.0   # s: the latest start and longest duration a profile accepts
 
 
 def _angle(doc: str, default: float = ...) -> Field:  # type: ignore[assignment]
@@ -236,37 +256,44 @@ PROFILE_PARAMS: dict[str, Section] = {
     "hold": Section({"dp": _angle("rad DP", 0.0), "ie": _angle("rad IE", 0.0)}, optional=True),
     "step": Section({
         "dp": _angle("rad, DP step size", 10 * DEG), "ie": _angle("rad, IE step size", 5 * DEG),
-        "start_s": non_negative("s after the profile starts", default=0.5),
+        "start_s": non_negative("s after the profile starts", default=0.5, high=_LONGEST_S),
     }, optional=True),
     "sine": Section({
         "amplitude_dp": _angle("rad", 5 * DEG), "amplitude_ie": _angle("rad", 0.0),
         "frequency_hz": Field(float, "Hz", default=1.0, low=0.0, low_open=True, high=50.0),
-        "start_s": non_negative("s", default=0.0), "ie_phase": Field(float, "rad, IE lag behind DP", default=0.0),
+        "start_s": non_negative("s", default=0.0, high=_LONGEST_S),
+        "ie_phase": Field(float, "rad, IE lag behind DP", default=0.0, low=-2 * math.pi, high=2 * math.pi),
     }, optional=True),
     "chirp": Section({
         "amplitude_dp": _angle("rad", 2 * DEG), "amplitude_ie": _angle("rad", 0.0),
         "f0_hz": Field(float, "Hz at the start", default=0.1, low=0.0, high=100.0),
         "f1_hz": Field(float, "Hz at the end", default=10.0, low=0.0, high=100.0),
-        "duration_s": positive("s", default=10.0), "start_s": non_negative("s", default=0.0),
+        "duration_s": positive("s", default=10.0, high=_LONGEST_S), "start_s": non_negative("s", default=0.0, high=_LONGEST_S),
     }, optional=True),
     "gait": Section({
         "stride_s": Field(float, "s per stride", default=1.1, low=0.3, high=10.0),
         "scale": Field(float, "scale of the DP/IE angles of the stride", default=1.0, low=0.0, high=2.0),
-        "start_s": non_negative("s", default=0.0),
+        "start_s": non_negative("s", default=0.0, high=_LONGEST_S),
     }, optional=True),
     "csv": Section({"path": Field(str, "CSV with columns t (s), ref_dp, ref_ie (rad)", default="")}, optional=True),
 }
 
 
-def make_profile(name: str, params: Mapping[str, Any], source: str = "command") -> Profile:
-    """Build profile ``name`` from SI parameters (missing ones take their defaults). Bad names or
-    values raise ConfigError naming the key (``params.<key>``)."""
+def validate_profile_params(name: str, params: Mapping[str, Any], source: str = "command") -> dict[str, Any]:
+    """The checked parameters of profile ``name`` (defaults filled in). Bad names or values raise
+    ConfigError naming the key (``params.<key>``)."""
     if name not in PROFILES:
         raise ConfigError(f"unknown profile {name!r} (expected one of: {', '.join(PROFILES)})", source, "name")
     checked = validate(dict(params), PROFILE_PARAMS[name], lambda _p: source, ("params",))
     if name == "csv" and not checked["path"]:
         raise ConfigError("a CSV file is needed", source, "params.path")
-    return PROFILES[name](**checked)
+    return checked
+
+
+def make_profile(name: str, params: Mapping[str, Any], source: str = "command") -> Profile:
+    """Build profile ``name`` from SI parameters (see :func:`validate_profile_params`). A CSV profile
+    reads its file here: the daemon does that in its background loader, never in the loop thread."""
+    return PROFILES[name](**validate_profile_params(name, params, source))
 
 
 class ReferenceGenerator:
@@ -278,6 +305,9 @@ class ReferenceGenerator:
         self.profile = profile
         self.t0 = t0
         self.pending: Profile | None = None
+        self.max_step = math.inf
+        """rad per update the reference may move (inf: unlimited); the daemon sets it for commanded
+        references, so no command can make the reference jump."""
         profile.begin(self.base)
 
     def start(self, profile: Profile) -> None:
@@ -296,8 +326,13 @@ class ReferenceGenerator:
         if p.relative:
             dp += self.base[0]
             ie += self.base[1]
-        self.ref[0] = dp
-        self.ref[1] = ie
+        step, ref = self.max_step, self.ref
+        if step != math.inf:         # rate limit (a NaN passes through: the safety layer faults on it)
+            r0, r1 = ref.item(0), ref.item(1)
+            dp = r0 + step if dp > r0 + step else (r0 - step if dp < r0 - step else dp)
+            ie = r1 + step if ie > r1 + step else (r1 - step if ie < r1 - step else ie)
+        ref[0] = dp
+        ref[1] = ie
 
 
 def reference_from_config(cfg: Mapping[str, Any]) -> ReferenceGenerator:

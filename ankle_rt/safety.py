@@ -13,6 +13,11 @@ latches (amplifiers off) until an explicit reset, which leads to SAFE: amplifier
 pending, ready to be activated again. Sensors are checked in every state but FAULT, so a broken
 sensor also blocks a later activation. Faults are small integer codes (:class:`Fault`), so the hot
 path records a reason without formatting a string.
+
+No value can switch a check off: :class:`Safety` checks its own limits when it is configured (a
+NaN limit compares false against everything, so a NaN peak current would disable the clamp) and
+refuses non-finite or out-of-range ones with a ConfigError naming the key. In the cycle a non-finite
+reference or controller output is a fault before anything reaches the amplifiers.
 """
 
 from __future__ import annotations
@@ -22,7 +27,9 @@ import math
 from typing import Any, Mapping
 
 from ankle_rt.backend import BackendFault, SensorFrame
+from ankle_rt.config_schema import ESCON_CONTINUOUS_A, ESCON_PEAK_A, ESCON_PEAK_S
 from ankle_rt.estimation import Estimate
+from ankle_rt.schema import ConfigError
 
 
 class State(enum.IntEnum):
@@ -42,13 +49,14 @@ class Fault(enum.IntEnum):
     SG_RAIL = 6              # strain-gauge torque at its rail (safety.sg_rail_nm) or reported so
     SENSOR_INVALID = 7       # a sensor value is NaN/inf
     AMP_NOT_READY = 8        # an ESCON ready output is low while active
-    MISSED_DEADLINES = 9     # loop.max_consecutive_overruns overruns in a row
+    MISSED_DEADLINES = 9     # loop.max_consecutive_overruns overruns in a row, or one stall > loop.max_stall_s
     COMMAND_LOST = 10        # no command on the socket for service.command_timeout_s while active
     LINK_LOST = 11           # backend: no sample within its detection time
     BUS_OFF = 12             # backend: CAN bus-off
     DEVICE_FAULT = 13        # backend: the bridge / I/O module reported a fault
     ENCODER_FAULT = 14       # backend: encoder stuck or implausible
     OUTPUT_INVALID = 15      # the controller produced a NaN/inf torque
+    REFERENCE_INVALID = 16   # the ankle reference is NaN/inf
 
     @property
     def description(self) -> str:
@@ -72,6 +80,7 @@ _DESCRIPTIONS = {
     Fault.DEVICE_FAULT: "device reported a fault",
     Fault.ENCODER_FAULT: "encoder fault reported by the backend",
     Fault.OUTPUT_INVALID: "controller output not finite",
+    Fault.REFERENCE_INVALID: "ankle reference not finite",
 }
 
 # BackendFault bits that stop the device, in priority order. CRC errors and sequence gaps are
@@ -94,6 +103,19 @@ _ACTIVE = int(State.ACTIVE)
 _AMP_NOT_READY, _SENSOR_INVALID, _SG_RAIL = int(Fault.AMP_NOT_READY), int(Fault.SENSOR_INVALID), int(Fault.SG_RAIL)
 _SENSOR_STALE, _MOTOR_JUMP, _SG_JUMP = int(Fault.SENSOR_STALE), int(Fault.MOTOR_JUMP), int(Fault.SG_JUMP)
 _ANKLE_RANGE, _OVERCURRENT, _OUTPUT_INVALID = int(Fault.ANKLE_RANGE), int(Fault.OVERCURRENT), int(Fault.OUTPUT_INVALID)
+_REFERENCE_INVALID = int(Fault.REFERENCE_INVALID)
+
+
+def _limit(value: Any, key: str, low: float, high: float, low_open: bool = True) -> float:
+    """``value`` as a float if finite and within (low, high] ([low, high] when not ``low_open``);
+    else ConfigError naming ``key``: a limit the safety layer relies on must be a real number."""
+    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+    if ok:
+        ok = (value > low if low_open else value >= low) and value <= high
+    if not ok:
+        bound = f"{'(' if low_open else '['}{low:g}, {high:g}]"
+        raise ConfigError(f"the safety layer refuses {value!r}: expected a finite number in {bound}", "safety", key)
+    return float(value)
 
 
 class Safety:
@@ -102,18 +124,21 @@ class Safety:
     def __init__(self, cfg: Mapping[str, Any], dt: float):
         s = cfg["safety"]
         amp = cfg["amplifier"]
-        self.dt = dt
-        self.ankle_limit = math.radians(cfg["limits"]["ankle_range_deg"])
+        self.dt = _limit(dt, "dt", 0.0, 1.0)
+        self.ankle_limit = math.radians(_limit(cfg["limits"]["ankle_range_deg"], "limits.ankle_range_deg", 0.0, 90.0))
         # With the motors detached from the cables (sim.cables: false, the actuator experiments) the
         # ankle angle estimated from the motors means nothing; only joint encoders are checked then.
-        self.check_estimated_ankle = cfg["sim"]["cables"]
-        self.max_motor_speed = s["max_motor_speed_rad_s"]
-        self.max_sg_step = s["max_sg_step_nm"]
-        self.sg_rail = s["sg_rail_nm"]
-        self.stale_cycles = s["stale_cycles"]
-        self.i_peak = amp["current_limit_peak"]
-        self.i_cont2 = amp["current_limit_continuous"] ** 2
-        self.i2t_budget = (self.i_peak ** 2 - self.i_cont2) * s["i2t_peak_duration_s"]  # A^2 s
+        self.check_estimated_ankle = bool(cfg["sim"]["cables"])
+        self.max_motor_speed = _limit(s["max_motor_speed_rad_s"], "safety.max_motor_speed_rad_s", 0.0, 200.0)
+        self.max_sg_step = _limit(s["max_sg_step_nm"], "safety.max_sg_step_nm", 0.0, 500.0)
+        self.sg_rail = _limit(s["sg_rail_nm"], "safety.sg_rail_nm", 0.0, 500.0)
+        self.stale_cycles = int(_limit(s["stale_cycles"], "safety.stale_cycles", 1, 1000, low_open=False))
+        i_cont = _limit(amp["current_limit_continuous"], "amplifier.current_limit_continuous", 0.0, ESCON_CONTINUOUS_A)
+        self.i_peak = _limit(amp["current_limit_peak"], "amplifier.current_limit_peak", i_cont, ESCON_PEAK_A,
+                             low_open=False)
+        self.i_cont2 = i_cont ** 2
+        peak_s = _limit(s["i2t_peak_duration_s"], "safety.i2t_peak_duration_s", 0.0, ESCON_PEAK_S)
+        self.i2t_budget = (self.i_peak ** 2 - self.i_cont2) * peak_s  # A^2 s
         self.state = State.CONFIGURED
         self.fault = Fault.NONE
         self.fault_time = math.nan
@@ -188,6 +213,12 @@ class Safety:
             return _ANKLE_RANGE
         return 0
 
+    def check_reference(self, dp: float, ie: float) -> int:
+        """REFERENCE_INVALID when the ankle reference (rad) is NaN or inf. (Commands that would take it
+        beyond the ankle range are refused before they start; the ankle itself is checked against
+        the range every cycle.)"""
+        return 0 if math.isfinite(dp + ie) else _REFERENCE_INVALID
+
     def limit_currents(self, i1: float, i2: float) -> int:
         """Clamp set values (A) to the peak current into ``self.current`` and update the I^2 t
         estimate; return OVERCURRENT once the peak budget is spent, OUTPUT_INVALID for NaN."""
@@ -207,6 +238,6 @@ class Safety:
         q1 = q[1] + (i2 * i2 - ic2) * dt
         q[0] = q0 if q0 > 0.0 else 0.0
         q[1] = q1 if q1 > 0.0 else 0.0
-        if q0 >= self.i2t_budget or q1 >= self.i2t_budget:
+        if q0 > self.i2t_budget or q1 > self.i2t_budget:
             return _OVERCURRENT
         return 0

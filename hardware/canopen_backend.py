@@ -226,7 +226,7 @@ class CanopenBackend(Backend):
             entry = by_cob.get(cob)
             if entry is not None:
                 i, codec, size, dest = entry
-                if msg.dlc != size:
+                if msg.dlc != size or len(msg.data) != size:     # the DLC field can lie about the payload
                     counts["bad_length"] += 1
                     continue
                 values = codec.unpack_from(msg.data)
@@ -238,12 +238,12 @@ class CanopenBackend(Backend):
                 counts["heartbeats"] += 1
                 self._last_heartbeat_ns = self.clock.now_ns()
                 self._link_lost = False
-                self._node_state = state = msg.data[0] & 0x7F if msg.dlc else STATE_BOOT_UP
+                self._node_state = state = msg.data[0] & 0x7F if len(msg.data) else STATE_BOOT_UP
                 if state == STATE_PRE_OPERATIONAL and not self.active:
                     self._restart_node()        # e.g. after a bus-off: its configuration is intact
             elif cob == self._emcy_cob:
                 counts["emcy"] += 1
-                self._emcy_pending = msg.dlc >= 2 and bool(msg.data[0] or msg.data[1])  # 0000: error reset
+                self._emcy_pending = len(msg.data) >= 2 and bool(msg.data[0] or msg.data[1])  # 0000: error reset
             else:
                 counts["unknown_frames"] += 1
         counts["frames_deferred"] += 1

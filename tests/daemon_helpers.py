@@ -67,3 +67,21 @@ def lockstep_daemon(cfg: Config, *, backend: Backend | None = None, capacity: in
 def run_cycles(daemon: Daemon, n: int) -> None:
     """Run ``n`` more cycles of the daemon's loop on its SimClock."""
     daemon.loop.run(daemon.cycle, n * daemon.period_ns)
+
+
+def reply(result, guard_s: float = 30.0):
+    """A Daemon.handle result as its reply data: a Pending reply (a CSV profile loading in the
+    background thread) is polled until ready (``guard_s`` only stops a hung test)."""
+    import time
+
+    from ankle_rt.service.protocol import Pending
+
+    if not isinstance(result, Pending):
+        return result
+    end = time.monotonic() + guard_s
+    while time.monotonic() < end:
+        data = result.poll()
+        if data is not None:
+            return data
+        time.sleep(0.001)
+    raise AssertionError("the pending reply never became ready")

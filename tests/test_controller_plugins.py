@@ -17,7 +17,7 @@ import pytest
 
 from ankle_rt.config import ConfigError, load_config
 from ankle_rt.control.base import Controller
-from ankle_rt.control.plugins import BUILTIN_CONTROLLERS, ENTRY_POINT_GROUP, available_controllers
+from ankle_rt.controller_registry import BUILTIN_CONTROLLERS, ENTRY_POINT_GROUP, available_controllers
 from ankle_rt.daemon import run_lockstep
 from ankle_rt.safety import Fault, State
 
@@ -73,7 +73,7 @@ def plugin_config(tmp_path: Path, body: str) -> Path:
 def test_builtins_are_registered_by_name_and_plugins_are_found(plugins):
     import ankle_rt.control.impedance  # noqa: F401  (a submodule must not shadow its factory's name)
     import ankle_rt.control.pd  # noqa: F401
-    from ankle_rt.control.plugins import load_controller_factory
+    from ankle_rt.controller_registry import load_controller_factory
 
     for name in BUILTIN_CONTROLLERS:
         assert callable(load_controller_factory(name))

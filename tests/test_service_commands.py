@@ -12,6 +12,7 @@ from ankle_rt.clock import SimClock
 from ankle_rt.daemon import Daemon
 from ankle_rt.references import make_profile
 from ankle_rt.service.protocol import CommandError, SetReference, StartProfile
+from tests.daemon_helpers import reply
 
 
 @pytest.fixture
@@ -53,7 +54,7 @@ def test_csv_profile_bounds(tmp_path):
 def test_profiles_beyond_the_ankle_range_are_refused_before_they_start(daemon, tmp_path):
     daemon.run(0.02)
     daemon.handle(SetReference(math.radians(30.0), 0.0, 0.0))
-    daemon.run(0.02)
+    daemon.run(0.3)                        # ramp 0, but rate limited (reference.max_rate_rad_s, 2 rad/s)
     assert reference_deg(daemon) == [30.0, 0.0]
 
     refused = [
@@ -70,13 +71,13 @@ def test_profiles_beyond_the_ankle_range_are_refused_before_they_start(daemon, t
     csv = tmp_path / "refs.csv"
     csv.write_text("t,ref_dp,ref_ie\n0,0,0\n1,0,0.75\n")
     with pytest.raises(CommandError, match="would take IE to 43.0 deg, beyond"):
-        daemon.handle(StartProfile("csv", {"path": str(csv)}))   # absolute: 0.75 rad
+        reply(daemon.handle(StartProfile("csv", {"path": str(csv)})))   # absolute: 0.75 rad
     daemon.run(0.02)
     assert reference_deg(daemon) == [30.0, 0.0]  # nothing started
 
     step_down = {"dp": math.radians(-25.0), "ie": math.radians(-39.0), "start_s": 0.0}  # to (5, -39) deg
     assert daemon.handle(StartProfile("step", step_down))["state"] == "configured"
-    daemon.run(0.02)
+    daemon.run(0.4)                        # 0.68 rad at reference.max_rate_rad_s (2 rad/s)
     assert reference_deg(daemon) == pytest.approx([5.0, -39.0])
 
 

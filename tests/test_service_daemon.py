@@ -57,9 +57,9 @@ def test_ctl_against_the_daemon(daemon, capsys):
     out = capsys.readouterr().out.splitlines()
     assert "state: configured" in out and any(line.startswith("loop.compute.p99_us: ") for line in out)
     assert main(["ctl", "--socket", str(path), "ref", "5", "-3", "--ramp", "0"]) == 0
-    for _ in range(100):  # guard: the reference updates on the next cycle
+    for _ in range(1000):  # guard: the reference moves at reference.max_rate_rad_s (2 rad/s), ~0.05 s here
         ref = status(path)["reference_deg"]
-        if ref != [0.0, 0.0]:
+        if ref == pytest.approx([5.0, -3.0]):
             break
     assert ref == pytest.approx([5.0, -3.0])
     assert main(["ctl", "--socket", str(path), "ref", "45", "0"]) == 1

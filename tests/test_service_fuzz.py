@@ -191,6 +191,8 @@ def test_daemon_survives_fuzz_and_rejects_bad_commands_without_moving(daemon):
     assert after["motor_pos_rad"] == [0.0, 0.0], "the ankle moved"
 
     # 3. active and holding: out-of-range and malformed commands are refused and change nothing
+    # a corrupted line can still be a valid set_gains (its target applies once active): restore them
+    assert client.request(json.dumps({"cmd": "set_gains", **before["gains"]}).encode())["ok"]
     assert client.request(b'{"cmd":"start_profile","name":"hold"}')["ok"]
     assert activate(client) == {"ok": True, "state": "active"}
     refused = [  # (request, the field the error names, words in the message)

@@ -57,7 +57,10 @@ def test_reference_range_comes_from_the_limits():
     tight = CommandLimits(reference_limit_rad=math.radians(10.0))
     assert rejected(req(cmd="set_reference", dp=0.2, ie=0.0), tight).field == "dp"
     assert parse_command(req(cmd="set_reference", dp=0.2, ie=0.0)) == SetReference(0.2, 0.0)
-    assert CommandLimits.from_config({"limits": {"ankle_range_deg": 20.0}}).reference_limit_rad == pytest.approx(math.radians(20))
+    cfg = {"limits": {"ankle_range_deg": 20.0},
+           "controller": {"gain_limits": {"kp": 100.0, "kd": 2.0, "stiffness": 50.0, "damping": 1.0}}}
+    assert CommandLimits.from_config(cfg).reference_limit_rad == pytest.approx(math.radians(20))
+    assert CommandLimits.from_config(cfg).max_gains["stiffness_ie"] == 50.0
 
 
 @pytest.mark.parametrize("text, field", [

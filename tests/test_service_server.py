@@ -159,14 +159,16 @@ def test_work_per_poll_is_bounded(server):
     assert sum(answered) > 0
 
 
-def test_too_many_clients_are_told_so(tmp_path):
+def test_a_full_server_evicts_the_idlest_client(tmp_path):
     srv = CommandServer(tmp_path / "s", 0o600, Recorder(), max_clients=2)
-    socks = [connect(srv) for _ in range(3)]
-    for _ in range(5):
-        srv.poll()
-    assert srv.client_count == 2
-    reply = json.loads(socks[2].recv(1000))
-    assert reply["ok"] is False and "too many clients" in reply["error"]
+    socks = [connect(srv) for _ in range(2)]
+    srv.poll()
+    late = connect(srv)
+    srv.poll()
+    assert srv.client_count == 2 and srv.clients_evicted == 1
+    assert socks[0].recv(1000) == b""          # the oldest idle client was disconnected
+    late.sendall(b'{"cmd":"status"}\n')
+    assert read_replies(srv, late, 1)[0]["ok"] is True
     srv.close()
 
 
@@ -265,9 +267,9 @@ def test_link_polls_at_its_period_and_pings_only_while_healthy(tmp_path, notify_
     link = ServiceLink(cfg, Recorder(), environ=env)
     assert link.ping_period == 0.5
     sock = connect(link.server)
-    sock.sendall(b'{"cmd":"status"}\n')
     link.tick(0.0, healthy=True)        # polls (accepts) and pings
     assert notify_socket.recv(100) == b"WATCHDOG=1"
+    sock.sendall(b'{"cmd":"status"}\n')
     link.tick(0.005, healthy=True)      # before the next poll period: the request waits
     assert link.server.commands_handled == 0
     link.tick(0.010, healthy=False)     # polls, answers; unhealthy: no ping

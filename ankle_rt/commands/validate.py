@@ -55,7 +55,9 @@ def run(args: argparse.Namespace) -> int:
     notes = []
     try:
         if args.source:
-            rec = load_recording(args.source)
+            rec = load_recording(args.source, cfg=model)   # sampling and units checked against the model
+            for warning in rec.extra["warnings"]:
+                print(f"ankle-rt validate: warning: {warning}", file=sys.stderr)
             if not rec.two_motors:   # single-actuator data: the motors were off the cables
                 model = actuator_config(model_config(model))[0]
             controller = recorded_controller(rec)   # the controller the run log says was running

@@ -7,7 +7,7 @@ torque constant and lets the safety layer clamp them. Identification experiments
 excitation in through the same protocol.
 
 The controller the config selects (``controller.type``) is built by :func:`build_controller` from
-its name (:mod:`.plugins`): the built-ins, motor-side PD (:mod:`.pd`) or ankle impedance
+its name (:mod:`ankle_rt.controller_registry`): the built-ins, motor-side PD (:mod:`.pd`) or ankle impedance
 (:mod:`.impedance`), each with optional friction feed-forward (:mod:`.friction`), bumpless gain
 changes and a soft start (:mod:`.gains`); or an installed plugin, a :class:`.base.Controller`
 subclass registered under the entry-point group ``ankle_rt.controllers``. The safety layer sits
@@ -43,7 +43,7 @@ def build_controller(cfg: "Config", kin: "Kinematics", ref: np.ndarray) -> Cycle
     bad ``controller.params`` raise ConfigError naming the key."""
     from ankle_rt.config import ConfigError
     from ankle_rt.control.base import ControllerContext
-    from ankle_rt.control.plugins import ControllerNotFound, load_controller_factory
+    from ankle_rt.controller_registry import ControllerNotFound, load_controller_factory
 
     name = cfg["controller"]["type"]
     source = getattr(cfg, "source", "")

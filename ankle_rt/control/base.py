@@ -1,4 +1,4 @@
-"""The base class of controllers, built-in and plugged in (see :mod:`ankle_rt.control.plugins`).
+"""The base class of controllers, built-in and plugged in (see :mod:`ankle_rt.controller_registry`).
 
 A controller is one step of the fixed-rate cycle::
 

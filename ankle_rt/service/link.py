@@ -49,8 +49,8 @@ class ServiceLink:
                  environ: Mapping[str, str] = os.environ):
         svc = cfg["service"]
         self.path = Path(path) if path is not None else socket_path(cfg)
-        self.server = CommandServer(self.path, socket_mode(cfg), handler, limits=CommandLimits.from_config(cfg)) \
-            if svc["enabled"] else None
+        self.server = CommandServer(self.path, socket_mode(cfg), handler, limits=CommandLimits.from_config(cfg),
+                                    client_timeout_s=svc["client_timeout_s"]) if svc["enabled"] else None
         self.notifier = Notifier.from_env(environ)
         interval = watchdog_interval(environ) if svc["watchdog"] else None
         self.ping_period = interval / 2.0 if interval else None

@@ -24,7 +24,7 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import dataclass, field
-from typing import Any, Mapping, Union
+from typing import Any, Callable, Mapping, Union
 
 MAX_LINE_BYTES = 4096
 """Longest accepted request line in bytes, newline included."""
@@ -51,10 +51,28 @@ class CommandLimits:
     """|dp| and |ie| references must not exceed this (rad); the ankle's software range."""
     max_ramp_s: float = 60.0
     """Longest accepted reference ramp (s)."""
+    max_gains: Mapping[str, float] = field(default_factory=lambda: dict(DEFAULT_MAX_GAINS))
+    """Largest value of each gain field a set_gains request may ask for (controller.gain_limits)."""
 
     @classmethod
     def from_config(cls, cfg: Mapping[str, Any]) -> "CommandLimits":
-        return cls(reference_limit_rad=math.radians(cfg["limits"]["ankle_range_deg"]))
+        return cls(reference_limit_rad=math.radians(cfg["limits"]["ankle_range_deg"]),
+                   max_gains=gain_maxima(cfg["controller"]["gain_limits"]))
+
+
+def gain_maxima(gain_limits: Mapping[str, float]) -> dict[str, float]:
+    """The largest value of each GAIN_FIELDS name, from a config's ``controller.gain_limits``
+    (``stiffness`` and ``damping`` bound both axes)."""
+    return {name: float(gain_limits[name.split("_")[0]]) for name in GAIN_FIELDS}
+
+
+class Pending:
+    """A reply that is not ready yet (a profile file being loaded off the loop thread): the server
+    holds the client's later requests and calls ``poll()`` on each of its polls until it returns the
+    reply data (or raises CommandError). ``poll`` must not block."""
+
+    def __init__(self, poll: Callable[[], "dict | None"]):
+        self.poll = poll
 
 
 @dataclass(frozen=True)
@@ -99,6 +117,10 @@ GAIN_FIELDS: dict[str, str] = {
     "damping_dp": "N m s/rad, ankle impedance damping in DP",
     "damping_ie": "N m s/rad, ankle impedance damping in IE",
 }
+
+DEFAULT_MAX_GAINS = {"kp": 500.0, "kd": 10.0, "stiffness_dp": 200.0, "stiffness_ie": 200.0, "damping_dp": 5.0,
+                     "damping_ie": 5.0}
+"""= the defaults of controller.gain_limits (tested), for limits made without a config."""
 
 
 @dataclass(frozen=True)
@@ -181,7 +203,7 @@ def _set_reference(obj: Mapping[str, Any], limits: CommandLimits) -> SetReferenc
     return SetReference(_angle(obj, "dp", limits), _angle(obj, "ie", limits), ramp)
 
 
-def _set_gains(obj: Mapping[str, Any]) -> SetGains:
+def _set_gains(obj: Mapping[str, Any], limits: CommandLimits) -> SetGains:
     names = tuple(GAIN_FIELDS)
     _check_keys(obj, names)
     values = {}
@@ -190,6 +212,9 @@ def _set_gains(obj: Mapping[str, Any]) -> SetGains:
             value = _number(obj, name)
             if value < 0.0:
                 raise CommandError(name, f"must be >= 0 ({GAIN_FIELDS[name]}), got {value:g}")
+            if value > limits.max_gains[name]:
+                raise CommandError(name, f"must be <= {limits.max_gains[name]:g} (controller.gain_limits; "
+                                         f"{GAIN_FIELDS[name]}), got {value:g}")
             values[name] = value
     if not values:
         raise CommandError("cmd", f"set_gains needs at least one of: {', '.join(names)}")
@@ -250,7 +275,7 @@ def parse_command(line: bytes, limits: CommandLimits | None = None) -> Command:
     if name == "set_reference":
         return _set_reference(obj, limits)
     if name == "set_gains":
-        return _set_gains(obj)
+        return _set_gains(obj, limits)
     if name == "start_profile":
         return _start_profile(obj)
     raise CommandError("cmd", f"unknown command {_short(name)} (expected one of: {', '.join(COMMAND_NAMES)})")

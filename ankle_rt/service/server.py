@@ -9,6 +9,13 @@ most ``lines_per_client`` requests answered per client, for at most ``max_client
 that a client does not read within ``max_pending_reply_bytes`` drops the client. Whatever the peers send
 (random bytes, invalid UTF-8, half lines, endless lines, clients that vanish or never read their
 replies) poll() never raises and never blocks; bad requests get an error reply naming the field.
+
+No client can lock the others out. A client that sends no complete request for ``client_timeout_s``
+(idle, or stuck in half a line) is disconnected. When all ``max_clients`` slots are taken, a new
+connection evicts the client that has been idle longest, so ``ankle-rt ctl deactivate`` (or stop)
+always gets through; it is read at once, in the poll that accepts it. A handler may answer with a
+:class:`~ankle_rt.service.protocol.Pending` reply (a profile file loading off the loop thread): that
+client's reply, and its later requests, wait until it is ready, without holding up anyone else.
 """
 
 from __future__ import annotations
@@ -17,15 +24,17 @@ import os
 import select
 import socket
 import stat
+import time
 from pathlib import Path
 from typing import Callable
 
 from ankle_rt.service.protocol import (
-    MAX_LINE_BYTES, Command, CommandError, CommandLimits, error_reply, format_reply, parse_command,
+    MAX_LINE_BYTES, Command, CommandError, CommandLimits, Pending, error_reply, format_reply, parse_command,
 )
 
-Handler = Callable[[Command], dict]
-"""The daemon's side: handler(command) -> reply data; raises CommandError to refuse (e.g. in fault)."""
+Handler = Callable[[Command], "dict | Pending"]
+"""The daemon's side: handler(command) -> reply data (or a Pending reply); raises CommandError to
+refuse (e.g. in fault)."""
 
 
 class ServiceError(RuntimeError):
@@ -33,10 +42,12 @@ class ServiceError(RuntimeError):
 
 
 class _Client:
-    __slots__ = ("sock", "fd", "inbuf", "outbuf", "discarding", "eof", "closed")
+    __slots__ = ("sock", "fd", "inbuf", "outbuf", "discarding", "eof", "closed", "last_request", "pending")
 
-    def __init__(self, sock: socket.socket):
+    def __init__(self, sock: socket.socket, now: float):
         self.sock = sock
+        self.last_request = now  # s (server clock) of the connection or its last complete request
+        self.pending: Pending | None = None
         self.fd = sock.fileno()
         self.inbuf = bytearray()
         self.outbuf = bytearray()
@@ -58,8 +69,13 @@ class CommandServer:
 
     def __init__(self, path: str | Path, mode: int, handler: Handler, *, limits: CommandLimits | None = None,
                  max_clients: int = 8, max_accepts: int = 4, lines_per_client: int = 2,
-                 recv_bytes: int = MAX_LINE_BYTES, max_pending_reply_bytes: int = 65536):
+                 recv_bytes: int = MAX_LINE_BYTES, max_pending_reply_bytes: int = 65536,
+                 client_timeout_s: float = 10.0, clock: Callable[[], float] = time.monotonic):
         self.path = Path(path)
+        self.client_timeout_s = client_timeout_s
+        self.clock = clock
+        self.clients_timed_out = 0
+        self.clients_evicted = 0
         self.handler = handler
         self.limits = limits or CommandLimits()
         self.max_clients = max_clients
@@ -142,9 +158,10 @@ class CommandServer:
 
     def poll(self) -> int:
         """Handle pending I/O without blocking; returns the number of requests answered."""
+        now = self.clock()
         for fd, events in self._poller.poll(0):
             if fd == self._listener.fileno():
-                self._accept()
+                self._accept(now)
                 continue
             client = self._clients.get(fd)
             if client is None:
@@ -159,18 +176,22 @@ class CommandServer:
                 self._receive(client)
         answered = 0
         for client in tuple(self._clients.values()):
-            answered += self._serve(client)
+            answered += self._serve(client, now)
+            if (not client.closed and client.pending is None and not client.outbuf
+                    and now - client.last_request > self.client_timeout_s):
+                self.clients_timed_out += 1
+                self._drop(client)
         return answered
 
     # -- internals ----------------------------------------------------------------------------------
 
-    def _accept(self) -> None:
+    def _accept(self, now: float) -> None:
         for _ in range(self.max_accepts):
             try:
                 sock, _addr = self._listener.accept()
             except OSError:  # nothing pending (EAGAIN), or e.g. EMFILE: try again next poll
                 return
-            if len(self._clients) >= self.max_clients:
+            if len(self._clients) >= self.max_clients and not self._evict_idlest():
                 try:
                     sock.send(format_reply(False, error=f"too many clients (at most {self.max_clients})", field="line"),
                               socket.MSG_DONTWAIT | socket.MSG_NOSIGNAL)
@@ -179,9 +200,19 @@ class CommandServer:
                 sock.close()
                 continue
             sock.setblocking(False)
-            client = _Client(sock)
+            client = _Client(sock, now)
             self._clients[client.fd] = client
             self._poller.register(client.fd, _READ)
+            self._receive(client)   # a one-shot client (ctl deactivate) has usually sent its line already
+
+    def _evict_idlest(self) -> bool:
+        """Make room: drop the client whose last request is oldest (not one awaiting a Pending reply)."""
+        idle = [c for c in self._clients.values() if c.pending is None]
+        if not idle:
+            return False
+        self.clients_evicted += 1
+        self._drop(min(idle, key=lambda c: c.last_request))
+        return True
 
     def _receive(self, client: _Client) -> None:
         room = min(self.recv_bytes, _INBUF_LIMIT - len(client.inbuf))
@@ -200,11 +231,17 @@ class CommandServer:
         client.eof = True
         self._poller.modify(client.fd, select.POLLOUT if client.outbuf else 0)
 
-    def _serve(self, client: _Client) -> int:
+    def _serve(self, client: _Client, now: float) -> int:
         """Answer at most ``lines_per_client`` complete lines of one client (fair and bounded)."""
         answered = 0
         inbuf = client.inbuf
-        while answered < self.lines_per_client and not client.closed:
+        if client.pending is not None:
+            reply = self._poll_pending(client.pending)
+            if reply is None:
+                return 0
+            client.pending = None
+            self._reply(client, reply)
+        while answered < self.lines_per_client and not client.closed and client.pending is None:
             end = inbuf.find(b"\n")
             if end < 0:
                 if len(inbuf) >= MAX_LINE_BYTES:
@@ -222,12 +259,32 @@ class CommandServer:
                 client.discarding = False
             elif line.strip():
                 answered += 1
-                self._reply(client, self._answer(line))
-        if client.eof and not client.closed and not client.outbuf and not inbuf:
+                client.last_request = now
+                reply = self._answer(line)
+                if isinstance(reply, Pending):
+                    client.pending = reply
+                else:
+                    self._reply(client, reply)
+        if client.eof and not client.closed and not client.outbuf and not inbuf and client.pending is None:
             self._drop(client)
         return answered
 
-    def _answer(self, line: bytes) -> bytes:
+    def _poll_pending(self, pending: Pending) -> bytes | None:
+        try:
+            data = pending.poll()
+        except CommandError as exc:
+            self.requests_rejected += 1
+            return error_reply(exc)
+        except Exception as exc:  # a daemon bug must not take the command channel down
+            return self._internal_error(exc)
+        return None if data is None else format_reply(True, **data)
+
+    def _internal_error(self, exc: Exception) -> bytes:
+        self.handler_errors += 1
+        self.last_handler_error = f"{type(exc).__name__}: {exc}"
+        return format_reply(False, error=f"internal error: {self.last_handler_error}", field="cmd")
+
+    def _answer(self, line: bytes) -> "bytes | Pending":
         try:
             command = parse_command(line, self.limits)
         except CommandError as exc:
@@ -235,14 +292,13 @@ class CommandServer:
             return error_reply(exc)
         self.commands_handled += 1
         try:
-            return format_reply(True, **self.handler(command))
+            data = self.handler(command)
+            return data if isinstance(data, Pending) else format_reply(True, **data)
         except CommandError as exc:
             self.requests_rejected += 1
             return error_reply(exc)
         except Exception as exc:  # a daemon bug must not take the command channel (or the loop) down
-            self.handler_errors += 1
-            self.last_handler_error = f"{type(exc).__name__}: {exc}"
-            return format_reply(False, error=f"internal error: {self.last_handler_error}", field="cmd")
+            return self._internal_error(exc)
 
     def _reply(self, client: _Client, data: bytes) -> None:
         client.outbuf += data

@@ -43,6 +43,8 @@ from sim_backend.plant import SimulatedPlant
 NMT_PRE_OPERATIONAL, NMT_OPERATIONAL = 0x7F, 0x05
 NMT_RESET_NODE = 0x81         # NMT command (0x82: reset communication)
 EMCY_BASE = 0x80
+SDO_RX_BASE = 0x600           # client -> server SDO requests
+NMT_FRAME_BYTES, SDO_FRAME_BYTES = 2, 8
 EMCY_RPDO_TIMEOUT = bytes((0x50, 0x82, 0x10, 0, 0, 0, 0, 0))   # 0x8250 RPDO timeout, error register: communication
 EMCY_ERROR_RESET = bytes(8)
 CAN_ERR_BUSOFF = 0x40         # error class bit of a bus-off error frame (linux/can/error.h)
@@ -113,7 +115,7 @@ class CanopenEmulator:
         self.faults = InjectedFaults()
         self.schedule: list[ScheduledFault] = []
         self.counts = {"sync": 0, "rpdo": 0, "rpdo_bad_length": 0, "tpdo_sent": 0, "tpdo_dropped": 0,
-                       "heartbeats": 0, "rpdo_timeouts": 0}
+                       "heartbeats": 0, "rpdo_timeouts": 0, "bad_frames": 0}
         self.outputs = {SET_VALUE_1: self.amps[0].zero_code << ANALOG_CODE_SHIFT,
                         SET_VALUE_2: self.amps[1].zero_code << ANALOG_CODE_SHIFT, DIGITAL_OUT: 0}
         self._pending = dict(self.outputs)
@@ -303,6 +305,13 @@ class CanopenEmulator:
         if msg.arbitration_id == SYNC_COB_ID:
             self._on_sync()
         elif not (self.faults.frozen or self.faults.bus_off):
+            # NMT commands are 2 bytes and SDO requests 8 (CiA 301); the canopen library's handlers
+            # unpack them without a length check, so a short frame is dropped (and counted) here
+            need = NMT_FRAME_BYTES if msg.arbitration_id == 0 else (
+                SDO_FRAME_BYTES if msg.arbitration_id == SDO_RX_BASE + self.node_id else 0)
+            if len(msg.data) < need:
+                self.counts["bad_frames"] += 1
+                return
             self.network.notify(msg.arbitration_id, msg.data, msg.timestamp)
 
     def _idle(self) -> None:

@@ -1,0 +1,150 @@
+"""Issue 10 items 1, 5: no NaN, inf or huge number passes the config, and the safety layer refuses
+one on its own; config files are read as bounded, regular, UTF-8 files."""
+
+from __future__ import annotations
+
+import math
+import os
+import threading
+
+import pytest
+import yaml
+
+from ankle_rt.backend import open_backend
+from ankle_rt.clock import SimClock
+from ankle_rt.config import MAX_CONFIG_BYTES, ConfigError, load_config, numeric_fields
+from ankle_rt.config_schema import SCHEMA
+from ankle_rt.references import PROFILE_PARAMS
+from ankle_rt.safety import Safety
+from ankle_rt.schema import Section
+from tests.conftest import ROOT
+
+NOMINAL = str(ROOT / "config" / "nominal-params.yaml")
+
+
+def write(tmp_path, body: dict, name: str = "c.yaml"):
+    path = tmp_path / name
+    path.write_text(yaml.safe_dump({"include": [NOMINAL], "backend": "sim", **body}))
+    return path
+
+
+BAD_NUMBERS = [math.nan, math.inf, -math.inf, 1.0e9]
+KEYS = [("amplifier", "current_limit_peak"), ("amplifier", "current_limit_continuous"),
+        ("limits", "ankle_range_deg"), ("safety", "max_motor_speed_rad_s"), ("safety", "sg_rail_nm"),
+        ("safety", "max_sg_step_nm"), ("safety", "i2t_peak_duration_s"), ("loop", "duration_s"),
+        ("foot", "mass"), ("actuator", "inertia"), ("controller", "gain_ramp_s")]
+
+
+@pytest.mark.parametrize("section, key", KEYS, ids=[".".join(k) for k in KEYS])
+@pytest.mark.parametrize("value", BAD_NUMBERS, ids=["nan", "inf", "-inf", "1e9"])
+def test_nan_inf_and_huge_numbers_are_refused_naming_the_key(tmp_path, section, key, value):
+    path = write(tmp_path, {section: {key: value}})
+    with pytest.raises(ConfigError) as err:
+        load_config(path)
+    assert err.value.key == f"{section}.{key}"
+    assert "finite" in err.value.message or "must be" in err.value.message
+
+
+def test_nan_in_a_nested_list_and_an_effect_parameter_is_refused(tmp_path):
+    with pytest.raises(ConfigError, match=r"sim\.strain_gauge_offset\.1: expected a finite number"):
+        load_config(write(tmp_path, {"sim": {"strain_gauge_offset": [0.0, math.nan]}}))
+    cfg = load_config(write(tmp_path, {"sim": {"effects": [{"type": "stribeck", "static_excess": math.inf,
+                                                            "stribeck_velocity": 0.01}]}}))
+    with pytest.raises(ConfigError, match=r"sim\.effects\.0\.static_excess: expected a finite number"):
+        open_backend(cfg, SimClock())     # effect parameters are checked by the simulator that owns them
+
+
+def test_currents_beyond_the_escon_ratings_are_refused(tmp_path):
+    with pytest.raises(ConfigError, match=r"amplifier\.current_limit_peak: must be <= 15"):
+        load_config(write(tmp_path, {"amplifier": {"current_limit_peak": 15.5}}))
+    with pytest.raises(ConfigError, match=r"amplifier\.current_limit_continuous: must be <= 5"):
+        load_config(write(tmp_path, {"amplifier": {"current_limit_continuous": 6.0}}))
+    with pytest.raises(ConfigError, match=r"amplifier\.current_limit_peak: must be >= amplifier\.current_limit_cont"):
+        load_config(write(tmp_path, {"amplifier": {"current_limit_peak": 4.0}}))
+
+
+def test_configured_gains_must_lie_within_the_gain_limits(tmp_path):
+    with pytest.raises(ConfigError, match=r"controller\.step_gains\.kp: must be <= controller\.gain_limits\.kp"):
+        load_config(write(tmp_path, {"controller": {"rate_hz": 1000, "validation_gains": {"kp": 80, "kd": 0.3},
+                                                    "step_gains": {"kp": 90, "kd": 5},
+                                                    "gain_limits": {"kp": 85}}}))
+
+
+def test_huge_integers_are_refused_not_overflowed(tmp_path):
+    path = tmp_path / "c.yaml"
+    path.write_text(f"include: [{NOMINAL}]\nbackend: sim\nfoot: {{mass: {10**400}}}\n")
+    with pytest.raises(ConfigError, match=r"foot\.mass: number out of range"):
+        load_config(path)
+
+
+def test_every_numeric_key_of_the_schema_has_both_bounds():
+    unbounded = [key for key, f in (*numeric_fields(SCHEMA), *numeric_fields(Section(PROFILE_PARAMS)))
+                 if f.choices is None and (f.low is None or f.high is None)]
+    assert unbounded == ["service.socket_mode"]      # octal bits, bounded by its own check (0..0o777)
+
+
+# -- the files themselves -----------------------------------------------------------------------------
+
+def test_a_config_that_is_not_utf8_is_a_config_error(tmp_path):
+    path = tmp_path / "c.yaml"
+    path.write_bytes(b"backend: sim\nfoot: {mass: 0.4}  # \xff\xfe latin-1 \xe9\n")
+    with pytest.raises(ConfigError, match="not UTF-8 text"):
+        load_config(path)
+
+
+def test_include_of_dev_zero_fails_at_once(tmp_path):
+    path = tmp_path / "c.yaml"
+    path.write_text("include: [/dev/zero]\nbackend: sim\n")
+    with pytest.raises(ConfigError, match=r"/dev/zero.*not a regular file \(a character device\)"):
+        load_config(path)
+
+
+def test_include_of_a_fifo_does_not_block(tmp_path):
+    fifo = tmp_path / "pipe.yaml"
+    os.mkfifo(fifo)
+    path = tmp_path / "c.yaml"
+    path.write_text("include: [pipe.yaml]\nbackend: sim\n")
+    result = []
+    worker = threading.Thread(target=lambda: result.append(pytest.raises(ConfigError, load_config, path)))
+    worker.start()
+    worker.join(30.0)                        # a guard: it returns at once, or the open blocked
+    assert not worker.is_alive(), "load_config blocked on a FIFO"
+    assert "not a regular file (a FIFO)" in str(result[0].value)
+
+
+def test_a_config_larger_than_the_limit_is_refused(tmp_path):
+    path = tmp_path / "c.yaml"
+    path.write_text("backend: sim\n" + "#" * MAX_CONFIG_BYTES)
+    with pytest.raises(ConfigError, match="too large"):
+        load_config(path)
+
+
+def test_deeply_nested_yaml_is_a_config_error(tmp_path):
+    path = tmp_path / "c.yaml"
+    path.write_text("backend: " + "[" * 5000 + "]" * 5000 + "\n")
+    with pytest.raises(ConfigError):
+        load_config(path)
+
+
+# -- the safety layer checks its own limits ---------------------------------------------------------
+
+@pytest.mark.parametrize("section, key", [("amplifier", "current_limit_peak"), ("amplifier", "current_limit_continuous"),
+                                          ("limits", "ankle_range_deg"), ("safety", "max_motor_speed_rad_s"),
+                                          ("safety", "sg_rail_nm"), ("safety", "max_sg_step_nm"),
+                                          ("safety", "i2t_peak_duration_s"), ("safety", "stale_cycles")])
+@pytest.mark.parametrize("value", [math.nan, math.inf, 1.0e9, -1.0, 0])
+def test_safety_refuses_a_limit_that_would_disable_a_check(sim_cfg, section, key, value):
+    sim_cfg[section][key] = value                  # bypassing the config loader, as a caller could
+    with pytest.raises(ConfigError) as err:
+        Safety(sim_cfg, 0.001)
+    assert err.value.key == f"{section}.{key}"
+
+
+def test_the_current_clamp_holds_for_any_command(sim_cfg):
+    s = Safety(sim_cfg, 0.001)
+    peak = sim_cfg["amplifier"]["current_limit_peak"]
+    for i1, i2 in [(1e300, -1e300), (16.0, -15.0001), (-1e9, 3.0), (math.nextafter(peak, 99), 0.0)]:
+        s.limit_currents(i1, i2)
+        assert max(abs(c) for c in s.current) <= peak
+    for bad in (math.nan, math.inf, -math.inf):
+        assert s.limit_currents(bad, 0.0) != 0 and s.current == [0.0, 0.0]

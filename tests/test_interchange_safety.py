@@ -1,0 +1,129 @@
+"""Issue 10 item 6: bad interchange files get an InterchangeError naming the problem (never a
+traceback), and diagnose / validate check sampling and units against the config before fitting."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from ankle_rt.cli import main
+from ankle_rt.daemon import run_lockstep
+from ankle_rt.identification.data import load_recording
+from ankle_rt.interchange import InterchangeError, read_csv, write_csv
+from tests.conftest import SIM_CONFIG
+
+
+@pytest.fixture(scope="module")
+def columns(_sim_cfg):
+    """One second of the shipped sim experiment as interchange columns."""
+    return {k: np.asarray(v, dtype=float) for k, v in run_lockstep(_sim_cfg, 1.0).interchange().items()}
+
+
+def csv_of(tmp_path, columns, name="rec.csv", **changes):
+    cols = {**columns, **changes}
+    path = tmp_path / name
+    write_csv(path, cols)
+    return path
+
+
+def refused(capsys, *argv) -> str:
+    assert main(list(argv)) == 2
+    return capsys.readouterr().err
+
+
+def test_good_recording_loads_against_the_config(tmp_path, columns, _sim_cfg):
+    rec = load_recording(csv_of(tmp_path, columns), cfg=_sim_cfg)
+    assert len(rec) == len(columns["t"]) and rec.extra["warnings"] == []
+
+
+def test_binary_file_is_refused_by_name(tmp_path, capsys):
+    path = tmp_path / "rec.csv"
+    path.write_bytes(b"t,motor_pos_1\n\x00\x01\x02\xff\xfe" * 100)
+    assert "binary data, not text" in refused(capsys, "validate", "--config", str(SIM_CONFIG), "--from", str(path))
+    path.write_bytes(b"t,motor_pos_1,current_cmd_1\n0,0,\xff\xfe\n")
+    with pytest.raises(InterchangeError, match="not UTF-8 text"):
+        read_csv(path)
+
+
+def test_a_utf8_bom_is_accepted(tmp_path, columns):
+    path = csv_of(tmp_path, columns)
+    path.write_bytes(b"\xef\xbb\xbf" + path.read_bytes())
+    assert len(read_csv(path)) == len(columns["t"])
+
+
+def test_rows_with_extra_cells_are_refused(tmp_path, columns):
+    path = csv_of(tmp_path, columns)
+    lines = path.read_text().splitlines()
+    lines[5] += ",7"
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(InterchangeError, match=r"row 5 \(line 6\): row has \d+ cells, header has"):
+        read_csv(path)
+
+
+@pytest.mark.parametrize("factor", [1e300, 1.7e308, -1.7e308])
+def test_absurd_magnitudes_are_refused_before_any_fit(tmp_path, columns, capsys, factor):
+    path = csv_of(tmp_path, columns, motor_pos_1=np.clip(columns["motor_pos_1"] * factor, -1.7e308, 1.7e308))
+    err = refused(capsys, "validate", "--config", str(SIM_CONFIG), "--from", str(path))
+    assert "column 'motor_pos_1'" in err and "implausible value" in err and "Traceback" not in err
+
+
+def test_time_in_ms_is_refused_naming_the_period(tmp_path, columns, capsys, _sim_cfg):
+    path = csv_of(tmp_path, columns, t=columns["t"] * 1000.0)
+    with pytest.raises(InterchangeError, match=r"column 't'.*time in ms rather than s"):
+        load_recording(path, cfg=_sim_cfg)
+    with pytest.raises(InterchangeError, match=r"column 't'.*time in ms rather than s"):
+        load_recording(path)                           # even without a config: slower than 10 Hz
+    assert "time in ms" in refused(capsys, "diagnose", str(path), "--config", str(SIM_CONFIG))
+
+
+def test_angles_in_degrees_are_refused_against_the_config(tmp_path, columns, capsys, _sim_cfg):
+    deg = {k: np.degrees(columns[k]) for k in ("motor_pos_1", "motor_pos_2", "ankle_dp", "ankle_ie", "ref_dp", "ref_ie")
+           if k in columns}
+    path = csv_of(tmp_path, columns, **deg)
+    with pytest.raises(InterchangeError, match=r"degrees .*rather than rad"):
+        load_recording(path, cfg=_sim_cfg)
+    assert "rather than rad" in refused(capsys, "diagnose", str(path), "--config", str(SIM_CONFIG))
+
+
+def test_currents_in_ma_are_refused_against_the_config(tmp_path, columns, _sim_cfg):
+    path = csv_of(tmp_path, columns, current_cmd_1=columns["current_cmd_1"] * 1000.0)
+    with pytest.raises(InterchangeError, match=r"current_cmd_1.*mA rather than A"):
+        load_recording(path, cfg=_sim_cfg)
+
+
+def test_a_time_gap_is_refused(tmp_path, columns, capsys):
+    t = columns["t"].copy()
+    t[500:] += 0.4                                     # the logger stalled 400 ms
+    path = csv_of(tmp_path, columns, t=t)
+    err = refused(capsys, "validate", "--config", str(SIM_CONFIG), "--from", str(path))
+    assert "column 't'" in err and "time gap of 0.401 s" in err and "row 501 (line 502)" in err   # t[500] is data row 501
+
+
+def test_an_irregular_time_base_is_a_warning(tmp_path, columns, _sim_cfg):
+    t = columns["t"].copy()
+    rng = np.random.default_rng(1)
+    t += rng.uniform(-0.0003, 0.0003, len(t)) * (np.arange(len(t)) % 3 == 0)
+    path = csv_of(tmp_path, columns, t=np.maximum.accumulate(t + np.arange(len(t)) * 1e-9))
+    rec = load_recording(path, cfg=_sim_cfg)
+    assert any("irregular time base" in w for w in rec.extra["warnings"])
+
+
+def test_a_fifo_or_device_is_refused_without_blocking(tmp_path):
+    import os
+    fifo = tmp_path / "rec.csv"
+    os.mkfifo(fifo)
+    with pytest.raises(InterchangeError, match=r"not a regular file \(a FIFO\)"):
+        load_recording(fifo)
+    with pytest.raises(InterchangeError, match=r"not a regular file \(a character device\)"):
+        read_csv("/dev/zero")
+
+
+def test_non_finite_cells_name_column_and_row(tmp_path, columns):
+    for bad in ("nan", "inf", "-1e999"):
+        path = tmp_path / "rec.csv"
+        path.write_text(f"t,motor_pos_1,current_cmd_1\n0,0,0\n0.001,{bad},0\n")
+        with pytest.raises(InterchangeError, match=r"column 'motor_pos_1', row 2.*not a finite number"):
+            read_csv(path)
+    assert math.isfinite(columns["t"][-1])
