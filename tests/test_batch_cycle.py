@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from ankle_rt.config import ConfigError
-from ankle_rt.control.plugins import BUILTIN_CONTROLLERS
 from ankle_rt.control.torque_loop import torque_feedback
+from ankle_rt.controller_registry import BUILTIN_CONTROLLERS
 from ankle_rt.daemon import run_lockstep
 from ankle_rt.safety import Fault
 from ankle_rt.sweep.cycle import BatchRun
