@@ -23,11 +23,12 @@ def _spec(tmp_path: Path, **changes) -> Path:
         "duration_s": 1.5,
         "sampling": {"method": "lhs", "runs": 6, "seed": 7},
         "batch_size": 4,
-        "overrides": {"sim": {"effects": [{"type": "delay", "delay": 0.0}]}},
+        # a stiff kp inside controller.gain_limits: without damping the step makes it unstable
+        "overrides": {"sim": {"effects": [{"type": "delay", "delay": 0.0}]}, "controller": {"step_gains": {"kp": 200.0}}},
         "parameters": {
             "transmission.cable_stiffness": {"dist": "uniform", "low": 0.7, "high": 1.3, "relative": True},
             "sim.effects.0.delay": {"dist": "uniform", "low": 0.0, "high": 0.004},
-            "controller.step_gains.kp": {"dist": "choice", "values": [90.0, 2500.0]},
+            "controller.step_gains.kd": {"dist": "choice", "values": [5.0, 0.0]},
         },
         "scenarios": ["step", "disturbance"],
     }
@@ -67,6 +68,8 @@ def _same(a: list[dict], b: list[dict]) -> None:
     ({"overrides": {"controller": {"type": "impedance"}},      # beyond what the joint-torque loop renders stably
       "parameters": {"controller.impedance.stiffness_dp": {"dist": "uniform", "low": 5000.0, "high": 6000.0}}},
      "parameters.controller.impedance.stiffness_dp"),
+    ({"parameters": {"controller.step_gains.kp": {"dist": "uniform", "low": 600.0, "high": 700.0}}},  # > gain_limits.kp
+     "parameters.controller.step_gains.kp"),
     ({"overrides": {"controller": {"type": "impedance"}},      # the loop's limits move with the sampled plant
       "parameters": {"actuator.damping": {"dist": "uniform", "low": 0.05, "high": 0.06}}},
      "actuator.damping=0.05"),
@@ -131,10 +134,10 @@ def test_metrics_find_the_unstable_gain_and_summary_ranks_it_first(tmp_path):
     study = load_study(_spec(tmp_path))
     rows = execute(study, tmp_path / "out", workers=1, progress=False)
     for r in rows:
-        kp = r["controller.step_gains.kp"]
-        if kp == 2500.0 and r["scenario"] == "step":     # the step kicks the stiff loop into a fault
+        kd = r["controller.step_gains.kd"]
+        if kd == 0.0 and r["scenario"] == "step":        # the step kicks the undamped stiff loop into a fault
             assert r["faulted"] and r["fault"] == "motor_jump" and not r["passed"] and not r["stable"]
-        elif kp == 2500.0:                              # a 1 N m push does not
+        elif kd == 0.0:                                 # a 1 N m push does not
             assert not r["faulted"]
         else:
             assert r["passed"] and r["stable"] and not r["faulted"]
@@ -144,8 +147,8 @@ def test_metrics_find_the_unstable_gain_and_summary_ranks_it_first(tmp_path):
             else:                            # a hold has no step
                 assert math.isnan(r["overshoot_dp_pct"])
     s = summarize(study, rows)
-    assert s["influence"][0]["parameter"] == "controller.step_gains.kp"
-    assert s["worst"][0]["parameters"]["controller.step_gains.kp"] == 2500.0
+    assert s["influence"][0]["parameter"] == "controller.step_gains.kd"
+    assert s["worst"][0]["parameters"]["controller.step_gains.kd"] == 0.0
     assert 0.0 < s["pass_rate"] < 1.0
 
 

@@ -340,7 +340,7 @@ def _plain(v: Any) -> Any:
 
 def expand(study: Study) -> list[Run]:
     """Every (sample, scenario) run with its validated config; errors name the spec key."""
-    from ankle_rt.config_schema import SCHEMA
+    from ankle_rt.config_schema import SCHEMA, check_consistency
 
     origins: dict = {}
     base_raw = read_with_includes(study.base, origins)
@@ -372,7 +372,9 @@ def expand(study: Study) -> list[Run]:
                     v = int(round(v))          # an integer key (substeps, tare_samples) gets the nearest integer
                 _set(data, p.key, v)
             try:
-                cfg = Config(validate(data, SCHEMA, lambda _k: source))
+                checked = validate(data, SCHEMA, lambda _k: source)
+                check_consistency(checked, lambda _k: source)        # as load_config does for the daemon
+                cfg = Config(checked)
             except ConfigError as exc:
                 hint = next((p.key for p in study.parameters if exc.key and (exc.key == p.key or
                              exc.key.startswith(p.key + ".") or p.key.startswith(exc.key + "."))), None)
