@@ -44,6 +44,8 @@ def available_controllers() -> dict[str, str]:
 
 def check_controller_name(name: str) -> None:
     """Raise ControllerNotFound (a ValueError) unless ``name`` is a known controller."""
+    if name in BUILTIN_CONTROLLERS:       # no entry-point scan (~15 ms) for a built-in
+        return
     known = available_controllers()
     if name not in known:
         raise ControllerNotFound(f"unknown controller {name!r} (built-in or installed: {', '.join(sorted(known))}; "
@@ -53,7 +55,7 @@ def check_controller_name(name: str) -> None:
 def load_controller_factory(name: str) -> Callable[["ControllerContext"], "CycleController"]:
     """The factory ``name`` refers to (imported now)."""
     check_controller_name(name)
-    spec = available_controllers()[name]
+    spec = BUILTIN_CONTROLLERS.get(name) or available_controllers()[name]   # built-ins win, as there
     module_name, _, attr = spec.partition(":")
     try:
         obj = importlib.import_module(module_name)

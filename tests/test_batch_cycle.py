@@ -3,12 +3,20 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
+from ankle_rt.config import ConfigError
+from ankle_rt.control.torque_loop import torque_feedback
+from ankle_rt.controller_registry import BUILTIN_CONTROLLERS
 from ankle_rt.daemon import run_lockstep
 from ankle_rt.safety import Fault
 from ankle_rt.sweep.cycle import BatchRun
 
 SECONDS = 3.0
+# an identified friction model (as diagnose --write-model writes) in the plant and in the feed-forward
+IDENTIFIED = [{"type": "stribeck", "static_excess": 0.15, "stribeck_velocity": 0.1},
+              {"type": "asymmetric_friction", "coulomb_asymmetry": 0.03, "viscous_asymmetry": 0.01},
+              {"type": "load_dependent_friction", "coefficient": 0.12}]
 
 
 def _variants(base):
@@ -57,12 +65,52 @@ def test_batched_pd_cycle_matches_the_daemon(sim_cfg):
     assert faults[:3] == [0, 0, 0] and faults[3] != 0
 
 
-def test_batched_impedance_cycle_matches_the_daemon(sim_cfg):
+@pytest.mark.parametrize("feedback", ["auto", "off"])
+def test_batched_impedance_cycle_matches_the_daemon(sim_cfg, feedback):
+    """The joint-torque loop on the strain gauges (auto: on in the simulator) and open loop."""
     sim_cfg["controller"]["type"] = "impedance"
+    sim_cfg["controller"]["impedance"]["torque_feedback"] = feedback
+    assert torque_feedback(sim_cfg) == (feedback == "auto")
     cfgs = _variants(sim_cfg)[:3]
     cfgs[1]["controller"]["impedance"]["stiffness_dp"] *= 0.5
     cfgs[2]["sim"]["effects"] = []
     _compare(cfgs)
+
+
+@pytest.mark.parametrize("feedback", ["on", "off"])
+def test_batched_identified_friction_feed_forward_matches_the_daemon(sim_cfg, feedback):
+    """Stribeck, asymmetric and load-dependent (on the measured cable torque) terms; loop gains that
+    differ between plants; a plant with the feed-forward off in the same batch."""
+    sim_cfg["controller"]["type"] = "impedance"
+    sim_cfg["controller"]["impedance"]["torque_feedback"] = feedback
+    sim_cfg["sim"]["effects"] = [dict(e) for e in IDENTIFIED]
+    sim_cfg["controller"]["friction_ff"].update(enabled=True, model="identified", model_file="")
+    cfgs = [sim_cfg.deep_copy() for _ in range(3)]
+    loop = cfgs[1]["controller"]["torque_loop"]
+    loop.update(ki_ie=0.5 * loop["ki_ie"], torque_rate_dp=1.5 * loop["torque_rate_dp"], cutoff_hz=60.0,
+                max_correction_dp=0.7 * loop["max_correction_dp"])
+    cfgs[1]["sim"]["effects"][2]["coefficient"] = 0.2
+    cfgs[1]["reference"]["profile"] = "hold"
+    cfgs[1]["reference"]["hold"] = {"dp": 0.05, "ie": -0.03}
+    cfgs[2]["controller"]["friction_ff"]["enabled"] = False
+    assert _compare(cfgs) == [0, 0, 0]
+
+
+def test_a_batch_it_cannot_run_as_the_daemon_does_is_refused_naming_the_key(sim_cfg, monkeypatch):
+    sim_cfg["controller"]["type"] = "impedance"
+    open_loop = sim_cfg.deep_copy()
+    open_loop["controller"]["impedance"]["torque_feedback"] = "off"
+    with pytest.raises(ConfigError, match="controller.impedance.torque_feedback"):
+        BatchRun([sim_cfg, open_loop], 0.01)
+    pd = sim_cfg.deep_copy()
+    pd["controller"]["type"] = "pd"
+    with pytest.raises(ConfigError, match="controller.type"):
+        BatchRun([sim_cfg, pd], 0.01)
+    monkeypatch.setitem(BUILTIN_CONTROLLERS, "plugin", "tests.test_controller_plugins:HugeCurrent")
+    plugin = sim_cfg.deep_copy()
+    plugin["controller"]["type"] = "plugin"
+    with pytest.raises(ConfigError, match="controller.type.*'plugin'"):
+        BatchRun([plugin], 0.01)
 
 
 def test_batched_cycle_with_effects_matches_the_daemon(sim_cfg):

@@ -61,8 +61,9 @@ class TorqueStep:
 
     def update(self, est: Estimate, out: np.ndarray) -> None:
         on = est.t >= self.t_step
-        self.loop.update(self.step[0] if on else 0.0, self.step[1] if on else 0.0, est, True)
-        out[:] = self.RiT @ np.array(self.loop.out)
+        sg = est.sg_torque
+        out[:] = self.RiT @ np.array(self.loop.update(self.step[0] if on else 0.0, self.step[1] if on else 0.0,
+                                                      sg.item(0), sg.item(1), True))
 
 
 def test_auto_closes_the_loop_when_strain_gauges_are_configured(base):

@@ -23,11 +23,12 @@ def _spec(tmp_path: Path, **changes) -> Path:
         "duration_s": 1.5,
         "sampling": {"method": "lhs", "runs": 6, "seed": 7},
         "batch_size": 4,
-        "overrides": {"sim": {"effects": [{"type": "delay", "delay": 0.0}]}},
+        # a stiff kp inside controller.gain_limits: without damping the step makes it unstable
+        "overrides": {"sim": {"effects": [{"type": "delay", "delay": 0.0}]}, "controller": {"step_gains": {"kp": 200.0}}},
         "parameters": {
             "transmission.cable_stiffness": {"dist": "uniform", "low": 0.7, "high": 1.3, "relative": True},
             "sim.effects.0.delay": {"dist": "uniform", "low": 0.0, "high": 0.004},
-            "controller.step_gains.kp": {"dist": "choice", "values": [90.0, 2500.0]},
+            "controller.step_gains.kd": {"dist": "choice", "values": [5.0, 0.0]},
         },
         "scenarios": ["step", "disturbance"],
     }
@@ -64,6 +65,14 @@ def _same(a: list[dict], b: list[dict]) -> None:
     ({"sampling": {"method": "halton", "runs": 4}}, "sampling.method"),
     ({"scenarios": ["stairs"]}, "scenarios.0"),
     ({"colour": "red"}, "colour"),
+    ({"overrides": {"controller": {"type": "impedance"}},      # beyond what the joint-torque loop renders stably
+      "parameters": {"controller.impedance.stiffness_dp": {"dist": "uniform", "low": 5000.0, "high": 6000.0}}},
+     "parameters.controller.impedance.stiffness_dp"),
+    ({"parameters": {"controller.step_gains.kp": {"dist": "uniform", "low": 600.0, "high": 700.0}}},  # > gain_limits.kp
+     "parameters.controller.step_gains.kp"),
+    ({"overrides": {"controller": {"type": "impedance"}},      # the loop's limits move with the sampled plant
+      "parameters": {"actuator.damping": {"dist": "uniform", "low": 0.05, "high": 0.06}}},
+     "actuator.damping=0.05"),
 ])
 def test_a_bad_spec_is_refused_naming_the_key_before_any_run(tmp_path, capsys, changes, key):
     spec = _spec(tmp_path, **changes)
@@ -125,10 +134,10 @@ def test_metrics_find_the_unstable_gain_and_summary_ranks_it_first(tmp_path):
     study = load_study(_spec(tmp_path))
     rows = execute(study, tmp_path / "out", workers=1, progress=False)
     for r in rows:
-        kp = r["controller.step_gains.kp"]
-        if kp == 2500.0 and r["scenario"] == "step":     # the step kicks the stiff loop into a fault
+        kd = r["controller.step_gains.kd"]
+        if kd == 0.0 and r["scenario"] == "step":        # the step kicks the undamped stiff loop into a fault
             assert r["faulted"] and r["fault"] == "motor_jump" and not r["passed"] and not r["stable"]
-        elif kp == 2500.0:                              # a 1 N m push does not
+        elif kd == 0.0:                                 # a 1 N m push does not
             assert not r["faulted"]
         else:
             assert r["passed"] and r["stable"] and not r["faulted"]
@@ -138,8 +147,8 @@ def test_metrics_find_the_unstable_gain_and_summary_ranks_it_first(tmp_path):
             else:                            # a hold has no step
                 assert math.isnan(r["overshoot_dp_pct"])
     s = summarize(study, rows)
-    assert s["influence"][0]["parameter"] == "controller.step_gains.kp"
-    assert s["worst"][0]["parameters"]["controller.step_gains.kp"] == 2500.0
+    assert s["influence"][0]["parameter"] == "controller.step_gains.kd"
+    assert s["worst"][0]["parameters"]["controller.step_gains.kd"] == 0.0
     assert 0.0 < s["pass_rate"] < 1.0
 
 
@@ -166,6 +175,29 @@ def test_runs_of_different_structure_go_to_different_batches(tmp_path):
         assert len({(c["sim"]["substeps"], c["controller"]["type"]) for c in t.configs}) == 1
 
 
+def test_impedance_runs_open_and_closed_loop_go_to_different_batches_and_run(tmp_path):
+    """The batched cycle runs one impedance law per batch, the joint-torque loop closed or not; closed,
+    it renders the commanded stiffness under the disturbance (friction holds the ankle open loop)."""
+    from ankle_rt.sweep.engine import plan
+
+    study = load_study(_spec(tmp_path, duration_s=2.5, scenarios=["disturbance"], batch_size=8,
+                             sampling={"method": "random", "runs": 4, "seed": 2},
+                             overrides={"controller": {"type": "impedance"}},
+                             parameters={"controller.impedance.torque_feedback": {"dist": "choice",
+                                                                                  "values": ["on", "off"]}}))
+    feedback = [r.config["controller"]["impedance"]["torque_feedback"] for r in study.runs]
+    assert set(feedback) == {"on", "off"}
+    tasks = plan(study)
+    assert sorted(len({c["controller"]["impedance"]["torque_feedback"] for c in t.configs}) for t in tasks) == [1, 1]
+    rows = execute(study, tmp_path / "out", workers=1, progress=False)
+    assert [r["run_id"] for r in rows] == list(range(4))
+    for r, closed in zip(rows, feedback):
+        assert r["fault"] == "none" and r["stable"], r
+        for axis in ("dp", "ie"):
+            error = abs(r[f"impedance_error_{axis}_pct"])
+            assert (error < 40.0) if closed == "on" else (error > 100.0), (axis, r)
+
+
 def test_the_table_falls_back_to_csv_without_pyarrow(tmp_path, monkeypatch):
     import sys
 
@@ -189,8 +221,10 @@ def test_every_sampling_method_maps_each_distribution_into_its_support(tmp_path,
     }
     if method == "grid":
         parameters.pop("actuator.coulomb")         # a normal distribution has no grid
+    # the joint-torque loop's least impedance damping grows as the sampled actuator damping falls
     spec = _spec(tmp_path, parameters=parameters, scenarios=["step"],
-                 sampling={"method": method, "runs": 16, "seed": 3})
+                 sampling={"method": method, "runs": 16, "seed": 3},
+                 overrides={"controller": {"impedance": {"damping_dp": 1.0}}})
     study = load_study(spec)
     again = load_study(spec)
     assert [r.values for r in study.runs] == [r.values for r in again.runs]

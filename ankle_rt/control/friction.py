@@ -22,7 +22,9 @@ from __future__ import annotations
 import copy
 import math
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Iterable, Mapping
+from typing import TYPE_CHECKING, Any, Iterable, Mapping, Sequence
+
+from ankle_rt.elementwise import Value, clip, exp, stack
 
 if TYPE_CHECKING:
     from ankle_rt.config import Config
@@ -67,14 +69,22 @@ class FrictionFeedForward:
         out.d = out.dv = 0.0
         return out
 
-    def torque(self, v: float, tc: float = 0.0) -> float:
-        """N m for motor velocity ``v`` rad/s and felt cable torque ``tc`` N m (0 when switched off)."""
+    @classmethod
+    def stack(cls, feed_forwards: Sequence["FrictionFeedForward"]) -> "FrictionFeedForward":
+        """One feed-forward standing for ``feed_forwards`` (one per device of a batch, the batched
+        daemon cycle): every term an array over the batch, a switched-off one all zero (so that
+        :meth:`torque` gives 0 for it, as it does for one device)."""
+        off = cls(0.0, 0.0, 1.0)
+        return stack([f if f.enabled else off for f in feed_forwards])
+
+    def torque(self, v: Value, tc: Value = 0.0) -> Value:
+        """N m for motor velocity ``v`` rad/s and felt cable torque ``tc`` N m (0 when switched off).
+        Element-wise (:mod:`ankle_rt.elementwise`): floats for one device, arrays for a :meth:`stack`."""
         if not self.enabled:
             return 0.0
-        x = v * self.inv_band
-        s = 1.0 if x > 1.0 else (-1.0 if x < -1.0 else x)
+        s = clip(v * self.inv_band, -1.0, 1.0)
         u = v * self.inv_vs
-        sliding = self.kc + self.a * math.exp(-u * u) + self.mu * abs(tc)
+        sliding = self.kc + self.a * exp(-u * u) + self.mu * abs(tc)
         return s * sliding + self.dc * abs(s) + self.d * v + self.dv * abs(v)
 
 

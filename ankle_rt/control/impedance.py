@@ -92,14 +92,13 @@ class ImpedanceController(RampedGainController):
         ref, pos, vel = self.ref, est.ankle_pos, est.ankle_vel
         t0 = k0 * (ref.item(0) - pos.item(0)) - b0 * vel.item(0)
         t1 = k1 * (ref.item(1) - pos.item(1)) - b1 * vel.item(1)
-        loop = self.torque_loop
-        if loop is not None:
-            loop.update(t0, t1, est, s >= 1.0)
-            t0, t1 = loop.out[0], loop.out[1]
-        RiT = self.RiT
-        ff = self.friction
         sg = est.sg_torque
         j0, j1 = sg.item(0), sg.item(1)
+        loop = self.torque_loop
+        if loop is not None:
+            t0, t1 = loop.update(t0, t1, j0, j1, s >= 1.0)
+        RiT = self.RiT
+        ff = self.friction
         out_torque[0] = s * (RiT[0] * t0 + RiT[1] * t1
                              + ff.torque(est.motor_vel.item(0), RiT[0] * j0 + RiT[1] * j1))
         out_torque[1] = s * (RiT[2] * t0 + RiT[3] * t1

@@ -23,18 +23,21 @@ deliver, so per ankle axis this loop drives the measured torque to the desired o
   the 77-98 Hz cable modes, whose damping ratio (~0.02) it must not eat.
 
 Stability margins across cable stiffness +/- 30 % and the friction range come from the linear model:
-:func:`ankle_rt.analysis.torque_loop_margins`. Everything per cycle is plain floats (no allocation).
+:func:`ankle_rt.analysis.torque_loop_margins`. Everything per cycle is plain floats (no allocation)
+for one device, arrays over the batch in the batched daemon cycle (:class:`JointTorqueLoop`).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Mapping
+from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
-from ankle_rt.estimation import Estimate
+from ankle_rt.elementwise import Value, clip, select, stack
 
 if TYPE_CHECKING:
+    import numpy as np
+
     from ankle_rt.config import Config
 
 MIN_DAMPING_RATIO = 0.05        # of the rendered impedance against the reflected inertia / (1 + kp)
@@ -63,7 +66,11 @@ class TorqueLoopGains:
 
 
 class JointTorqueLoop:
-    """The loop of the module docstring for both ankle axes; :meth:`update` writes ``out[0:2]``."""
+    """The loop of the module docstring for both ankle axes.
+
+    Written element-wise (:mod:`ankle_rt.elementwise`): for one device its numbers are floats; for a
+    batch of devices (:meth:`stack`, the batched daemon cycle) they are arrays over the batch and the
+    same :meth:`update` runs once for all of them."""
 
     def __init__(self, gains: TorqueLoopGains, dt: float):
         self.gains = gains
@@ -72,39 +79,40 @@ class JointTorqueLoop:
         self.kdr0, self.kdr1 = gains.torque_rate[0] / dt, gains.torque_rate[1] / dt
         self.lim0, self.lim1 = gains.max_correction_nm
         self.alpha = 1.0 - math.exp(-2.0 * math.pi * gains.cutoff_hz * dt)
-        self.out = [0.0, 0.0]   # N m [DP, IE], ankle-side motor torque
+        self.f0 = self.f1 = self.i0 = self.i1 = 0.0
         self.reset_state(0.0, 0.0)
 
-    def reset_state(self, tau_dp: float, tau_ie: float) -> None:
-        """Start from the measured torques (N m) with an empty integrator (on activation)."""
-        self.f0, self.f1 = tau_dp, tau_ie
-        self.i0 = self.i1 = 0.0
+    @classmethod
+    def stack(cls, loops: Sequence["JointTorqueLoop"]) -> "JointTorqueLoop":
+        """One loop standing for ``loops`` (one per device of a batch): gains and state become arrays
+        over the batch (``gains``, descriptive only, is the first device's)."""
+        return stack(loops, shared=("gains",))
 
-    def update(self, tau_dp: float, tau_ie: float, est: Estimate, integrate: bool) -> None:
-        """Desired joint torques (N m) in, ankle-side motor torques out (``self.out``). ``integrate``
-        False holds the integrator (during the soft start)."""
+    def reset_state(self, tau_dp: Value, tau_ie: Value, where: bool | np.ndarray = True) -> None:
+        """Start from the measured torques (N m) with an empty integrator (on activation); for a
+        batch, only where ``where`` (bool per device) holds."""
+        self.f0 = select(where, tau_dp, self.f0)
+        self.f1 = select(where, tau_ie, self.f1)
+        self.i0 = select(where, 0.0, self.i0)
+        self.i1 = select(where, 0.0, self.i1)
+
+    def update(self, tau_dp: Value, tau_ie: Value, sg_dp: Value, sg_ie: Value,
+               integrate: bool | np.ndarray) -> tuple[Value, Value]:
+        """Desired joint torques and tared strain-gauge torques (N m, [DP, IE]) in, the ankle-side
+        motor torques (N m, [DP, IE]) out. ``integrate`` False holds the integrator (soft start)."""
         a = self.alpha
-        sg = est.sg_torque
         p0, p1 = self.f0, self.f1
-        f0 = p0 + a * (sg.item(0) - p0)
-        f1 = p1 + a * (sg.item(1) - p1)
+        f0 = p0 + a * (sg_dp - p0)
+        f1 = p1 + a * (sg_ie - p1)
         self.f0, self.f1 = f0, f1
         e0, e1 = tau_dp - f0, tau_ie - f1
         lim0, lim1 = self.lim0, self.lim1
-        i0, i1 = self.i0, self.i1
-        if integrate:
-            i0 += self.kidt0 * e0
-            i1 += self.kidt1 * e1
-            i0 = lim0 if i0 > lim0 else (-lim0 if i0 < -lim0 else i0)
-            i1 = lim1 if i1 > lim1 else (-lim1 if i1 < -lim1 else i1)
-            self.i0, self.i1 = i0, i1
-        c0 = self.kp0 * e0 + i0 - self.kdr0 * (f0 - p0)
-        c1 = self.kp1 * e1 + i1 - self.kdr1 * (f1 - p1)
-        c0 = lim0 if c0 > lim0 else (-lim0 if c0 < -lim0 else c0)
-        c1 = lim1 if c1 > lim1 else (-lim1 if c1 < -lim1 else c1)
-        out = self.out
-        out[0] = tau_dp + c0
-        out[1] = tau_ie + c1
+        i0 = select(integrate, clip(self.i0 + self.kidt0 * e0, -lim0, lim0), self.i0)
+        i1 = select(integrate, clip(self.i1 + self.kidt1 * e1, -lim1, lim1), self.i1)
+        self.i0, self.i1 = i0, i1
+        c0 = clip(self.kp0 * e0 + i0 - self.kdr0 * (f0 - p0), -lim0, lim0)
+        c1 = clip(self.kp1 * e1 + i1 - self.kdr1 * (f1 - p1), -lim1, lim1)
+        return tau_dp + c0, tau_ie + c1
 
 
 def torque_feedback(cfg: "Config") -> bool:

@@ -5,10 +5,14 @@ configured PD or impedance controller, safety layer, reference) and their number
 arrays. Every tick then does what :meth:`ankle_rt.daemon.Daemon.cycle` does under a SimClock, for
 all plants at once: step the plant with the last set values, sample the sensors, estimate (backward
 difference + low-pass, strain-gauge tare), reference, sensor checks, auto-activation with the soft
-start, the control law with friction feed-forward, the current clamp and I^2 t limit, and a latched
-fault that zeroes the set values. ``tests/test_batch_cycle.py`` holds it to ``run_lockstep`` run
-by run. Not modelled (no sweep exercises them): run-time gain changes, service commands, backend
-fault injection, stale samples (the simulator's sequence always advances).
+start, the control law (the impedance controller's joint-torque loop and the friction feed-forward,
+coulomb_viscous or identified, are the daemon's own element-wise code, stacked), the current clamp
+and I^2 t limit, and a latched fault that zeroes the set values. ``tests/test_batch_cycle.py`` holds
+it to ``run_lockstep`` run by run. Only the built-in ``pd`` and ``impedance`` controllers are
+batched (a plugin is refused, naming ``controller.type``); plants of one batch share the controller
+type and, for impedance, whether the joint-torque loop is closed (:func:`batch_key` groups them).
+Not modelled (no sweep exercises them): run-time gain changes, service commands, backend fault
+injection, stale samples (the simulator's sequence always advances).
 """
 
 from __future__ import annotations
@@ -19,14 +23,17 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from ankle_rt.config import ConfigError
 from ankle_rt.control import build_controller
+from ankle_rt.control.friction import FrictionFeedForward
 from ankle_rt.control.impedance import ImpedanceController
+from ankle_rt.control.torque_loop import JointTorqueLoop, torque_feedback
 from ankle_rt.estimation import Estimator
 from ankle_rt.kinematics import Kinematics
 from ankle_rt.params import TransmissionParams
 from ankle_rt.references import Hold, reference_from_config
 from ankle_rt.safety import Fault, Safety
-from sim_backend.batch import BatchPlant
+from sim_backend.batch import BatchPlant, structure_key
 
 CONFIGURED, ACTIVE, FAULTED = 0, 1, 2
 
@@ -61,17 +68,34 @@ def first_fault(code: np.ndarray, checks: list[tuple[np.ndarray, int]]) -> np.nd
     return np.where(code == 0, first, code)
 
 
+BATCHED_CONTROLLERS = ("pd", "impedance")    # built-ins win over plugins of the same name
+
+
+def batch_key(cfg: Mapping[str, Any]) -> tuple:
+    """Configs with equal keys can run in one :class:`BatchRun`: the plant's structure, the
+    controller type and, for impedance, whether the joint-torque loop is closed. Raises ConfigError
+    naming ``controller.type`` for a controller the batch does not run (a plugin)."""
+    name = cfg["controller"]["type"]
+    if name not in BATCHED_CONTROLLERS:
+        raise ConfigError(f"the batched daemon cycle runs the built-in pd and impedance controllers, not {name!r} "
+                          "(a plugin runs in the daemon: ankle-rt run --fast)", getattr(cfg, "source", None),
+                          "controller.type")
+    return structure_key(cfg) + (name, torque_feedback(cfg) if name == "impedance" else None)
+
+
 def _column(objects: Sequence[Any], get) -> np.ndarray:
     return np.array([get(o) for o in objects], dtype=float)
 
 
 class BatchRun:
-    """The lockstep daemon of ``len(cfgs)`` configs (one batch structure, :func:`structure_key`)."""
+    """The lockstep daemon of ``len(cfgs)`` configs (one :func:`batch_key`)."""
 
     def __init__(self, cfgs: Sequence[Mapping[str, Any]], duration_s: float, source: str = "config",
                  slack_torque: float | np.ndarray = math.inf):
         """``slack_torque`` (N m, per plant or one): a motor cable torque this large slackens the
-        unloaded side of that motor's cable loop (2 r times the pretension), counted as an event."""
+        unloaded side of that motor's cable loop (2 r times the pretension), counted as an event.
+        Raises ConfigError naming the key for a controller the batch cannot run as the daemon does
+        (a plugin, a mix of controller types or of open- and closed-loop impedance)."""
         self.n = n = len(cfgs)
         self.slack_torque = np.broadcast_to(np.asarray(slack_torque, dtype=float), (n,))
         self.plant = BatchPlant(cfgs, source)
@@ -87,17 +111,15 @@ class BatchRun:
         self.auto_activate = np.array([c["safety"]["auto_activate"] for c in cfgs])
 
         refs = [reference_from_config(c) for c in cfgs]
+        self._check_controllers(cfgs)
         ctls = [build_controller(c, k, r.ref) for c, k, r in zip(cfgs, kins, refs)]
-        kinds = {type(c) for c in ctls}
-        if len(kinds) != 1:
-            raise ValueError("a batch needs one controller type")
         self.impedance = isinstance(ctls[0], ImpedanceController)
         self.gains = np.array([c.gains.values for c in ctls]).T      # (gains, plants) in the law's order
         self.soft_step = _column(ctls, lambda c: c.gains.soft_step)
-        ff = [c.friction for c in ctls]
-        self.ff_on = np.array([f.enabled for f in ff])
-        self.ff_kc, self.ff_d, self.ff_inv_band = (_column(ff, lambda f: f.kc), _column(ff, lambda f: f.d),
-                                                   _column(ff, lambda f: f.inv_band))
+        self.ff_any = any(c.friction.enabled for c in ctls)
+        self.ff = FrictionFeedForward.stack([c.friction for c in ctls])
+        closed = self.impedance and ctls[0].torque_loop is not None
+        self.torque_loop = JointTorqueLoop.stack([c.torque_loop for c in ctls]) if closed else None
         self.law_matrix = _column(ctls, lambda c: c.RiT if self.impedance else c.R).T   # (4, plants)
         self.inv_kt = 1.0 / np.array([c["actuator"]["torque_constant"] for c in cfgs])
 
@@ -114,6 +136,14 @@ class BatchRun:
         self.hold = np.array([isinstance(r.profile, Hold) for r in refs])
         self.ramp_s = np.array([c["reference"]["ramp_s"] for c in cfgs])
         self.ref_tables, self.ref_index = self._reference_tables(refs)
+
+    @staticmethod
+    def _check_controllers(cfgs: Sequence[Mapping[str, Any]]) -> None:
+        """ConfigError naming the key unless the batch runs every plant's controller as the daemon does."""
+        keys = {batch_key(c)[-2:] for c in cfgs}
+        if len(keys) != 1:
+            key = "controller.type" if len({k[0] for k in keys}) > 1 else "controller.impedance.torque_feedback"
+            raise ConfigError("differs between the plants of one batch (group them with batch_key)", None, key)
 
     def _reference_tables(self, refs) -> tuple[np.ndarray, np.ndarray]:
         """rad (ticks, 2, profiles): each distinct configured profile sampled at the cycle times,
@@ -163,7 +193,7 @@ class BatchRun:
         ref_tables = self.ref_tables
         shared_ref = ref_tables.shape[2] == 1
         waiting = True       # some plant still waits for its activation
-        ff_any = bool(self.ff_on.any())
+        ff, ff_any, loop = self.ff, self.ff_any, self.torque_loop
         x = plant.model.x
         for k in range(T):
             if k:
@@ -228,22 +258,27 @@ class BatchRun:
                     ramp_t0 = np.where(hs, t + dt, ramp_t0)
                     r0 = np.where(hs, a0, r0)
                     r1 = np.where(hs, a1, r1)
+                if loop is not None:        # ImpedanceController.reset
+                    loop.reset_state(e0, e1, starting)
             # -- control law (MotorPD / ImpedanceController.update), soft start, friction feed-forward
             controlling = (state == ACTIVE) & (code == 0)
             scale = np.minimum(scale + self.soft_step, 1.0)
-            if ff_any:
-                ff1 = np.where(self.ff_on, self.ff_kc * np.clip(v1 * self.ff_inv_band, -1.0, 1.0) + self.ff_d * v1, 0.0)
-                ff2 = np.where(self.ff_on, self.ff_kc * np.clip(v2 * self.ff_inv_band, -1.0, 1.0) + self.ff_d * v2, 0.0)
-            else:
-                ff1 = ff2 = 0.0
+            ff1 = ff2 = 0.0
             if self.impedance:
                 w0 = Ri[0] * v1 + Ri[1] * v2
                 w1 = Ri[2] * v1 + Ri[3] * v2
                 u0 = g[0] * (r0 - a0) - g[2] * w0
                 u1 = g[1] * (r1 - a1) - g[3] * w1
+                if loop is not None:
+                    u0, u1 = loop.update(u0, u1, e0, e1, scale >= 1.0)
+                if ff_any:          # each motor's friction sees the cable torque it feels, R^-T tau_sg
+                    ff1 = ff.torque(v1, M[0] * e0 + M[1] * e1)
+                    ff2 = ff.torque(v2, M[2] * e0 + M[3] * e1)
                 tq1 = scale * (M[0] * u0 + M[1] * u1 + ff1)
                 tq2 = scale * (M[2] * u0 + M[3] * u1 + ff2)
             else:
+                if ff_any:
+                    ff1, ff2 = ff.torque(v1), ff.torque(v2)
                 tq1 = scale * (g[0] * (M[0] * r0 + M[1] * r1 - p1) - g[1] * v1 + ff1)
                 tq2 = scale * (g[0] * (M[2] * r0 + M[3] * r1 - p2) - g[1] * v2 + ff2)
             # -- current limits (Safety.limit_currents)

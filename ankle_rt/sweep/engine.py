@@ -41,11 +41,11 @@ class BatchTask:
 def plan(study: Study) -> list[BatchTask]:
     """Runs that can share a batch (same structure and controller), in run order, cut at batch_size
     (fewer for long runs, see MAX_PLANT_TICKS)."""
-    from sim_backend.batch import structure_key
+    from ankle_rt.sweep.cycle import batch_key
 
     groups: dict[tuple, list[Run]] = {}
     for r in study.runs:
-        groups.setdefault(structure_key(r.config) + (r.config["controller"]["type"],), []).append(r)
+        groups.setdefault(batch_key(r.config), []).append(r)
     tasks = []
     for runs in groups.values():
         ticks = study.duration_s * runs[0].config["controller"]["rate_hz"]

@@ -340,7 +340,7 @@ def _plain(v: Any) -> Any:
 
 def expand(study: Study) -> list[Run]:
     """Every (sample, scenario) run with its validated config; errors name the spec key."""
-    from ankle_rt.config_schema import SCHEMA
+    from ankle_rt.config_schema import SCHEMA, check_consistency
 
     origins: dict = {}
     base_raw = read_with_includes(study.base, origins)
@@ -372,7 +372,9 @@ def expand(study: Study) -> list[Run]:
                     v = int(round(v))          # an integer key (substeps, tare_samples) gets the nearest integer
                 _set(data, p.key, v)
             try:
-                cfg = Config(validate(data, SCHEMA, lambda _k: source))
+                checked = validate(data, SCHEMA, lambda _k: source)
+                check_consistency(checked, lambda _k: source)        # as load_config does for the daemon
+                cfg = Config(checked)
             except ConfigError as exc:
                 hint = next((p.key for p in study.parameters if exc.key and (exc.key == p.key or
                              exc.key.startswith(p.key + ".") or p.key.startswith(exc.key + "."))), None)
@@ -380,7 +382,7 @@ def expand(study: Study) -> list[Run]:
                                 f"run {run_id} (sample {sample}, {scen_name}): the config rejects it: "
                                 f"{exc.key}: {exc.message}") from None
             cfg.source = source
-            _preflight(cfg, run_id, sample, scen_name, study)
+            _preflight(cfg, run_id, sample, scen_name, values, study)
             runs.append(Run(run_id, sample, scen_name, cfg["sim"]["seed"], values, cfg))
     return runs
 
@@ -395,11 +397,17 @@ def _get_or_none(data: Any, key: str) -> Any:
         return None
 
 
-def _preflight(cfg: Config, run_id: int, sample: int, scenario: str, study: Study) -> None:
-    """What the config validation leaves to the plant and the reference (effect parameters, the
-    disturbance times, the profile), checked before any run starts."""
-    from ankle_rt.params import PlantParams
+def _preflight(cfg: Config, run_id: int, sample: int, scenario: str, values: dict[str, Any], study: Study) -> None:
+    """What the config validation leaves to the plant, the reference and the controller (effect
+    parameters, the disturbance times, the profile, a controller the batch runs, impedance gains
+    inside the joint-torque loop's limits, the friction model), checked before any run starts. The
+    error names the key and the run's sampled values (a sampled plant parameter can move the impedance
+    limits, which the daemon derives from the config's actuator)."""
+    from ankle_rt.control import build_controller
+    from ankle_rt.kinematics import Kinematics
+    from ankle_rt.params import PlantParams, TransmissionParams
     from ankle_rt.references import reference_from_config
+    from ankle_rt.sweep.cycle import batch_key
     from sim_backend.effects import build_effects
 
     try:
@@ -407,9 +415,12 @@ def _preflight(cfg: Config, run_id: int, sample: int, scenario: str, study: Stud
         for i, d in enumerate(cfg["sim"]["disturbances"]):
             if d["stop"] <= d["start"]:
                 raise ConfigError("stop must be after start", cfg.source, f"sim.disturbances.{i}.stop")
-        reference_from_config(cfg)
+        ref = reference_from_config(cfg)
+        batch_key(cfg)
+        build_controller(cfg, Kinematics.from_params(TransmissionParams(**cfg["transmission"])), ref.ref)
     except ConfigError as exc:
         hint = next((p.key for p in study.parameters if exc.key and p.key.startswith(exc.key.rsplit(".", 1)[0])), None)
+        sampled = "".join(f", {k}={v:g}" if isinstance(v, float) else f", {k}={v}" for k, v in values.items())
         raise SpecError(f"parameters.{hint}" if hint else "overrides",
-                        f"run {run_id} (sample {sample}, {scenario}): the config rejects it: "
+                        f"run {run_id} (sample {sample}, {scenario}{sampled}): the config rejects it: "
                         f"{exc.key}: {exc.message}") from None
