@@ -360,7 +360,7 @@ SERIAL = Section({
 DIAGNOSIS = Section({
     "cogging_periods_per_motor_rev": Field(int, "cogging periods per motor revolution (the motor's pole/slot "
                                                 "count): a prior for `ankle-rt diagnose`, which finds the count "
-                                                "without it too", default=None, low=1),
+                                                "without it too", default=None, low=1, high=200),
 }, optional=True, doc="hints for `ankle-rt diagnose` (optional)")
 
 

@@ -30,8 +30,10 @@ def write_config(tmp_path: Path, body: str) -> str:
 # -- exit codes -------------------------------------------------------------------------------------
 
 def test_run_exits_1_and_names_the_fault_when_it_ends_in_fault(tmp_path, capsys):
-    unstable = write_config(tmp_path, "controller: {step_gains: {kp: 10000, kd: 0}}\n")
-    assert main(["run", "--fast", "--duration", "1", "--no-log", "--config", unstable]) == 1
+    # a 150 N m blow to the foot: the strain-gauge check faults the run (gains that would go unstable
+    # are refused by the config's bounds before a run starts)
+    blow = write_config(tmp_path, "sim:\n  disturbances:\n    - {start: 0.6, stop: 1.0, torque_dp: 150.0, torque_ie: 0.0}\n")
+    assert main(["run", "--fast", "--duration", "1", "--no-log", "--config", blow]) == 1
     assert "ended in FAULT at t = " in capsys.readouterr().err
     assert main(["run", "--fast", "--duration", "1", "--no-log"]) == 0
 
