@@ -49,6 +49,7 @@ class Fault(enum.IntEnum):
     DEVICE_FAULT = 13        # backend: the bridge / I/O module reported a fault
     ENCODER_FAULT = 14       # backend: encoder stuck or implausible
     OUTPUT_INVALID = 15      # the controller produced a NaN/inf torque
+    LOG_FAILED = 16          # a run log write failed (disk full) and logging.fault_on_error is set
 
     @property
     def description(self) -> str:
@@ -72,6 +73,7 @@ _DESCRIPTIONS = {
     Fault.DEVICE_FAULT: "device reported a fault",
     Fault.ENCODER_FAULT: "encoder fault reported by the backend",
     Fault.OUTPUT_INVALID: "controller output not finite",
+    Fault.LOG_FAILED: "run log write failed (logging.fault_on_error)",
 }
 
 # BackendFault bits that stop the device, in priority order. CRC errors and sequence gaps are
