@@ -22,8 +22,8 @@ from ankle_rt.safety import Fault, State
 
 __all__ = ["LogFormatError", "RunLog", "read_log", "interchange_columns"]
 
-_STATES = np.array([int(s) for s in State])
-_FAULTS = np.array([int(f) for f in Fault])
+_KNOWN_STATE = np.isin(np.arange(256), [int(s) for s in State])   # by u1 code: a table lookup per record
+_KNOWN_FAULT = np.isin(np.arange(256), [int(f) for f in Fault])
 _FIRST_SCAN = 1024   # records searched for the first intact one (first_t of a tail read)
 
 
@@ -53,7 +53,7 @@ def _intact(raw: bytes, dtype: np.dtype, checksummed: bool) -> tuple[np.ndarray,
     n = len(raw) // dtype.itemsize
     rows = np.frombuffer(raw, dtype=np.uint8, count=n * dtype.itemsize).reshape(n, dtype.itemsize)
     records = rows.view(dtype).reshape(n)
-    ok = np.isfinite(records["t"]) & np.isin(records["state"], _STATES) & np.isin(records["fault"], _FAULTS)
+    ok = np.isfinite(records["t"]) & _KNOWN_STATE[records["state"]] & _KNOWN_FAULT[records["fault"]]
     if checksummed:
         ok &= crc_ok(rows)
     if ok.all():
