@@ -85,7 +85,7 @@ def read_log(path: str | Path, last: int | None = None) -> RunLog:
                   damaged=damaged, header_note=header.note, version=header.version)
 
 
-# The log fields exported to the measured-data interchange CSV (DESIGN.md), in column order.
+# The log fields exported to the measured-data interchange CSV (docs/design.md), in column order.
 INTERCHANGE_FIELDS = ("t", "motor_pos_1", "motor_pos_2", "current_cmd_1", "current_cmd_2",
                       "sg_torque_dp", "sg_torque_ie", "ankle_dp", "ankle_ie", "ref_dp", "ref_ie")
 
