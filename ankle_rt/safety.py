@@ -49,8 +49,7 @@ class Fault(enum.IntEnum):
     DEVICE_FAULT = 13        # backend: the bridge / I/O module reported a fault
     ENCODER_FAULT = 14       # backend: encoder stuck or implausible
     OUTPUT_INVALID = 15      # the controller produced a NaN/inf torque
-    LOG_FAILED = 17          # a run log write failed (disk full) and logging.fault_on_error is set (16: kept free
-                             # for REFERENCE_INVALID of the safety work in parallel)
+    LOG_FAILED = 17          # a run log write failed (disk full) and logging.fault_on_error is set
 
     @property
     def description(self) -> str:
