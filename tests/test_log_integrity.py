@@ -153,3 +153,15 @@ def test_fuzz_ten_thousand_mutated_logs_read_or_refuse_cleanly(clean, tmp_path):
     result = fuzz_logs(clean[0], 10_000, seed=20261123, directory=scratch_dir(tmp_path))
     assert result.inputs == 10_000 and result.crashes == [] and result.violations == []
     assert result.refused < 1000 and result.records_kept > 0 and result.damaged_counted > 0
+
+
+def test_offline_tools_recognise_an_old_log_and_one_with_a_damaged_first_magic(clean, tmp_path):
+    from ankle_rt.identification.data import load_recording
+
+    data = bytearray(clean[0])
+    data[2] ^= 0x01                                           # "ANKLOG02" -> "AOKLOG02" in copy 1
+    rec = load_recording(_write(tmp_path, data))
+    assert len(rec) == N_RECORDS and rec.extra["log_meta"]["rate_hz"] == 1000
+    meta = {"rate_hz": 1000, "fields": [[n, DATA_DTYPE[n].str, ""] for n, *_ in FIELDS]}
+    head = (MAGIC_V1 + json.dumps(meta).encode() + b"\n").ljust(BLOCK_SIZE, b" ")
+    assert len(load_recording(_write(tmp_path, head + clean[1].tobytes(), "v1.arlog"))) == N_RECORDS

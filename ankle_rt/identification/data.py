@@ -14,13 +14,13 @@ def load_recording(path: str | Path, min_rows: int = 2) -> Recording:
     """Read ``path`` as a run log (by its magic bytes) or else as an interchange CSV; either way a file
     with fewer than ``min_rows`` rows is an error naming column 't' and the row count. A run log's
     header metadata is kept in ``extra["log_meta"]``."""
+    from ankle_rt.log.header import HEADER_SIZE, is_run_log
     from ankle_rt.log.reader import LogFormatError, interchange_columns, read_log
-    from ankle_rt.log.writer import MAGIC
 
     path = Path(path)
     try:
         with path.open("rb") as handle:
-            is_log = handle.read(len(MAGIC)) == MAGIC
+            is_log = is_run_log(handle.read(HEADER_SIZE))
     except OSError as exc:
         raise InterchangeError(f"cannot read: {exc.strerror}", path) from None
     if not is_log:

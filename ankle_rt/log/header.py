@@ -46,6 +46,12 @@ def encode_header(meta: dict[str, Any]) -> bytes:
     return block + block
 
 
+def is_run_log(head: bytes) -> bool:
+    """Whether the first HEADER_SIZE bytes of a file look like a run log of some format (a magic in
+    either header copy), so a damaged first copy or an old log is still recognised as a log."""
+    return head.startswith(MAGIC_PREFIX) or head[BLOCK_SIZE:BLOCK_SIZE + len(MAGIC)] == MAGIC
+
+
 @dataclass
 class Header:
     """A decoded header: metadata (``{}`` when no copy could be read), where records start, their

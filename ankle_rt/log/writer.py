@@ -25,7 +25,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ankle_rt.log.header import HEADER_SIZE, MAGIC, encode_header  # noqa: F401  (MAGIC: for code that sniffs files)
+from ankle_rt.log.header import HEADER_SIZE, encode_header
 from ankle_rt.log.record import RECORD_SIZE, RecordRing
 
 
