@@ -160,3 +160,23 @@ def test_run_with_rotation_summarises_the_last_part(tmp_path, capsys):
     assert logs[-1].meta["first_record"] + len(logs[-1]) == 2000 and total < 2000   # the oldest were deleted
     seq = np.concatenate([log.records["seq"] for log in logs])
     assert np.all(np.diff(seq) == 1)                 # the kept parts join without a gap
+
+
+def test_export_joins_the_parts_of_a_rotated_run_and_names_a_gap(tmp_path, capsys):
+    first = tmp_path / "j.arlog"
+    w = LogWriter(first, {"rate_hz": 1000}, capacity=1024, rotation=Rotation(size_bytes=HEADER_SIZE + 30 * RECORD_SIZE))
+    for k in range(100):
+        w.append(*_values(k))
+    w.close()
+    parts = [str(part_path(first, i)) for i in range(w.part + 1)]
+    out = tmp_path / "j.csv"
+    assert main(["log", "export", *reversed(parts), "--csv", str(out)]) == 0     # any order
+    assert "wrote 100 rows" in capsys.readouterr().out
+    from ankle_rt.interchange import read_csv
+    assert np.array_equal(read_csv(out)["t"], np.arange(100) * 1e-3)
+    assert main(["log", "export", parts[0], parts[2], "--csv", str(out)]) == 0
+    assert "30 records missing between" in capsys.readouterr().err
+    other = tmp_path / "other.arlog"
+    LogWriter(other, {"rate_hz": 1000}).close()
+    assert main(["log", "export", parts[0], str(other), "--csv", str(out)]) == 1
+    assert "parts of different runs" in capsys.readouterr().err

@@ -21,7 +21,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                                         "(DESIGN.md) under their plain names, the others as `name [unit]`. "
                                         "MCAP: one JSON message per record on /ankle_rt/cycle at the run's "
                                         "absolute time (Foxglove, PlotJuggler; needs the `logs` extra).")
-    export.add_argument("path")
+    export.add_argument("path", nargs="+", help="a run log, or several parts of one rotated run (joined in order)")
     export.add_argument("--csv", metavar="OUT", help="CSV file to write")
     export.add_argument("--mcap", metavar="OUT", help="MCAP file to write")
     export.set_defaults(handler=export_cmd)
@@ -86,13 +86,17 @@ def export_cmd(args: argparse.Namespace) -> int:
     if not (args.csv or args.mcap):
         print("ankle-rt log export: give --csv OUT and/or --mcap OUT", file=sys.stderr)
         return 2
-    log = _read(args.path)
-    if log is None:
+    from ankle_rt.log.reader import LogFormatError, read_parts
+
+    try:
+        log, notes = read_parts(args.path)
+    except LogFormatError as exc:
+        print(f"ankle-rt log: {exc}", file=sys.stderr)
         return 1
-    for line in _damage_lines(log):
-        print(f"{args.path}: {line}", file=sys.stderr)
+    for line in _damage_lines(log) + notes:
+        print(f"{log.source}: {line}", file=sys.stderr)
     if len(log) == 0:
-        print(f"ankle-rt log: {args.path}: no intact records to export", file=sys.stderr)
+        print(f"ankle-rt log: {log.source}: no intact records to export", file=sys.stderr)
         return 1
     try:
         if args.csv:

@@ -20,7 +20,7 @@ from ankle_rt.log.header import HEADER_SIZE, LogFormatError, decode_header
 from ankle_rt.log.record import crc_ok
 from ankle_rt.safety import Fault, State
 
-__all__ = ["LogFormatError", "RunLog", "read_log", "interchange_columns"]
+__all__ = ["LogFormatError", "RunLog", "read_log", "read_parts", "interchange_columns"]
 
 _KNOWN_STATE = np.isin(np.arange(256), [int(s) for s in State])   # by u1 code: a table lookup per record
 _KNOWN_FAULT = np.isin(np.arange(256), [int(f) for f in Fault])
@@ -83,6 +83,35 @@ def read_log(path: str | Path, last: int | None = None) -> RunLog:
     return RunLog(meta=header.meta, records=records, torn_bytes=body - total * size, source=str(path),
                   total_records=total, first_t=float(first["t"][0]) if len(first) else math.nan,
                   damaged=damaged, header_note=header.note, version=header.version)
+
+
+def read_parts(paths: list[str | Path]) -> tuple[RunLog, list[str]]:
+    """Parts of one rotated run read as one log, in record order (each part's ``first_record``), and
+    notes on any records missing between two of them (a deleted part, records dropped). Raises
+    :class:`LogFormatError` for parts of different runs or a part whose header was lost."""
+    logs = [read_log(p) for p in paths]
+    if len(logs) == 1:
+        return logs[0], []
+    for log in logs:
+        if "first_record" not in log.meta:
+            raise LogFormatError(f"{log.source}: no part number in its header (damaged, or an older log): "
+                                 "export it on its own")
+    runs = {(log.meta.get("first_part"), log.meta.get("started_utc")) for log in logs}
+    if len(runs) > 1:
+        raise LogFormatError(f"{', '.join(log.source for log in logs)}: parts of different runs")
+    logs.sort(key=lambda log: log.meta["first_record"])
+    notes = []
+    for a, b in zip(logs, logs[1:]):
+        missing = b.meta["first_record"] - (a.meta["first_record"] + a.total_records)
+        if missing:
+            notes.append(f"{missing} records missing between {a.source} and {b.source}")
+    joined = RunLog(meta=logs[0].meta, records=np.concatenate([log.records for log in logs]),
+                    torn_bytes=sum(log.torn_bytes for log in logs), source=" + ".join(log.source for log in logs),
+                    total_records=sum(log.total_records for log in logs), first_t=logs[0].first_t,
+                    damaged=sum(log.damaged for log in logs),
+                    header_note="; ".join(f"{log.source}: {log.header_note}" for log in logs if log.header_note),
+                    version=min(log.version for log in logs))
+    return joined, notes
 
 
 # The log fields exported to the measured-data interchange CSV (docs/design.md), in column order.
