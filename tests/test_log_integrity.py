@@ -17,7 +17,7 @@ from ankle_rt.cli import main
 from ankle_rt.daemon import run_lockstep
 from ankle_rt.interchange import read_csv
 from ankle_rt.log.export import csv_columns
-from ankle_rt.log.header import BLOCK_SIZE, HEADER_SIZE, MAGIC_V1, LogFormatError
+from ankle_rt.log.header import BLOCK_SIZE, HEADER_SIZE, MAGIC_V1, V1_HEADER_SIZE, LogFormatError
 from ankle_rt.log.reader import read_log
 from ankle_rt.log.record import DATA_DTYPE, DATA_STRUCT, FIELDS, RECORD_SIZE
 from ankle_rt.log.summary import format_summary, summarize_log
@@ -70,7 +70,7 @@ def test_a_flipped_crc_bit_also_loses_only_its_record(clean, tmp_path):
     assert log.damaged == 1 and len(log) == N_RECORDS - 1
 
 
-@pytest.mark.parametrize("where", [8 + 20, 600, BLOCK_SIZE - 2, 3])   # JSON, padding, CRC, magic of copy 1
+@pytest.mark.parametrize("where", [8 + 20, 6000, BLOCK_SIZE - 2, 3])   # JSON, padding, CRC, magic of copy 1
 def test_a_damaged_first_header_copy_is_read_from_the_second(clean, tmp_path, where):
     data = bytearray(clean[0])
     data[where] ^= 0x04
@@ -118,7 +118,7 @@ def test_a_nan_time_in_a_format1_log_spares_its_neighbours_too(clean, tmp_path):
     records = want.copy()
     records["t"][30] = np.nan
     records["fault"][40] = 200
-    head = (MAGIC_V1 + json.dumps(meta).encode() + b"\n").ljust(BLOCK_SIZE, b" ")
+    head = (MAGIC_V1 + json.dumps(meta).encode() + b"\n").ljust(V1_HEADER_SIZE, b" ")
     log = read_log(_write(tmp_path, head + records.tobytes()))
     assert log.version == 1 and log.meta["rate_hz"] == 1000 and log.damaged == 2
     assert len(csv_columns(log.records)["t"]) == N_RECORDS - 2
@@ -127,7 +127,7 @@ def test_a_nan_time_in_a_format1_log_spares_its_neighbours_too(clean, tmp_path):
 
 
 def test_a_format1_log_with_a_damaged_header_still_reads(clean, tmp_path):
-    head = (MAGIC_V1 + b'{"rate_hz": 10\xff00}\n').ljust(BLOCK_SIZE, b" ")
+    head = (MAGIC_V1 + b'{"rate_hz": 10\xff00}\n').ljust(V1_HEADER_SIZE, b" ")
     log = read_log(_write(tmp_path, head + clean[1].tobytes()))
     assert log.version == 1 and log.meta == {} and len(log) == N_RECORDS and "format 1" in log.header_note
 
@@ -163,5 +163,5 @@ def test_offline_tools_recognise_an_old_log_and_one_with_a_damaged_first_magic(c
     rec = load_recording(_write(tmp_path, data))
     assert len(rec) == N_RECORDS and rec.extra["log_meta"]["rate_hz"] == 1000
     meta = {"rate_hz": 1000, "fields": [[n, DATA_DTYPE[n].str, ""] for n, *_ in FIELDS]}
-    head = (MAGIC_V1 + json.dumps(meta).encode() + b"\n").ljust(BLOCK_SIZE, b" ")
+    head = (MAGIC_V1 + json.dumps(meta).encode() + b"\n").ljust(V1_HEADER_SIZE, b" ")
     assert len(load_recording(_write(tmp_path, head + clean[1].tobytes(), "v1.arlog"))) == N_RECORDS

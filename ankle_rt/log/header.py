@@ -1,7 +1,7 @@
 """The run log header: the run's metadata and the record layout as JSON, stored twice.
 
-Format 2 (``ANKLOG02``): two identical 4096-byte blocks, each ``MAGIC + JSON + "\\n"``, padded with
-spaces and ended by a CRC-32 of the block's first 4092 bytes. A reader takes the first block whose
+Format 2 (``ANKLOG02``): two identical 8192-byte blocks, each ``MAGIC + JSON + "\\n"``, padded with
+spaces and ended by a CRC-32 of the block's first 8188 bytes. A reader takes the first block whose
 CRC holds, so one damaged block costs nothing. Format 1 (``ANKLOG01``, before checksums) had one
 block without a CRC; it is still read.
 """
@@ -21,8 +21,9 @@ from ankle_rt.log.record import DATA_DTYPE, FIELDS, RECORD_DTYPE, RECORD_SIZE, f
 MAGIC = b"ANKLOG02"
 MAGIC_V1 = b"ANKLOG01"
 MAGIC_PREFIX = b"ANKLOG"
-BLOCK_SIZE = 4096                    # one header copy
+BLOCK_SIZE = 8192                    # one header copy (room for large controller configs)
 HEADER_SIZE = 2 * BLOCK_SIZE         # records start here (format 2)
+V1_HEADER_SIZE = 4096                # format 1: one block, no CRC
 FORMAT_VERSION = 2
 _CRC = struct.Struct("<I")
 
@@ -90,14 +91,14 @@ def decode_header(head: bytes, source: str) -> Header:
     both copies are damaged still yields the records (the layout is the format's), with ``meta`` empty."""
     copies = [head[i:i + BLOCK_SIZE] for i in (0, BLOCK_SIZE)]
     if head.startswith(MAGIC_V1):
-        if len(head) < BLOCK_SIZE:
-            raise LogFormatError(f"{source}: header truncated ({len(head)} of {BLOCK_SIZE} bytes)")
-        meta = _json(copies[0])
+        if len(head) < V1_HEADER_SIZE:
+            raise LogFormatError(f"{source}: header truncated ({len(head)} of {V1_HEADER_SIZE} bytes)")
+        meta = _json(head[:V1_HEADER_SIZE])
         if meta is None:
-            return Header({}, BLOCK_SIZE, DATA_DTYPE, 1, "header damaged (format 1 has no copy): "
+            return Header({}, V1_HEADER_SIZE, DATA_DTYPE, 1, "header damaged (format 1 has no copy): "
                           "metadata lost, records read with the format-1 layout")
         _check_layout(meta, DATA_DTYPE, source)
-        return Header(meta, BLOCK_SIZE, DATA_DTYPE, 1)
+        return Header(meta, V1_HEADER_SIZE, DATA_DTYPE, 1)
     if not any(c.startswith(MAGIC) for c in copies):
         magic = head[:len(MAGIC)]
         if magic.startswith(MAGIC_PREFIX) and magic[len(MAGIC_PREFIX):].isdigit():

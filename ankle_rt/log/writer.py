@@ -96,6 +96,7 @@ class LogWriter:
             _write_all(fd, memoryview(header))
         except OSError:
             os.close(fd)
+            path.unlink(missing_ok=True)    # a header cut short (disk full) would be a file no reader takes
             raise
         self.fd, self.path = fd, path
         self.file_bytes = HEADER_SIZE
@@ -172,10 +173,10 @@ class LogWriter:
                 _write_all(self.fd, view[i * RECORD_SIZE:(i + n) * RECORD_SIZE])
                 self.file_bytes += n * RECORD_SIZE
                 start += n
-        except OSError as exc:                      # disk full, I/O error: stop logging, keep the loop going
+        except (OSError, ValueError) as exc:        # disk full, I/O error: stop logging, keep the loop going
             self.dropped += end - start
             self.failed = True
-            self.error = f"{self.path}: {exc.strerror or exc}"
+            self.error = f"{self.path}: {getattr(exc, 'strerror', None) or exc}"
         self.flushed = end
 
     def _run(self) -> None:
