@@ -6,6 +6,7 @@ raises anything but LogFormatError."""
 from __future__ import annotations
 
 import json
+import os
 import struct
 import zlib
 from pathlib import Path
@@ -165,3 +166,11 @@ def test_offline_tools_recognise_an_old_log_and_one_with_a_damaged_first_magic(c
     meta = {"rate_hz": 1000, "fields": [[n, DATA_DTYPE[n].str, ""] for n, *_ in FIELDS]}
     head = (MAGIC_V1 + json.dumps(meta).encode() + b"\n").ljust(V1_HEADER_SIZE, b" ")
     assert len(load_recording(_write(tmp_path, head + clean[1].tobytes(), "v1.arlog"))) == N_RECORDS
+
+
+def test_a_fifo_or_a_directory_is_refused_without_blocking(tmp_path):
+    fifo = tmp_path / "pipe.arlog"
+    os.mkfifo(fifo)
+    for path in (fifo, tmp_path):
+        with pytest.raises(LogFormatError, match="not a regular file"):
+            read_log(path)

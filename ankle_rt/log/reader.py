@@ -65,6 +65,8 @@ def read_log(path: str | Path, last: int | None = None) -> RunLog:
     """Read a run log; ``last`` keeps memory and time bounded for long runs: only the most recent
     ``last`` records are read (a seek, then one read), never the whole file."""
     path = Path(path)
+    if path.exists() and not path.is_file():      # a FIFO would block the read, a directory fail it
+        raise LogFormatError(f"{path}: not a regular file")
     try:
         with path.open("rb") as handle:
             file_size = os.fstat(handle.fileno()).st_size
