@@ -18,7 +18,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     info.set_defaults(handler=info_cmd)
     export = sub.add_parser("export", help="write every field as CSV (units in the header) and/or MCAP",
                             description="CSV: one row per sample time, every field; the interchange columns "
-                                        "(DESIGN.md) under their plain names, the others as `name [unit]`. "
+                                        "(docs/design.md) under their plain names, the others as `name [unit]`. "
                                         "MCAP: one JSON message per record on /ankle_rt/cycle at the run's "
                                         "absolute time (Foxglove, PlotJuggler; needs the `logs` extra).")
     export.add_argument("path", nargs="+", help="a run log, or several parts of one rotated run (joined in order)")
