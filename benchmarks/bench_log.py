@@ -2,7 +2,8 @@
 rotation costs the real-time loop. Prints figures; asserts nothing.
 
     python benchmarks/bench_log.py [--fuzz-inputs N] [--minutes M] [--rotate-mb MB] [--keep-files K]
-                                   [--realtime-s S] [--rounds R] [--only fuzz|rotation|timing]
+                                   [--realtime-s S] [--rounds R] [--priority N]
+                                   [--only fuzz|rotation|timing]
 
 fuzz      N (default 10^5) seeded mutations of a clean log (bit flips, overwritten, inserted and
           deleted bytes, truncation, header damage, swapped records), each read, summarised and
@@ -115,9 +116,13 @@ def main() -> None:
     p.add_argument("--keep-files", type=int, default=4)
     p.add_argument("--realtime-s", type=float, default=600.0, help="s of each real-time run")
     p.add_argument("--rounds", type=int, default=1, help="real-time runs of each kind, alternated")
+    p.add_argument("--priority", type=int, metavar="N",
+                   help="SCHED_FIFO priority of the real-time loop (default: loop.realtime.priority of the config)")
     p.add_argument("--only", choices=("fuzz", "rotation", "timing"))
     args = p.parse_args()
     cfg = load_config(default_config_path())
+    if args.priority is not None:
+        cfg["loop"]["realtime"]["priority"] = args.priority
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
         if args.only in (None, "fuzz"):
