@@ -145,7 +145,7 @@ def test_daemon_status_shows_a_failed_log_and_faults_only_when_configured(sim_cf
         assert status["state"] == "active"
 
 
-def test_run_with_rotation_summarises_the_last_part(tmp_path, capsys):
+def test_run_with_rotation_summarises_the_last_records_across_parts(tmp_path, capsys):
     cfg = tmp_path / "rot.yaml"
     cfg.write_text(f"include: [{SIM_CONFIG}]\nlogging: {{rotate_size_mb: 0.05, keep_files: 3}}\n")
     first = tmp_path / "r.arlog"
@@ -155,6 +155,11 @@ def test_run_with_rotation_summarises_the_last_part(tmp_path, capsys):
     summary = json.loads(out[out.index("\n{") + 1:])     # after the start-up line
     parts = _parts(first)
     assert len(parts) == 3 and summary["log"] == str(parts[-1]) and summary["log_status"]["dropped"] == 0
+    last, before = read_log(parts[-1]), read_log(parts[-2])
+    assert len(last) < 195 == len(before)                 # 195 records per 50 kB part
+    window = summary["window"]                            # the last part + the one before, of the whole run
+    assert window["records"] == summary["cycles"] == len(last) + len(before) and window["total_records"] == 2000
+    assert window["run_s"] == pytest.approx(1.999)
     logs = [read_log(p) for p in parts]
     total = sum(len(log) for log in logs)
     assert logs[-1].meta["first_record"] + len(logs[-1]) == 2000 and total < 2000   # the oldest were deleted
@@ -180,3 +185,19 @@ def test_export_joins_the_parts_of_a_rotated_run_and_names_a_gap(tmp_path, capsy
     LogWriter(other, {"rate_hz": 1000}).close()
     assert main(["log", "export", parts[0], str(other), "--csv", str(out)]) == 1
     assert "parts of different runs" in capsys.readouterr().err
+
+
+def test_read_tail_takes_the_rest_from_the_part_before(tmp_path):
+    from ankle_rt.log.reader import read_tail
+
+    first = tmp_path / "t.arlog"
+    w = LogWriter(first, {}, capacity=1024, rotation=Rotation(size_bytes=HEADER_SIZE + 30 * RECORD_SIZE))
+    for k in range(100):
+        w.append(*_values(k))
+    w.close()
+    newest = part_path(first, 3)                       # parts of 30, 30, 30 and 10 records
+    tail = read_tail(newest, 25)
+    assert tail.records["seq"].tolist() == list(range(75, 100)) and tail.total_records == 100 and tail.is_tail
+    assert len(read_tail(newest, 500)) == 40            # this part and the one before, no further
+    part_path(first, 2).unlink()
+    assert read_tail(newest, 25).records["seq"].tolist() == list(range(90, 100))

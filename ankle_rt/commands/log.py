@@ -27,11 +27,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     export.set_defaults(handler=export_cmd)
 
 
-def _read(path: str, last: int | None = None):
-    from ankle_rt.log.reader import LogFormatError, read_log
+def _read(path: str, last: int):
+    from ankle_rt.log.reader import LogFormatError, read_tail
 
     try:
-        return read_log(path, last)
+        return read_tail(path, last)
     except LogFormatError as exc:
         print(f"ankle-rt log: {exc}", file=sys.stderr)
         return None

@@ -41,7 +41,7 @@ def run(args: argparse.Namespace) -> int:
     from ankle_rt.clock import MonotonicClock, SimClock
     from ankle_rt.config import load_config
     from ankle_rt.daemon import Daemon
-    from ankle_rt.log.reader import read_log
+    from ankle_rt.log.reader import read_tail
     from ankle_rt.log.summary import SUMMARY_MAX_RECORDS, format_summary, plot_run, summarize_log
     from ankle_rt.paths import default_config_path
     from ankle_rt.realtime import apply_realtime
@@ -109,9 +109,9 @@ def run(args: argparse.Namespace) -> int:
         return 0
     # Only the most recent records: a run of days must not load gigabytes after the safe state
     # (systemd's stop timeout, mlockall). The whole run's loop timing is in the live histograms.
-    # With rotation, the last part holds the most recent records.
+    # With rotation, the last part (and the one before) hold the most recent records.
     log_path = daemon.recorder.path
-    run_log = read_log(log_path, last=SUMMARY_MAX_RECORDS)
+    run_log = read_tail(log_path, SUMMARY_MAX_RECORDS)
     records = run_log.records
     summary = summarize_log(run_log)
     summary["log"] = str(log_path)

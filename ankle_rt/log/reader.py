@@ -20,7 +20,7 @@ from ankle_rt.log.header import HEADER_SIZE, LogFormatError, decode_header
 from ankle_rt.log.record import crc_ok
 from ankle_rt.safety import Fault, State
 
-__all__ = ["LogFormatError", "RunLog", "read_log", "read_parts", "interchange_columns"]
+__all__ = ["LogFormatError", "RunLog", "read_log", "read_tail", "read_parts", "interchange_columns"]
 
 _KNOWN_STATE = np.isin(np.arange(256), [int(s) for s in State])   # by u1 code: a table lookup per record
 _KNOWN_FAULT = np.isin(np.arange(256), [int(f) for f in Fault])
@@ -85,6 +85,34 @@ def read_log(path: str | Path, last: int | None = None) -> RunLog:
     return RunLog(meta=header.meta, records=records, torn_bytes=body - total * size, source=str(path),
                   total_records=total, first_t=float(first["t"][0]) if len(first) else math.nan,
                   damaged=damaged, header_note=header.note, version=header.version)
+
+
+def read_tail(path: str | Path, last: int) -> RunLog:
+    """The most recent ``last`` records of the run whose newest part is ``path`` (bounded like
+    ``read_log(last=...)``). A part just begun by a rotation holds few records, so the rest come
+    from the part before it when that is still there; ``total_records`` and ``first_t`` then
+    describe the whole run (from the header's ``first_record``, and the run's start from the last
+    record's ``loop_time``), so the summary says which part of the run it covers."""
+    from ankle_rt.log.writer import part_path
+
+    log = read_log(path, last)
+    part, first = log.meta.get("part"), log.meta.get("first_record")
+    if not (isinstance(part, int) and isinstance(first, int)) or part <= 0:
+        return log
+    records, damaged = log.records, log.damaged
+    wanted = last - len(records) - damaged
+    previous = part_path(Path(path).with_name(str(log.meta.get("first_part", ""))), part - 1)
+    if wanted > 0 and previous.is_file():
+        try:
+            before = read_log(previous, wanted)
+        except LogFormatError:
+            before = None
+        if before is not None and before.meta.get("first_record", -1) + before.total_records == first:
+            records, damaged = np.concatenate([before.records, records]), damaged + before.damaged
+    run_start = float(records["t"][-1] - records["loop_time"][-1]) if len(records) else math.nan
+    return RunLog(meta=log.meta, records=records, torn_bytes=log.torn_bytes, source=log.source,
+                  total_records=first + log.total_records, first_t=run_start, damaged=damaged,
+                  header_note=log.header_note, version=log.version)
 
 
 def read_parts(paths: list[str | Path]) -> tuple[RunLog, list[str]]:
