@@ -14,6 +14,7 @@ import pytest
 from ankle_rt.cli import main
 from ankle_rt.daemon import run_lockstep
 from ankle_rt.interchange import read_csv
+from ankle_rt.log import export
 from ankle_rt.log.export import MCAP_TOPIC
 from ankle_rt.log.reader import read_log
 from ankle_rt.log.record import FIELDS, UNITS
@@ -27,7 +28,8 @@ def run_log(tmp_path_factory, _sim_cfg):
     return path
 
 
-def test_csv_has_every_field_with_units_and_the_exact_row_count(run_log, tmp_path, capsys):
+def test_csv_has_every_field_with_units_and_the_exact_row_count(run_log, tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(export, "CHUNK_ROWS", 300)     # 800 rows: three chunks
     out = tmp_path / "all.csv"
     assert main(["log", "export", str(run_log), "--csv", str(out)]) == 0
     printed = capsys.readouterr().out
@@ -65,7 +67,8 @@ def test_csv_of_a_run_without_references_still_reads_as_interchange(sim_cfg, tmp
     assert len(read_csv(out)) == 300
 
 
-def test_mcap_reads_back_with_the_same_values_at_absolute_time(run_log, tmp_path, capsys):
+def test_mcap_reads_back_with_the_same_values_at_absolute_time(run_log, tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(export, "CHUNK_ROWS", 300)
     mcap_reader = pytest.importorskip("mcap.reader")
     out = tmp_path / "run.mcap"
     assert main(["log", "export", str(run_log), "--mcap", str(out)]) == 0

@@ -20,6 +20,7 @@ from ankle_rt.safety import Fault, State
 MCAP_TOPIC = "/ankle_rt/cycle"
 MCAP_SCHEMA = "ankle_rt.Cycle"
 MCAP_MISSING = "MCAP export needs the mcap package: pip install 'ankle-rt[logs]'"
+CHUNK_ROWS = 65536   # records formatted at a time (Python objects per chunk, not per log)
 
 
 def csv_name(name: str, plain: bool) -> str:
@@ -55,10 +56,11 @@ def write_csv(path: str | Path, columns: dict[str, np.ndarray]) -> int:
     try:
         with tmp.open("w", newline="", encoding="utf-8") as handle:
             handle.write(",".join(names) + "\n")
-            if rows:
-                table = np.empty((rows, len(names)), dtype=object)
+            for start in range(0, rows, CHUNK_ROWS):      # bounded memory for logs of hours
+                stop = min(rows, start + CHUNK_ROWS)
+                table = np.empty((stop - start, len(names)), dtype=object)
                 for k, n in enumerate(names):
-                    table[:, k] = columns[n]
+                    table[:, k] = columns[n][start:stop]
                 np.savetxt(handle, table, delimiter=",", fmt=formats)
         os.replace(tmp, path)
     finally:
@@ -90,6 +92,15 @@ def _schema() -> dict[str, Any]:
     return {"type": "object", "title": MCAP_SCHEMA, "properties": props}
 
 
+def _json_columns(records: np.ndarray) -> dict[str, list]:
+    """Every field as a list of Python numbers, NaN/inf as None (JSON has no NaN)."""
+    columns = {}
+    for name, *_ in FIELDS:
+        values = records[name].tolist()
+        columns[name] = values if RECORD_DTYPE[name].kind in "iu" else [v if math.isfinite(v) else None for v in values]
+    return columns
+
+
 def write_mcap(path: str | Path, log: RunLog) -> dict[str, Any]:
     """Write every intact record of ``log`` as one JSON message on :data:`MCAP_TOPIC` (JSON schema,
     so Foxglove and PlotJuggler plot every field); log time = the run's start (UTC) + the record's
@@ -103,10 +114,6 @@ def write_mcap(path: str | Path, log: RunLog) -> dict[str, Any]:
     loop_time = records["loop_time"].astype(float)
     rel = np.where(np.isfinite(loop_time) & (loop_time >= 0), loop_time, 0.0)
     times = start + np.round(rel * 1e9).astype(np.int64)
-    columns = {}
-    for name, *_ in FIELDS:
-        values = records[name].tolist()
-        columns[name] = values if RECORD_DTYPE[name].kind in "iu" else [v if math.isfinite(v) else None for v in values]
     state_names = {int(s): s.name for s in State}
     fault_names = {int(f): f.name for f in Fault}
     names = [name for name, *_ in FIELDS]
@@ -120,13 +127,16 @@ def write_mcap(path: str | Path, log: RunLog) -> dict[str, Any]:
             channel = writer.register_channel(MCAP_TOPIC, "json", schema)
             writer.add_metadata("ankle_rt.log", {k: json.dumps(v) for k, v in log.meta.items() if k != "fields"})
             dumps = json.dumps
-            for i in range(len(records)):
-                message = {name: columns[name][i] for name in names}
-                message["state_name"] = state_names[message["state"]]
-                message["fault_name"] = fault_names[message["fault"]]
-                stamp = int(times[i])
-                writer.add_message(channel, log_time=stamp, publish_time=stamp, sequence=i,
-                                   data=dumps(message, allow_nan=False).encode())
+            for start in range(0, len(records), CHUNK_ROWS):
+                columns = _json_columns(records[start:start + CHUNK_ROWS])
+                for j in range(len(columns["t"])):
+                    message = {name: columns[name][j] for name in names}
+                    message["state_name"] = state_names[message["state"]]
+                    message["fault_name"] = fault_names[message["fault"]]
+                    i = start + j
+                    stamp = int(times[i])
+                    writer.add_message(channel, log_time=stamp, publish_time=stamp, sequence=i,
+                                       data=dumps(message, allow_nan=False).encode())
             writer.finish()
         os.replace(tmp, path)
     finally:
