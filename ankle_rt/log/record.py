@@ -56,7 +56,8 @@ def field_doc(name: str) -> str:
 
 DATA_STRUCT = struct.Struct("<" + "".join(code for _, code, _, _ in FIELDS))   # the loop packs this
 CRC_STRUCT = struct.Struct("<I")
-RECORD_SIZE = DATA_STRUCT.size + CRC_STRUCT.size                              # 172 bytes on disk
+_DATA_SIZE = DATA_STRUCT.size                                                 # 168 bytes of data ...
+RECORD_SIZE = _DATA_SIZE + CRC_STRUCT.size                                    # ... + CRC: 172 bytes on disk
 # The data fields at their offsets; the trailing CRC is padding to numpy (itemsize RECORD_SIZE).
 _DATA = np.dtype([(name, _NUMPY[code]) for name, code, _, _ in FIELDS])
 RECORD_DTYPE = np.dtype({"names": list(_DATA.names), "formats": [_DATA[n] for n in _DATA.names],
@@ -75,23 +76,31 @@ class RecordRing:
         self.capacity = capacity
         self.buffer = bytearray(capacity * RECORD_SIZE)
         view = memoryview(self.buffer)
-        data = DATA_STRUCT.size
-        self._data_views = [view[i * RECORD_SIZE:i * RECORD_SIZE + data] for i in range(capacity)]
+        self._data_views = [view[i * RECORD_SIZE:i * RECORD_SIZE + _DATA_SIZE] for i in range(capacity)]
         self._pack_data = DATA_STRUCT.pack_into
         self._pack_crc = CRC_STRUCT.pack_into
+        self._crc32 = zlib.crc32
         self.view = view
 
     def pack(self, i: int, values: tuple) -> None:
         """Record ``values`` (FIELDS order) into slot ``i`` with its CRC-32."""
         offset = i * RECORD_SIZE
-        self._pack_data(self.buffer, offset, *values)
-        self._pack_crc(self.buffer, offset + DATA_STRUCT.size, zlib.crc32(self._data_views[i]))
+        buffer = self.buffer
+        self._pack_data(buffer, offset, *values)
+        self._pack_crc(buffer, offset + _DATA_SIZE, self._crc32(self._data_views[i]))
+
+
+def seal(buffer: bytearray, count: int) -> None:
+    """Write the CRC of each of the first ``count`` records of ``buffer`` (records packed without
+    one, as the in-memory recorder of lockstep runs does, where no loop waits)."""
+    view = memoryview(buffer)
+    for offset in range(0, count * RECORD_SIZE, RECORD_SIZE):
+        CRC_STRUCT.pack_into(buffer, offset + _DATA_SIZE, zlib.crc32(view[offset:offset + _DATA_SIZE]))
 
 
 def crc_ok(raw: np.ndarray) -> np.ndarray:
     """Per record of ``raw`` (an (n, RECORD_SIZE) uint8 array): True where the stored CRC matches."""
-    data = DATA_STRUCT.size
-    stored = raw[:, data:].copy().view("<u4").ravel() if len(raw) else np.zeros(0, dtype="<u4")
+    stored = raw[:, _DATA_SIZE:].copy().view("<u4").ravel() if len(raw) else np.zeros(0, dtype="<u4")
     crc32 = zlib.crc32
-    computed = np.fromiter((crc32(row) for row in raw[:, :data]), dtype=np.uint32, count=len(raw))
+    computed = np.fromiter((crc32(row) for row in raw[:, :_DATA_SIZE]), dtype=np.uint32, count=len(raw))
     return computed == stored
