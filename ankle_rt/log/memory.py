@@ -9,18 +9,16 @@ from typing import Any
 import numpy as np
 
 from ankle_rt.log.header import encode_header
-from ankle_rt.log.record import DATA_STRUCT, RECORD_DTYPE, RECORD_SIZE, seal
+from ankle_rt.log.record import RECORD_DTYPE, RECORD_SIZE, RecordRing
 
 
 class MemoryRecorder:
-    """Holds up to ``capacity`` records; later ones are counted in ``dropped``, never reallocated.
-    The records' CRCs are written when they are saved (:func:`~ankle_rt.log.record.seal`), not per
-    cycle: a lockstep run of hours keeps one buffer and no per-slot views."""
+    """Holds up to ``capacity`` records; later ones are counted in ``dropped``, never reallocated."""
 
     def __init__(self, capacity: int):
         self.capacity = capacity
-        self.buffer = bytearray(capacity * RECORD_SIZE)
-        self.pack_into = DATA_STRUCT.pack_into
+        self.ring = RecordRing(capacity)
+        self.pack = self.ring.pack
         self.written = 0
         self.dropped = 0
         self.failed = False      # never: memory does not fill up (the sink interface of LogWriter)
@@ -28,7 +26,7 @@ class MemoryRecorder:
     def append(self, *values: Any) -> None:
         n = self.written
         if n < self.capacity:
-            self.pack_into(self.buffer, n * RECORD_SIZE, *values)
+            self.pack(n, values)
             self.written = n + 1
         else:
             self.dropped += 1
@@ -36,16 +34,15 @@ class MemoryRecorder:
     @property
     def records(self) -> np.ndarray:
         """The recorded cycles as a structured array (a view of the buffer)."""
-        return np.frombuffer(self.buffer, dtype=RECORD_DTYPE, count=self.written)
+        return np.frombuffer(self.ring.buffer, dtype=RECORD_DTYPE, count=self.written)
 
     def save(self, path: str | Path, meta: dict[str, Any]) -> None:
         """Write the records as a run log file (the format of :mod:`ankle_rt.log.writer`)."""
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
-        seal(self.buffer, self.written)
         with path.open("wb") as handle:
             handle.write(encode_header({**meta, "part": 0, "first_record": 0, "first_part": path.name}))
-            handle.write(memoryview(self.buffer)[: self.written * RECORD_SIZE])
+            handle.write(self.ring.view[: self.written * RECORD_SIZE])
 
     def status(self) -> dict[str, Any]:
         """Like :meth:`LogWriter.status` (records kept in memory)."""

@@ -58,6 +58,7 @@ DATA_STRUCT = struct.Struct("<" + "".join(code for _, code, _, _ in FIELDS))   #
 CRC_STRUCT = struct.Struct("<I")
 _DATA_SIZE = DATA_STRUCT.size                                                 # 168 bytes of data ...
 RECORD_SIZE = _DATA_SIZE + CRC_STRUCT.size                                    # ... + CRC: 172 bytes on disk
+_SEALED = struct.Struct(f"<{_DATA_SIZE}sI")                                   # packed data + its CRC
 # The data fields at their offsets; the trailing CRC is padding to numpy (itemsize RECORD_SIZE).
 _DATA = np.dtype([(name, _NUMPY[code]) for name, code, _, _ in FIELDS])
 RECORD_DTYPE = np.dtype({"names": list(_DATA.names), "formats": [_DATA[n] for n in _DATA.names],
@@ -69,33 +70,24 @@ assert _DATA.itemsize == DATA_STRUCT.size
 class RecordRing:
     """A preallocated buffer of ``capacity`` record slots that the loop fills one record at a time.
 
-    :meth:`pack` writes the data and its CRC into slot ``i`` with no allocation beyond the CRC's int:
-    the slot views the CRC reads are made once here, not per cycle."""
+    :meth:`pack` packs the data into a preallocated 168-byte scratch buffer, takes its CRC-32 and
+    stores both in slot ``i`` with one more ``pack_into``: no allocation beyond the CRC's int, and no
+    per-slot objects (a ring of any size costs its bytes only)."""
 
     def __init__(self, capacity: int):
         self.capacity = capacity
         self.buffer = bytearray(capacity * RECORD_SIZE)
-        view = memoryview(self.buffer)
-        self._data_views = [view[i * RECORD_SIZE:i * RECORD_SIZE + _DATA_SIZE] for i in range(capacity)]
+        self.view = memoryview(self.buffer)
+        self._scratch = bytearray(_DATA_SIZE)
         self._pack_data = DATA_STRUCT.pack_into
-        self._pack_crc = CRC_STRUCT.pack_into
+        self._pack_record = _SEALED.pack_into
         self._crc32 = zlib.crc32
-        self.view = view
 
     def pack(self, i: int, values: tuple) -> None:
         """Record ``values`` (FIELDS order) into slot ``i`` with its CRC-32."""
-        offset = i * RECORD_SIZE
-        buffer = self.buffer
-        self._pack_data(buffer, offset, *values)
-        self._pack_crc(buffer, offset + _DATA_SIZE, self._crc32(self._data_views[i]))
-
-
-def seal(buffer: bytearray, count: int) -> None:
-    """Write the CRC of each of the first ``count`` records of ``buffer`` (records packed without
-    one, as the in-memory recorder of lockstep runs does, where no loop waits)."""
-    view = memoryview(buffer)
-    for offset in range(0, count * RECORD_SIZE, RECORD_SIZE):
-        CRC_STRUCT.pack_into(buffer, offset + _DATA_SIZE, zlib.crc32(view[offset:offset + _DATA_SIZE]))
+        scratch = self._scratch
+        self._pack_data(scratch, 0, *values)
+        self._pack_record(self.buffer, i * RECORD_SIZE, scratch, self._crc32(scratch))
 
 
 def crc_ok(raw: np.ndarray) -> np.ndarray:
