@@ -199,6 +199,16 @@ LOGGING = Section({
     "ring_records": Field(int, "records the in-memory ring holds (at 1 kHz, 16384 = 16 s of disk stall)",
                           default=16384, low=256, high=1 << 20),
     "flush_interval_s": Field(float, "s between writes of the ring to disk", default=0.05, low=0.005, high=1.0),
+    "rotate_size_mb": Field(float, "MB (1e6 bytes); start a new log file before one grows past this (0: never)",
+                            default=256.0, low=0.0, high=1e6),
+    "rotate_interval_s": Field(float, "s; start a new log file after one has been written this long (0: never)",
+                               default=0.0, low=0.0, high=1e7),
+    "keep_files": Field(int, "log files kept, the current one counted; older ones are deleted (0: all)",
+                        default=0, low=0, high=100000),
+    "keep_days": Field(float, "days; log files last written longer ago are deleted (0: kept)",
+                       default=0.0, low=0.0, high=36500.0),
+    "fault_on_error": Field(bool, "a failed log write (disk full) is a fault (LOG_FAILED); else logging "
+                                  "stops, the run goes on and status says why", default=False),
 }, optional=True)
 
 LIMITS = Section({

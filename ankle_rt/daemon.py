@@ -29,7 +29,7 @@ from ankle_rt.interchange import InterchangeError
 from ankle_rt.kinematics import Kinematics
 from ankle_rt.log.memory import MemoryRecorder
 from ankle_rt.log.reader import interchange_columns
-from ankle_rt.log.writer import LogWriter, log_metadata
+from ankle_rt.log.writer import LogWriter, Rotation, log_metadata
 from ankle_rt.loop import FixedRateLoop
 from ankle_rt.params import TransmissionParams
 from ankle_rt.references import (Hold, Profile, RampTo, ReferenceGenerator, make_profile,
@@ -87,6 +87,7 @@ class Daemon:
                                   on_overrun_limit=self._missed_deadlines,
                                   max_stall_ns=round(cfg["loop"]["max_stall_s"] * 1e9))
         self.recorder = recorder
+        self.log_fault = cfg["logging"]["fault_on_error"]
         self.service = service
         self.auto_activate = cfg["safety"]["auto_activate"]
         self.activations = 0
@@ -131,6 +132,8 @@ class Daemon:
                 safety.current[0], safety.current[1],
                 (t_start_ns - loop.start_ns) * 1e-9, frame.seq, loop.last_period_ns * 1e-3, latency_ns * 1e-3,
                 loop.stats.overruns, safety.state, safety.fault, frame.faults)
+            if self.recorder.failed and self.log_fault and safety.state != FAULT:
+                self._fault(Fault.LOG_FAILED)
 
     def _service_tick(self, now: float) -> None:
         service = self.service
@@ -317,6 +320,7 @@ class Daemon:
             "gains": gains.as_dict() if hasattr(gains, "as_dict") else None,
             "loop": self.loop.stats.summary(),
             "backend": self.backend.counters(),
+            "log": self.recorder.status() if self.recorder is not None else None,
         }
 
     # -- running ---------------------------------------------------------------------------------
@@ -350,11 +354,13 @@ class Daemon:
             self.service.close()
         self.loader.close()
 
-    def open_log(self, path: str | Path) -> None:
-        """Record every cycle into a run log file at ``path`` (``logging.ring_records`` and
-        ``logging.flush_interval_s`` of the config). Raises OSError when it cannot be created."""
+    def open_log(self, path: str | Path, retention_pattern: str = "") -> None:
+        """Record every cycle into a run log file at ``path`` (ring, flush, rotation and retention from
+        the config's ``logging``; ``retention_pattern``: which files of its directory retention counts,
+        default this log's parts). Raises OSError when it cannot be created."""
         log = self.cfg["logging"]
-        self.recorder = LogWriter(path, self.log_metadata(), log["ring_records"], log["flush_interval_s"])
+        self.recorder = LogWriter(path, self.log_metadata(), log["ring_records"], log["flush_interval_s"],
+                                  Rotation.from_config(log, retention_pattern))
 
     def log_metadata(self) -> dict[str, Any]:
         """The run log header's metadata. ``controller_config`` is the config's controller section the

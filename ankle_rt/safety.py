@@ -57,6 +57,7 @@ class Fault(enum.IntEnum):
     ENCODER_FAULT = 14       # backend: encoder stuck or implausible
     OUTPUT_INVALID = 15      # the controller produced a NaN/inf torque
     REFERENCE_INVALID = 16   # the ankle reference is NaN/inf
+    LOG_FAILED = 17          # a run log write failed (disk full) and logging.fault_on_error is set
 
     @property
     def description(self) -> str:
@@ -81,6 +82,7 @@ _DESCRIPTIONS = {
     Fault.ENCODER_FAULT: "encoder fault reported by the backend",
     Fault.OUTPUT_INVALID: "controller output not finite",
     Fault.REFERENCE_INVALID: "ankle reference not finite",
+    Fault.LOG_FAILED: "run log write failed (logging.fault_on_error)",
 }
 
 # BackendFault bits that stop the device, in priority order. CRC errors and sequence gaps are

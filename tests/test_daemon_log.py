@@ -18,7 +18,7 @@ from ankle_rt.cli import main
 from ankle_rt.daemon import run_lockstep
 from ankle_rt.interchange import read_csv
 from ankle_rt.log.reader import LogFormatError, read_log
-from ankle_rt.log.record import RECORD_DTYPE
+from ankle_rt.log.record import DATA_DTYPE, RECORD_DTYPE
 from ankle_rt.log.writer import HEADER_SIZE, LogWriter
 from ankle_rt.safety import State
 from tests.conftest import ROOT, SIM_CONFIG
@@ -29,7 +29,7 @@ def test_lockstep_log_reads_back_identically_and_ignores_a_torn_record(sim_cfg, 
     res = run_lockstep(sim_cfg, 0.5, log_path=path)
     log = read_log(path)
     assert log.torn_bytes == 0 and log.meta["rate_hz"] == 1000
-    assert np.array_equal(log.records.tobytes(), res.records.tobytes())
+    assert log.records.astype(DATA_DTYPE).tobytes() == res.records.astype(DATA_DTYPE).tobytes()
     with path.open("ab") as handle:          # a writer killed in the middle of a record
         handle.write(b"\x01" * (RECORD_DTYPE.itemsize - 3))
     log = read_log(path)

@@ -44,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
     from ankle_rt.clock import MonotonicClock, SimClock
     from ankle_rt.config import load_config
     from ankle_rt.daemon import Daemon
-    from ankle_rt.log.reader import read_log
+    from ankle_rt.log.reader import read_tail
     from ankle_rt.log.summary import SUMMARY_MAX_RECORDS, format_summary, plot_run, summarize_log
     from ankle_rt.paths import default_config_path
     from ankle_rt.realtime import apply_realtime
@@ -69,8 +69,8 @@ def run(args: argparse.Namespace) -> int:
     log_path = None
     if cfg["logging"]["enabled"] and not args.no_log:
         log_path = Path(args.log) if args.log else default_log_path(cfg["logging"]["directory"])
-        try:
-            daemon.open_log(log_path)
+        try:   # retention counts every default-named log of the directory, or a --log file's own parts
+            daemon.open_log(log_path, "" if args.log else "run-*.arlog")
         except OSError as exc:
             daemon.close()
             print(f"ankle-rt run: cannot write the log {log_path}: {exc.strerror or exc}", file=sys.stderr)
@@ -113,15 +113,20 @@ def run(args: argparse.Namespace) -> int:
         return _exit_code(daemon)
     # Only the most recent records: a run of days must not load gigabytes after the safe state
     # (systemd's stop timeout, mlockall). The whole run's loop timing is in the live histograms.
-    run_log = read_log(log_path, last=SUMMARY_MAX_RECORDS)
+    # With rotation, the last part (and the one before) hold the most recent records.
+    log_path = daemon.recorder.path
+    run_log = read_tail(log_path, SUMMARY_MAX_RECORDS)
     records = run_log.records
     summary = summarize_log(run_log)
     summary["log"] = str(log_path)
+    summary["log_status"] = daemon.recorder.status()
     summary["loop_stats"] = daemon.loop.stats.summary()
     if daemon.recorder.dropped:
         summary["log_records_dropped"] = daemon.recorder.dropped
         print(f"WARNING: {daemon.recorder.dropped} log records were lost ({daemon.recorder.error or 'disk too slow'})",
               file=sys.stderr)
+    if daemon.recorder.failed:
+        print(f"WARNING: logging stopped: {daemon.recorder.error}", file=sys.stderr)
     plot_note = None
     if not args.no_plot and len(records):
         plot_note = plot_run(records, daemon.kt, str(log_path.with_suffix(".png")))

@@ -26,11 +26,11 @@ def load_recording(path: str | Path, min_rows: int = 2, cfg: Mapping[str, Any] |
 
 
 def _read(path: Path, min_rows: int) -> Recording:
+    from ankle_rt.log.header import HEADER_SIZE, is_run_log
     from ankle_rt.log.reader import LogFormatError, interchange_columns, read_log
-    from ankle_rt.log.writer import MAGIC
 
     try:
-        is_log = read_head(path, len(MAGIC)) == MAGIC
+        is_log = is_run_log(read_head(path, HEADER_SIZE))
     except TextFileError as exc:
         raise InterchangeError(str(exc), path) from None
     if not is_log:
