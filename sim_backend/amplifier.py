@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from ankle_rt.params import AmplifierParams
-from sim_backend.effects.elementwise import clip, positive_part, select
+from ankle_rt.elementwise import clip, positive_part, select
 
 PEAK_DURATION_S = 20.0  # the ESCON 50/5 allows its peak current for < 20 s
 

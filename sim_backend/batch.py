@@ -20,7 +20,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from sim_backend.effects import Effect
-from sim_backend.effects.elementwise import stack
+from ankle_rt.elementwise import stack
 from sim_backend.model import CompliantModel
 from sim_backend.plant import SimulatedPlant
 

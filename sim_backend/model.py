@@ -20,7 +20,7 @@ from ankle_rt.linear_model import N_X, LinearModel
 from ankle_rt.params import PlantParams
 from ankle_rt.discretize import zoh
 from sim_backend.effects import Effect
-from sim_backend.effects.elementwise import sin
+from ankle_rt.elementwise import sin
 from sim_backend.effects.friction import CoulombFriction
 
 
@@ -100,7 +100,7 @@ class CompliantModel:
                            td_dp: float, td_ie: float) -> tuple[float, float, float, float]:
         """The non-linear generalised forces f of the state ``s`` (list of 8 floats), in N m.
 
-        Written element-wise (no augmented assignment, :mod:`~sim_backend.effects.elementwise`
+        Written element-wise (no augmented assignment, :mod:`~ankle_rt.elementwise`
         maths), so the batch simulator runs this same code on rows of arrays over its plants."""
         f0 = td_dp - self._grav * (sin(s[0]) - s[0])
         f1 = td_ie

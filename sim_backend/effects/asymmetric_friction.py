@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from ankle_rt.config import Field, Section
 from sim_backend.effects.base import Effect, register_effect
-from sim_backend.effects.elementwise import tanh
+from ankle_rt.elementwise import tanh
 
 
 @register_effect("asymmetric_friction")

@@ -5,7 +5,7 @@ from __future__ import annotations
 from ankle_rt.config import Section, non_negative
 from ankle_rt.kinematics import Kinematics
 from sim_backend.effects.base import Effect, register_effect
-from sim_backend.effects.elementwise import clip
+from ankle_rt.elementwise import clip
 
 
 @register_effect("backlash")

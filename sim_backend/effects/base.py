@@ -13,7 +13,7 @@ An effect changes the plant through up to three hooks, all in SI units at the ge
 - ``command(tau1, tau2)``: transforms the motor torque command (N m) once per control tick, before it
   is held for the tick (actuation delay, torque-constant changes).
 
-An effect whose hooks use only arithmetic and :mod:`sim_backend.effects.elementwise` declares
+An effect whose hooks use only arithmetic and :mod:`ankle_rt.elementwise` declares
 ``elementwise = True``: :meth:`Effect.stack` then makes one instance whose numbers are arrays over a
 batch of plants, and the batch simulator calls each hook once for all of them. Any other effect
 still runs in a batch, called plant by plant (correct, slower).
@@ -29,7 +29,7 @@ from typing import Any, ClassVar, Sequence
 
 from ankle_rt.config import ConfigError, Section, validate
 from ankle_rt.params import PlantParams
-from sim_backend.effects.elementwise import stack
+from ankle_rt.elementwise import stack
 
 EFFECTS: dict[str, type["Effect"]] = {}
 

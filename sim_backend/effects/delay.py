@@ -8,7 +8,7 @@ import numpy as np
 
 from ankle_rt.config import Section, non_negative
 from sim_backend.effects.base import Effect, register_effect
-from sim_backend.effects.elementwise import pick
+from ankle_rt.elementwise import pick
 
 
 @register_effect("delay")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from ankle_rt.config import Section, non_negative, positive
 from sim_backend.effects.base import Effect, register_effect
-from sim_backend.effects.elementwise import exp, tanh
+from ankle_rt.elementwise import exp, tanh
 
 
 @register_effect("stribeck")
