@@ -10,15 +10,13 @@ fingerprint in ``study.json``: a changed spec starts afresh).
 from __future__ import annotations
 
 import json
-import math
 import os
-import sys
-import time
 from concurrent.futures import Future, ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Iterable
 
+from ankle_rt.progress import Progress
 from ankle_rt.sweep.spec import Run, Study
 
 # a batch records 24 bytes per plant and tick (ankle, reference, current; float32): long runs get
@@ -79,29 +77,6 @@ def run_batch(task: BatchTask) -> list[dict[str, Any]]:
     return rows
 
 
-class Progress:
-    """One status line with an ETA on a terminal (stderr); silent otherwise."""
-
-    def __init__(self, total_batches: int, total_runs: int, enabled: bool | None = None):
-        self.total_b, self.total_r = total_batches, total_runs
-        self.done_b = self.done_r = 0
-        self.t0 = time.monotonic()
-        self.enabled = sys.stderr.isatty() if enabled is None else enabled
-
-    def add(self, runs: int) -> None:
-        self.done_b += 1
-        self.done_r += runs
-        if not self.enabled:
-            return
-        el = time.monotonic() - self.t0
-        eta = el / self.done_r * (self.total_r - self.done_r) if self.done_r else math.nan
-        sys.stderr.write(f"\r  {self.done_b}/{self.total_b} batches, {self.done_r}/{self.total_r} runs, "
-                         f"{el:.0f} s elapsed, ETA {eta:.0f} s   ")
-        if self.done_b == self.total_b:
-            sys.stderr.write("\n")
-        sys.stderr.flush()
-
-
 def _batch_file(out: Path, index: int) -> Path:
     return out / "batches" / f"batch-{index:05d}.json"
 
@@ -138,24 +113,35 @@ def execute(study: Study, out: Path, *, scheduler: Any = None, workers: int | No
     prepare_output(study, out)
     tasks = plan(study)
     todo = [t for t in tasks if not _batch_file(out, t.index).exists()]
-    bar = Progress(len(todo), sum(len(t.runs) for t in todo), progress)
+    done = {"runs": 0, "batches": 0}
+    with Progress("sweep", sum(len(t.runs) for t in todo), enabled=progress) as bar:
 
-    def finished(task: BatchTask, rows: list[dict[str, Any]]) -> None:
-        _write_atomic(_batch_file(out, task.index), json.dumps(rows))
-        bar.add(len(rows))
-        if on_batch is not None:
-            on_batch(task.index)
+        def finished(task: BatchTask, rows: list[dict[str, Any]]) -> None:
+            _write_atomic(_batch_file(out, task.index), json.dumps(rows))
+            done["runs"] += len(rows)
+            done["batches"] += 1
+            bar.update(done["runs"], f"{done['batches']}/{len(todo)} batches")
+            if on_batch is not None:
+                on_batch(task.index)
 
-    if todo:
-        if scheduler is not None:
-            run_dask(todo, scheduler, finished)
-        else:
-            run_local(todo, workers or os.cpu_count() or 1, finished)
+        run_tasks(todo, finished, run_batch, scheduler=scheduler, workers=workers)
     rows: list[dict[str, Any]] = []
     for t in tasks:
         rows.extend(json.loads(_batch_file(out, t.index).read_text()))
     rows.sort(key=lambda r: r["run_id"])
     return rows
+
+
+def run_tasks(tasks: list, finished: Callable[[Any, Any], None], fn: Callable, *, scheduler: Any = None,
+              workers: int | None = None) -> None:
+    """``fn`` over ``tasks`` on the Dask ``scheduler`` when given, else on a local process pool of
+    ``workers`` (default: all cores), calling ``finished(task, result)`` as each one ends."""
+    if not tasks:
+        return
+    if scheduler is not None:
+        run_dask(tasks, scheduler, finished, fn=fn)
+    else:
+        run_local(tasks, workers or os.cpu_count() or 1, finished, fn=fn)
 
 
 def run_local(tasks: list, workers: int, finished, fn: Callable = run_batch) -> None:

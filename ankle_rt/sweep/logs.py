@@ -18,10 +18,9 @@ the device (the session folder's parent) and the time (the newest recording's mo
 from __future__ import annotations
 
 import math
-import os
 import time
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 SUFFIXES = (".arlog", ".csv")
 
@@ -69,24 +68,9 @@ def diagnose_log(task: tuple[str, str, str | None, str]) -> dict[str, Any]:
 def diagnose_folder(directory: Path, config: str | None, plant: str, *, scheduler: Any = None,
                     workers: int | None = None) -> list[dict[str, Any]]:
     """One row per log under ``directory``, sorted by device and start time."""
-    from ankle_rt.sweep.engine import Progress, run_dask, run_local
-
     logs = find_logs(directory)
     tasks = [(str(p), str(p.parent.relative_to(directory)), config, plant) for p in logs]
-    rows: list[dict[str, Any]] = []
-    bar = Progress(len(tasks), len(tasks))
-
-    def finished(_task, row):
-        rows.append(row)
-        bar.add(1)
-
-    if tasks:
-        if scheduler is not None:
-            run_dask(tasks, scheduler, finished, fn=diagnose_log)
-        else:
-            run_local(tasks, workers or os.cpu_count() or 1, finished, fn=diagnose_log)
-    rows.sort(key=lambda r: (r["device"], r["started_utc"], r["file"]))
-    return rows
+    return _rows("diagnose", tasks, diagnose_log, scheduler, workers)
 
 
 def identify_session(task: tuple[str, str, str, int, str | None]) -> dict[str, Any]:
@@ -127,25 +111,29 @@ def identify_folder(directory: Path, experiment: str, motor: int, config: str | 
                     scheduler: Any = None, workers: int | None = None) -> list[dict[str, Any]]:
     """One row per session folder under ``directory``, sorted by device and time."""
     from ankle_rt.identification.actuator import EXPERIMENTS
-    from ankle_rt.sweep.engine import Progress, run_dask, run_local
-
     names = EXPERIMENTS if experiment == "all" else (experiment,)
     folders = sorted({p.parent for p in directory.rglob(f"{names[0]}.csv")
                       if all((p.parent / f"{n}.csv").is_file() for n in names)})
     tasks = [(str(f), str(f.parent.relative_to(directory)) if f != directory else ".", experiment, motor, config)
              for f in folders]
+    return _rows("identify", tasks, identify_session, scheduler, workers)
+
+
+def _rows(label: str, tasks: list, fn: Callable[[Any], dict[str, Any]], scheduler: Any,
+          workers: int | None) -> list[dict[str, Any]]:
+    """``fn`` over ``tasks`` (locally or on Dask, with a progress bar), one row each, sorted by
+    device and time."""
+    from ankle_rt.progress import Progress
+    from ankle_rt.sweep.engine import run_tasks
+
     rows: list[dict[str, Any]] = []
-    bar = Progress(len(tasks), len(tasks))
+    with Progress(label, len(tasks)) as bar:
 
-    def finished(_task, row):
-        rows.append(row)
-        bar.add(1)
+        def finished(_task: Any, row: dict[str, Any]) -> None:
+            rows.append(row)
+            bar.update(len(rows))
 
-    if tasks:
-        if scheduler is not None:
-            run_dask(tasks, scheduler, finished, fn=identify_session)
-        else:
-            run_local(tasks, workers or os.cpu_count() or 1, finished, fn=identify_session)
+        run_tasks(tasks, finished, fn, scheduler=scheduler, workers=workers)
     rows.sort(key=lambda r: (r["device"], r["started_utc"], r["file"]))
     return rows
 
