@@ -15,6 +15,6 @@ def default_config_path(name: str = "sim.yaml") -> Path:
     """The shipped config ``name``; a ConfigError says what to do when the checkout is not there."""
     path = CONFIG_DIR / name
     if not path.is_file():
-        raise ConfigError(f"the default config is not there (ankle-rt expects to run from a checkout, "
-                          f"installed with pip install -e .); pass --config FILE", str(path))
+        raise ConfigError("the default config is not there (ankle-rt expects to run from a checkout, "
+                          "installed with pip install -e .); pass --config FILE", str(path))
     return path

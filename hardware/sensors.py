@@ -153,7 +153,6 @@ class StrainGauges:
 
     @classmethod
     def from_config(cls, cfg: dict) -> "StrainGauges":
-        sg = cfg["strain_gauges"]
         matrix = required(cfg, "strain_gauges.matrix", "N m per ADC count, 2 x 2 [[DP from ch 1, DP from ch 2], "
                                                          "[IE from ch 1, IE from ch 2]]")
         for i, row in enumerate(matrix):

@@ -31,7 +31,7 @@ def csv_name(name: str, plain: bool) -> str:
 def csv_columns(records: np.ndarray) -> dict[str, np.ndarray]:
     """Every field as a CSV column, in record order, one row per sample time (:func:`increasing_time`).
 
-    The DESIGN.md interchange columns keep their plain names, so ``diagnose``, ``identify`` and
+    The docs/design.md interchange columns keep their plain names, so ``diagnose``, ``identify`` and
     ``validate`` read the file as it is; an optional one (joint encoders, references) goes under
     ``name [unit]`` instead when it holds a value that is not finite (the interchange format allows
     none), where the interchange reader ignores it. Every other field is ``name [unit]``."""
