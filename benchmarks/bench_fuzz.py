@@ -30,12 +30,13 @@ import threading
 import time
 from pathlib import Path
 
-import numpy as np
-
-from ankle_rt.config import load_config
-from tests import fuzz_inputs as fuzz
-
 ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))      # the seeded inputs live in tests/ (shared with the CI suite)
+
+import numpy as np  # noqa: E402
+
+from ankle_rt.config import load_config  # noqa: E402
+from tests import fuzz_inputs as fuzz  # noqa: E402
 
 
 def parsers(n: int, seed: int, tmp: Path) -> list[fuzz.FuzzResult]:
