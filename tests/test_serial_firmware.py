@@ -248,8 +248,14 @@ def test_the_image_builds_and_its_vectors_point_where_they_must(tmp_path):
 
     from hardware.emulators.native_core import FIRMWARE_DIR
 
-    assert shutil.which("arm-none-eabi-gcc"), "arm-none-eabi-gcc missing: apt-get install gcc-arm-none-eabi " \
-                                              "libnewlib-arm-none-eabi"
+    import os
+
+    missing = "arm-none-eabi-gcc missing: apt-get install gcc-arm-none-eabi libnewlib-arm-none-eabi"
+    if not shutil.which("arm-none-eabi-gcc"):
+        # CI (.ci/run installs the cross-compiler) must build the image; a developer's machine without
+        # the cross-compiler still runs everything else, and the skip names what to install
+        assert not os.environ.get("CI"), missing
+        pytest.skip(missing)
     subprocess.run(["make", "-s", "-C", str(FIRMWARE_DIR), f"BUILD={tmp_path}", f"{tmp_path}/bridge.bin"], check=True)
     image = (tmp_path / "bridge.bin").read_bytes()
     symbols = {}
