@@ -146,17 +146,27 @@ ANKLE_EFFECTS = MOTOR_EFFECTS + ("load_dependent_friction", "backlash", "stiffne
 ROTOR_COGGING_PERIODS = (4, 6, 8, 12, 14)
 #: realistic rotor cogging: this share of the rated torque (kt x continuous current limit)
 ROTOR_COGGING_SHARE = (0.01, 0.03)
+#: Stribeck velocity (rad/s at the gearbox output), drawn log-uniformly ...
+STRIBECK_VELOCITY = (0.03, 0.3)
+#: ... but at least this in gait-like motion: the least walking data resolve. The gait reference
+#: reverses the motors at up to ~75 rad/s^2 (output side), so |w| < vs lasts 2 vs / a per reversal:
+#: 1 ms (one 1 kHz sample, 0.3 encoder counts of travel) for vs = 0.037, where the fit cannot tell the
+#: Stribeck amplitude from its velocity and predicts the validation data worse (seed 1061); from
+#: ~0.1 rad/s (>= 2.7 samples per reversal) it is named. docs/diagnosis.md, limits.
+GAIT_MIN_STRIBECK_VELOCITY = 0.1
 #: sensor and data artefacts a case can carry (not physics: flagged, never named)
 ARTEFACTS = ("sg_clip", "sg_drift", "sg_hold", "current_limit", "dropouts")
 MOTIONS = ("multisine", "gait", "one_way")
 
 
 def draw_effect(name: str, rng: np.random.Generator, strength: float | None = None,
-                cfg: Config | None = None, rotor: bool = False) -> tuple[dict, float]:
+                cfg: Config | None = None, rotor: bool = False, motion: str = "multisine") -> tuple[dict, float]:
     """(sim.effects entry, magnitude in [0, 1]) with a plausible random size; ``strength`` < 1 instead
     makes it that fraction of the weakest plausible size (magnitude reported as 0). ``rotor``: cogging
     of the motor's rotor seen through the gearbox (periods per motor turn x gear ratio, 1-3 % of the
-    rated torque; needs ``cfg``) instead of a gear-mesh ripple of 6-60 periods per output turn."""
+    rated torque; needs ``cfg``) instead of a gear-mesh ripple of 6-60 periods per output turn.
+    ``motion``: the experiment's kind (in gait-like motion the Stribeck velocity is drawn from
+    GAIT_MIN_STRIBECK_VELOCITY up)."""
     key, (lo, hi) = MAGNITUDES[name]
     mag = float(rng.uniform())
     value = lo + mag * (hi - lo)
@@ -165,7 +175,8 @@ def draw_effect(name: str, rng: np.random.Generator, strength: float | None = No
         value = lo * strength if hi > lo else lo / strength
     entry: dict = {"type": name, key: value}
     if name == "stribeck":
-        entry["stribeck_velocity"] = float(np.exp(rng.uniform(np.log(0.03), np.log(0.3))))
+        lo_v = GAIT_MIN_STRIBECK_VELOCITY if motion == "gait" else STRIBECK_VELOCITY[0]
+        entry["stribeck_velocity"] = float(np.exp(rng.uniform(np.log(lo_v), np.log(STRIBECK_VELOCITY[1]))))
     elif name == "asymmetric_friction":
         sign = float(rng.choice([-1.0, 1.0]))
         entry[key] = sign * value
@@ -373,7 +384,7 @@ def make_case(seed: int, plant: str = "ankle", cause: str | list[str] | None = N
     truth = perturbed(nominal, rng)
     truth["sim"]["seed"] = int(seed)
     truth["sim"]["cables"] = plant == "ankle"
-    drawn = [draw_effect(c, rng, strength, truth, rotor_cogging) for c in names]
+    drawn = [draw_effect(c, rng, strength, truth, rotor_cogging, motion) for c in names]
     effects = [e for e, _ in drawn]
     truth["sim"]["effects"] = effects
     limit = None

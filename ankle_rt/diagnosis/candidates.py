@@ -66,7 +66,7 @@ class Stribeck(Candidate):
         return list(np.geomspace(2.0 * ch.v_eps, max(0.3 * v99, 4.0 * ch.v_eps), 18))
 
     def design(self, ch, nl):
-        return Design(ch.filt(np.exp(-(ch.vel / nl) ** 2) * ch.sign)[:, None])
+        return Design(ch.filt(ch.step_mean(lambda v: np.exp(-(v / nl) ** 2) * np.tanh(v / ch.v_eps)))[:, None])
 
     def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
         return {"static_excess": (float(coef[0]), _sd(cov, 0)), "stribeck_velocity": (nl, nl_sd)}
@@ -76,7 +76,8 @@ class AsymmetricFriction(Candidate):
     cause = "asymmetric_friction"
 
     def design(self, ch, nl):
-        return Design(np.column_stack([ch.filt(np.abs(ch.sign)), ch.filt(np.abs(ch.vel))]))
+        return Design(np.column_stack([ch.filt(ch.step_mean(lambda v: np.abs(np.tanh(v / ch.v_eps)))),
+                                       ch.filt(np.abs(ch.vel))]))
 
     def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
         return {"coulomb_asymmetry": (float(coef[0]), _sd(cov, 0)),
@@ -298,7 +299,8 @@ def catch_all_motor(ch: MotorChannel) -> tuple[np.ndarray, list[str]]:
     v99 = max(float(np.percentile(np.abs(ch.vel), 99)), 1e-12)
     v = ch.vel / v99
     raw = [(tau * np.abs(tau), "torque level"), (tau ** 3, "torque level"), (v * np.abs(v), "velocity"),
-           (v ** 3, "velocity"), (np.abs(v), "velocity"), (np.abs(ch.sign), "velocity")]
+           (v ** 3, "velocity"), (np.abs(v), "velocity"),
+           (ch.step_mean(lambda w: np.abs(np.tanh(w / ch.v_eps))), "velocity")]
     if np.any(ch.tc):
         tcs = ch.tc / max(float(np.max(np.abs(ch.tc))), 1e-12)
         # no tc |tc| beside tau |tau|: where the motor torque nearly balances the cable torque at a steady

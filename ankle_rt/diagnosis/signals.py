@@ -12,12 +12,19 @@ Motor channel (per motor i, N m at the gearbox output):
     L[tau_i(t - dt/2)] - L[tc_i] = J_i L[D2 th_i] + D_i L[D1 th_i] + kc_i L[tanh(v_i / v_eps)] + effect
 where tau is the held set value, tc = R^-T tau_j the cable torque each motor feels, from the strain
 gauges (zero off the cables), and v a Savitzky-Golay velocity (short window) for nonlinear regressors.
+A force f(v) enters D2 th at a sample as its mean over the two steps around it, weighted by the
+triangle (1 - |s|), s = (t - t_k) / dt: the nonlinear velocity regressors are that mean, with v
+extrapolated linearly by the Savitzky-Golay acceleration. Sampled at t_k instead, a friction whose sign
+flips within a step (a fast reversal: kc tanh(v / v_eps) turns in 2 v_eps / a, a fraction of a sample
+in walking) is wrong by up to kc at the samples next to every reversal, which reads as a negative
+Stribeck effect larger than a real one.
 Cable channel (per ankle axis, where joint angles are measured):
     L[tau_j] = K L[phi] + K beta L[D1 phi] + offset + effect,  phi = R^-1 th_m - th_joint.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -27,6 +34,7 @@ from ankle_rt.interchange import InterchangeError, Recording
 CUTOFF_HZ = 30.0           # pass band of L (and the highest ripple/dynamics the regressions see)
 FAST_WINDOW_S = 0.021      # s, Savitzky-Golay window of the velocity that nonlinear regressors use
 ORDER = 3
+KERNEL_POINTS = 16         # midpoints per sample of the triangle mean of the velocity regressors
 DECIMATED_RATE_HZ = 250.0  # rows kept for the regressions
 EDGE_S = 0.06              # s dropped at each end (filter transients, delay shifts)
 
@@ -66,9 +74,9 @@ class Smoother:
             x = d
         return sosfiltfilt(self.sos, x, axis=0)
 
-    def fast_derivative(self, x: np.ndarray) -> np.ndarray:
+    def fast_derivative(self, x: np.ndarray, deriv: int = 1) -> np.ndarray:
         from scipy.signal import savgol_filter
-        return savgol_filter(x, self.fast_window, ORDER, deriv=1, delta=self.dt, axis=0, mode="interp")
+        return savgol_filter(x, self.fast_window, ORDER, deriv=deriv, delta=self.dt, axis=0, mode="interp")
 
     def rows(self, n: int, good: np.ndarray | None = None) -> np.ndarray:
         """Indices of the rows kept for the regressions: decimated, without the filter's edge transients,
@@ -167,17 +175,29 @@ class MotorChannel(_StackedChannel):
             tau_j = np.column_stack([rec["sg_torque_dp"], rec["sg_torque_ie"]])
             self.tc = tau_j @ geometry.R_inv_T.T
         self.vel = sm.fast_derivative(self.pos)
+        self._acc = sm.fast_derivative(self.pos, 2)
         self.v_eps = v_eps
         self.L_acc = sm.smooth(self.pos, 2)
         self.L_vel = sm.smooth(self.pos, 1)
         self.L_tau = sm.smooth(self.tau)
         self.L_tc = sm.smooth(self.tc)
-        self.sign = np.tanh(self.vel / self.v_eps)
+        self.set_smoothing_velocity(v_eps)
 
     def set_smoothing_velocity(self, v_eps: float) -> None:
         """Change v_eps of the Coulomb regressor tanh(v / v_eps) (position unit/s)."""
         self.v_eps = v_eps
-        self.sign = np.tanh(self.vel / v_eps)
+        self.sign = self.step_mean(lambda v: np.tanh(v / v_eps))
+
+    def step_mean(self, force: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
+        """``force(v)`` as D2 th sees it at each sample: its triangle-weighted mean over the two steps
+        around the sample, v extrapolated linearly (samples x motors; see the module docstring)."""
+        s = (np.arange(KERNEL_POINTS) + 0.5) / KERNEL_POINTS * 2.0 - 1.0
+        w = 1.0 - np.abs(s)
+        w /= w.sum()
+        out = np.zeros_like(self.vel)
+        for sj, wj in zip(s, w):
+            out += wj * force(self.vel + self._acc * (sj * self.dt))
+        return out
 
     def torque(self, delay_s: float = 0.0) -> np.ndarray:
         """L[tau] at the kept rows for an actuation delay (s), ZOH half sample included (stacked)."""
