@@ -35,6 +35,7 @@ def test_the_service_config_of_the_deploy_steps_is_valid(tmp_path, capsys):
     assert main(["config", "check", str(cfg)]) == 0
     out = capsys.readouterr().out
     assert "until stopped" in out and "waits for ankle-rt ctl activate" in out and "/var/log/ankle-rt" in out
+    assert "/run/ankle-rt/control.sock" in out   # the service's socket, also before systemd made its directory
 
 
 @pytest.mark.parametrize("body, key", [

@@ -149,6 +149,14 @@ def test_bench_loop_json_has_the_figures(capsys):
     assert out["cycles"] > 0 and out["lockstep_realtime_factor"] > 0
 
 
+def test_bench_loop_prints_the_readme_goals(capsys):
+    """The printed goals are the README's (p99 period error 100 us, compute 250 us, lockstep 30x)."""
+    assert main(["bench", "loop", "--duration", "0.1", "--lockstep", "0.1"]) == 0
+    out = capsys.readouterr().out
+    for goal in ("goal p99 <= 100 us", "goal p99 <= 250 us", "goal >= 30x"):
+        assert goal in out
+
+
 def test_a_failing_disk_costs_records_not_the_loop(tmp_path):
     w = LogWriter(tmp_path / "full.arlog", {"rate_hz": 1000}, capacity=256, flush_interval_s=0.01)
     with open("/dev/full", "wb") as full:

@@ -42,8 +42,6 @@ def emulated(cfg):
 
 def describe(cfg) -> list[str]:
     """What the config would run, one fact per line."""
-    from ankle_rt.service.link import socket_path
-
     c, ref, loop, rt = cfg["controller"], cfg["reference"], cfg["loop"], cfg["loop"]["realtime"]
     backend = cfg["backend"]
     if backend == "serial":
@@ -81,8 +79,20 @@ def describe(cfg) -> list[str]:
         f"{amp['current_limit_peak']:g} A / continuous {amp['current_limit_continuous']:g} A, "
         f"{'activates itself after the tare' if safety['auto_activate'] else 'waits for ankle-rt ctl activate'}",
         "logging:     " + (f"on, into {log['directory']}" if log["enabled"] else "off"),
-        "service:     " + (f"command socket {socket_path(cfg)}" if service["enabled"] else "no command socket"),
+        "service:     " + (_socket_line(cfg) if service["enabled"] else "no command socket"),
     ]
+
+
+def _socket_line(cfg) -> str:
+    """The socket this host resolves now; for ``auto`` also the service's, which systemd creates only
+    at start (``config check`` runs before it, so the two differ in the deploy steps)."""
+    from ankle_rt.service.link import SERVICE_RUNTIME_DIR, socket_path
+
+    path = socket_path(cfg)
+    service_path = SERVICE_RUNTIME_DIR / "control.sock"
+    if cfg["service"]["socket_path"] != "auto" or path == service_path:
+        return f"command socket {path}"
+    return f"command socket {path} here; {service_path} under the systemd service (socket_path: auto)"
 
 
 def check_cmd(args: argparse.Namespace) -> int:
