@@ -46,6 +46,21 @@ def test_diagnose_batch_gives_a_row_per_log_and_tracks_friction_wear(sim_cfg, tm
     assert (out / "results.parquet").exists() or (out / "results.csv").exists()
 
 
+def test_diagnose_batch_row_carries_the_data_warnings_of_a_poor_log(sim_cfg, tmp_path, capsys):
+    """A short step run cannot pin the baseline down: its row says so instead of only trending numbers."""
+    pytest.importorskip("scipy", reason="diagnose needs the analysis extra")
+    logs = tmp_path / "logs"
+    logs.mkdir()
+    run_lockstep(sim_cfg.deep_copy(), 1.5, log_path=logs / "step.arlog")
+    assert main(["diagnose", "--batch", str(logs), "--config", str(SIM_CONFIG), "--report", str(tmp_path / "r")]) == 0
+    printed = capsys.readouterr().out
+    assert "data warnings" in printed
+    assert main(["diagnose", "--batch", str(logs), "--config", str(SIM_CONFIG), "--report", str(tmp_path / "r"),
+                 "--json"]) == 0
+    (row,) = json.loads(capsys.readouterr().out)["rows"]
+    assert row["cause"] != "error" and row["data_warnings"]
+
+
 def test_diagnose_batch_refuses_a_missing_folder(tmp_path, capsys):
     assert main(["diagnose", "--batch", str(tmp_path / "nope")]) == 2
     assert "not a directory" in capsys.readouterr().err

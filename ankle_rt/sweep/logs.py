@@ -53,6 +53,7 @@ def diagnose_log(task: tuple[str, str, str | None, str]) -> dict[str, Any]:
         row.update({"started_utc": row.get("started_utc", ""), "cause": "error", "error": str(exc)})
         return row
     row.update({"cause": diag["cause"], "causes": "+".join(diag["causes"]), "confidence": diag["confidence"], "error": "",
+                "data_warnings": "; ".join(diag["data_warnings"]),
                 "nrmse_baseline": diag["nrmse_baseline"], "nrmse_extended": diag["nrmse_extended"],
                 "gain": diag["gain"]})
     for channel, params in (diag["baseline"] or {}).items():
@@ -235,5 +236,7 @@ def _write_and_print(rows: list[dict[str, Any]], out: Path, as_json: bool) -> in
         params = ", ".join(f"{c} {r[c]:.4g}" for c in cols if isinstance(r.get(c), float))
         confidence = f" ({r['confidence']:.2f})" if "confidence" in r else ""
         print(f"{r['device']}  {r['started_utc']}  {Path(r['file']).name}: {r.get('causes', r['cause'])}{confidence}; {params}")
+        if r.get("data_warnings"):
+            print(f"    data warnings (the figures above may not mean much): {r['data_warnings']}")
     print(f"{len(rows)} recordings; table {table}" + (f", trends {plot}" if plot else ""))
     return 0
