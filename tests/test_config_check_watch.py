@@ -89,3 +89,11 @@ def test_watch_follows_a_running_daemon_and_ends_cleanly(daemon, capsys):  # noq
     client.close()
     proc.communicate(timeout=120)
     assert main(["ctl", "--socket", str(path), "watch", "--count", "1"]) == 3   # the daemon is gone
+
+
+def test_an_impedance_config_is_summarised_with_its_torque_feedback_mode(tmp_path, capsys):
+    cfg = tmp_path / "imp.yaml"          # impedance has a string key (torque_feedback) among its gains
+    cfg.write_text(f"include: [{CONFIGS / 'sim.yaml'}]\ncontroller: {{type: impedance}}\n")
+    assert main(["config", "check", str(cfg)]) == 0
+    out = capsys.readouterr().out
+    assert "controller:  impedance, stiffness_dp 20" in out and "torque_feedback auto" in out
