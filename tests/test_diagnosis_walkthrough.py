@@ -83,3 +83,6 @@ def test_write_model_refuses_an_input_a_directory_or_a_missing_folder_before_dia
         assert main(args) == 2
         assert reason in capsys.readouterr().err
     assert data.read_bytes() == b"not read: the output is checked first"
+    for args in (["diagnose", str(data)], ["diagnose", "--batch", str(tmp_path)]):   # --report on a file
+        assert main([*args, "--report", str(data)]) == 2
+        assert "is not a directory" in capsys.readouterr().err

@@ -89,6 +89,9 @@ def run(args: argparse.Namespace) -> int:
         print("ankle-rt diagnose: needs the analysis extra (scipy, matplotlib): pip install 'ankle-rt[analysis]'",
               file=sys.stderr)
         return 3
+    if args.report and os.path.exists(args.report) and not os.path.isdir(args.report):
+        print(f"ankle-rt diagnose: --report {args.report}: exists and is not a directory", file=sys.stderr)
+        return 2
     if args.batch:
         from ankle_rt.sweep.logs import batch_command
         return batch_command(args)
