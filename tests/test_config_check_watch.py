@@ -97,3 +97,29 @@ def test_an_impedance_config_is_summarised_with_its_torque_feedback_mode(tmp_pat
     assert main(["config", "check", str(cfg)]) == 0
     out = capsys.readouterr().out
     assert "controller:  impedance, stiffness_dp 20" in out and "torque_feedback auto" in out
+
+
+@pytest.mark.parametrize("reply", [b"[1, 2]\n", b'"text"\n', b"5\n"])
+def test_ctl_names_a_reply_that_is_json_but_not_an_object(tmp_path, capsys, reply):
+    import socket
+    import threading
+
+    path = tmp_path / "s.sock"
+    server = socket.socket(socket.AF_UNIX)
+    server.bind(str(path))
+    server.listen(1)
+
+    def answer():
+        conn, _ = server.accept()
+        conn.recv(4096)
+        conn.sendall(reply)
+        conn.close()
+
+    thread = threading.Thread(target=answer)
+    thread.start()
+    try:
+        assert main(["ctl", "--socket", str(path), "status"]) == 3
+    finally:
+        thread.join(10)
+        server.close()
+    assert "is not a JSON object" in capsys.readouterr().err
