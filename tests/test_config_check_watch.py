@@ -43,6 +43,7 @@ def test_the_service_config_of_the_deploy_steps_is_valid(tmp_path, capsys):
     ("escon:\n  amplifiers:\n    - {mode: analog, current_at_min: -1, current_at_max: 1, sign: 1}\n"
      "    - {mode: analog, current_at_min: -1, current_at_max: 1, sign: 1}\n", "escon.amplifiers.0"),
     ("serial: {baudrate: 9600}\n", "serial.baudrate"),
+    ("controller: {impedance: {torque_feedback: off}}\n", "unquoted on/off/yes/no as true/false: quote it"),
 ])
 def test_an_invalid_config_exits_2_naming_the_key(tmp_path, capsys, body, key):
     cfg = tmp_path / "bad.yaml"
