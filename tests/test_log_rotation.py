@@ -218,3 +218,5 @@ def test_export_refuses_overlapping_parts_and_an_output_that_is_an_input(tmp_pat
     assert main(["log", "export", *parts, "--csv", parts[1]]) == 2        # would overwrite the run log
     assert "is one of the logs" in capsys.readouterr().err
     assert Path(parts[1]).read_bytes() == before
+    assert main(["log", "export", *parts, "--mcap", str(tmp_path)]) == 2
+    assert f"{tmp_path} is a directory" in capsys.readouterr().err
