@@ -61,8 +61,8 @@ def load_controller_factory(name: str) -> Callable[["ControllerContext"], "Cycle
         obj = importlib.import_module(module_name)
         for part in attr.split(".") if attr else ():
             obj = getattr(obj, part)
-    except (ImportError, AttributeError) as exc:
-        raise ControllerNotFound(f"controller {name!r}: cannot load {spec}: {exc}") from None
+    except Exception as exc:   # a plugin's import may raise anything (SyntaxError, its own errors, ...)
+        raise ControllerNotFound(f"controller {name!r}: cannot load {spec}: {type(exc).__name__}: {exc}") from None
     if not callable(obj):
         raise ControllerNotFound(f"controller {name!r}: {spec} is not callable")
     return obj

@@ -114,6 +114,9 @@ def _coerce_leaf(value: Any, spec: Field, where: str, source: str) -> Any:
                 raise ConfigError("number out of range", source, where) from None
     else:
         ok = isinstance(value, kinds)
+    if not ok and isinstance(value, bool) and spec.choices is not None:   # e.g. torque_feedback: off
+        raise ConfigError(f"expected one of {list(spec.choices)}, got {value!r} (YAML reads an unquoted on/off/"
+                          f"yes/no as true/false: quote it, e.g. \"{spec.choices[-1]}\")", source, where)
     if not ok:
         raise ConfigError(f"expected {_type_name(spec.kind)}, got {value!r}", source, where)
     if isinstance(value, float) and not math.isfinite(value):

@@ -50,6 +50,10 @@ PAYLOADS: dict[MsgType, struct.Struct] = {
     MsgType.FAULT: struct.Struct("<BH"),
 }
 
+# The longest command watchdog a bridge accepts (serial.watchdog_s is at most 1 s): a CONFIG asking for
+# more (up to 71 min fits the field) would leave the outputs on long after the host is gone.
+MAX_WATCHDOG_US = 1_000_000
+
 # SAMPLE.inputs bits
 IN_READY_1 = 0x01        # ESCON 1 ready output (electrical level)
 IN_READY_2 = 0x02

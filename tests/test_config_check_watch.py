@@ -44,6 +44,7 @@ def test_the_service_config_of_the_deploy_steps_is_valid(tmp_path, capsys):
     ("escon:\n  amplifiers:\n    - {mode: analog, current_at_min: -1, current_at_max: 1, sign: 1}\n"
      "    - {mode: analog, current_at_min: -1, current_at_max: 1, sign: 1}\n", "escon.amplifiers.0"),
     ("serial: {baudrate: 9600}\n", "serial.baudrate"),
+    ("controller: {impedance: {torque_feedback: off}}\n", "unquoted on/off/yes/no as true/false: quote it"),
 ])
 def test_an_invalid_config_exits_2_naming_the_key(tmp_path, capsys, body, key):
     cfg = tmp_path / "bad.yaml"
@@ -90,3 +91,37 @@ def test_watch_follows_a_running_daemon_and_ends_cleanly(daemon, capsys):  # noq
     client.close()
     proc.communicate(timeout=120)
     assert main(["ctl", "--socket", str(path), "watch", "--count", "1"]) == 3   # the daemon is gone
+
+
+def test_an_impedance_config_is_summarised_with_its_torque_feedback_mode(tmp_path, capsys):
+    cfg = tmp_path / "imp.yaml"          # impedance has a string key (torque_feedback) among its gains
+    cfg.write_text(f"include: [{CONFIGS / 'sim.yaml'}]\ncontroller: {{type: impedance}}\n")
+    assert main(["config", "check", str(cfg)]) == 0
+    out = capsys.readouterr().out
+    assert "controller:  impedance, stiffness_dp 20" in out and "torque_feedback auto" in out
+
+
+@pytest.mark.parametrize("reply", [b"[1, 2]\n", b'"text"\n', b"5\n"])
+def test_ctl_names_a_reply_that_is_json_but_not_an_object(tmp_path, capsys, reply):
+    import socket
+    import threading
+
+    path = tmp_path / "s.sock"
+    server = socket.socket(socket.AF_UNIX)
+    server.bind(str(path))
+    server.listen(1)
+
+    def answer():
+        conn, _ = server.accept()
+        conn.recv(4096)
+        conn.sendall(reply)
+        conn.close()
+
+    thread = threading.Thread(target=answer)
+    thread.start()
+    try:
+        assert main(["ctl", "--socket", str(path), "status"]) == 3
+    finally:
+        thread.join(10)
+        server.close()
+    assert "is not a JSON object" in capsys.readouterr().err

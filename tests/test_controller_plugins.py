@@ -41,6 +41,17 @@ class NotANumber(Controller):
         out_torque[1] = 0.0
 
 
+class RaisesInUpdate(Controller):
+    """A broken plugin: its update raises."""
+
+    def update(self, est, out_torque):
+        raise ZeroDivisionError("plugin bug")
+
+
+def raising_factory(ctx):
+    raise RuntimeError("cannot build")
+
+
 def install_entry_points(where: Path, entries: dict[str, str]) -> str:
     """Write a dist-info declaring ``entries`` in the controllers group under ``where``; return the
     directory to put on sys.path / PYTHONPATH."""
@@ -138,3 +149,24 @@ def test_cli_runs_a_plugin_found_on_the_python_path(tmp_path):
                          capture_output=True, text=True, env=env, timeout=300)
     assert out.returncode == 0, out.stderr
     assert "controller load_stiffening" in out.stdout and "stopped after 1000 cycles" in out.stdout, out.stdout
+
+
+def test_a_plugin_that_raises_gets_a_message_naming_it_not_a_traceback(tmp_path, monkeypatch, capsys):
+    from ankle_rt.cli import main
+
+    site = tmp_path / "site"
+    monkeypatch.syspath_prepend(install_entry_points(site, {
+        "syntax_error": "broken_syntax_xyz:C", "import_raises": "import_raises_xyz:C", "empty": ":",
+        "factory_raises": "tests.test_controller_plugins:raising_factory",
+        "update_raises": "tests.test_controller_plugins:RaisesInUpdate"}))
+    (site / "broken_syntax_xyz.py").write_text("def (\n")
+    (site / "import_raises_xyz.py").write_text("raise RuntimeError('plugin import failed')\n")
+    for name, reason in (("syntax_error", "SyntaxError"), ("import_raises", "plugin import failed"),
+                         ("empty", "cannot load"), ("factory_raises", "failed to build: RuntimeError: cannot build")):
+        assert main(["config", "check", str(plugin_config(tmp_path, f"controller: {{type: {name}}}\n"))]) == 2
+        assert f"controller.type: controller '{name}'" in capsys.readouterr().err
+        with pytest.raises(ConfigError, match=reason):
+            run_lockstep(load_config(plugin_config(tmp_path, f"controller: {{type: {name}}}\n")), 0.1)
+    cfg = plugin_config(tmp_path, "controller: {type: update_raises}\n")
+    assert main(["run", "--fast", "--duration", "0.3", "--no-log", "--no-plot", "--config", str(cfg)]) == 1
+    assert "the cycle raised ZeroDivisionError: plugin bug; the run ended in the safe state" in capsys.readouterr().err

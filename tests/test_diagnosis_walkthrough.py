@@ -66,3 +66,23 @@ def test_readme_walkthrough(tmp_path, capsys, monkeypatch):
     after = _position_nrmse("extended-sim.csv", measured)
     print(f"free-run position NRMSE: nominal {before:.4f}, extended {after:.4f}, gain {before / after:.1f}x")
     assert after < before / 3.0
+
+
+def test_write_model_refuses_an_input_a_directory_or_a_missing_folder_before_diagnosing(tmp_path, capsys):
+    import os
+
+    import pytest
+    pytest.importorskip("scipy")
+    data = tmp_path / "run.arlog"
+    data.write_bytes(b"not read: the output is checked first")
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)                       # opening it for writing would wait for a reader
+    for out, reason in ((data, "is one of the input files"), (tmp_path, "not a regular file"),
+                        (fifo, "not a regular file"), (tmp_path / "no" / "m.yaml", "no such directory")):
+        args = ["diagnose", str(data), "--plant", "ankle", "--config", str(SIM_CONFIG), "--write-model", str(out)]
+        assert main(args) == 2
+        assert reason in capsys.readouterr().err
+    assert data.read_bytes() == b"not read: the output is checked first"
+    for args in (["diagnose", str(data)], ["diagnose", "--batch", str(tmp_path)]):   # --report on a file
+        assert main([*args, "--report", str(data)]) == 2
+        assert "is not a directory" in capsys.readouterr().err

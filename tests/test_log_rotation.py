@@ -202,3 +202,21 @@ def test_read_tail_takes_the_rest_from_the_part_before(tmp_path):
     assert len(read_tail(newest, 500)) == 40            # this part and the one before, no further
     part_path(first, 2).unlink()
     assert read_tail(newest, 25).records["seq"].tolist() == list(range(90, 100))
+
+
+def test_export_refuses_overlapping_parts_and_an_output_that_is_an_input(tmp_path, capsys):
+    first = tmp_path / "o.arlog"
+    w = LogWriter(first, {"rate_hz": 1000}, capacity=1024, rotation=Rotation(size_bytes=HEADER_SIZE + 30 * RECORD_SIZE))
+    for k in range(60):
+        w.append(*_values(k))
+    w.close()
+    parts = [str(part_path(first, i)) for i in range(w.part + 1)]
+    out = tmp_path / "o.csv"
+    assert main(["log", "export", parts[0], parts[1], parts[0], "--csv", str(out)]) == 1   # a part given twice
+    assert "overlap" in capsys.readouterr().err and not out.exists()
+    before = Path(parts[1]).read_bytes()
+    assert main(["log", "export", *parts, "--csv", parts[1]]) == 2        # would overwrite the run log
+    assert "is one of the logs" in capsys.readouterr().err
+    assert Path(parts[1]).read_bytes() == before
+    assert main(["log", "export", *parts, "--mcap", str(tmp_path)]) == 2
+    assert f"{tmp_path} is a directory" in capsys.readouterr().err

@@ -13,7 +13,7 @@ import pytest
 
 from hardware.emulators.bridge_core import PythonCore
 from hardware.emulators.native_core import NativeCore, NativeParser, load_library
-from hardware.serial_protocol import PAYLOADS, MsgType, encode_frame
+from hardware.serial_protocol import PAYLOADS, MsgType, StreamParser, encode_frame
 
 FRAMES = 100_000            # random frames through the C parser
 CORE_STEPS = 20_000         # steps of the differential test, C core against the Python core
@@ -273,3 +273,24 @@ def test_the_image_builds_and_its_vectors_point_where_they_must(tmp_path):
                           text=True).stdout.splitlines()[1].split()
     text, data, bss = (int(v) for v in size[:3])
     assert text + data < 16 * 1024 and data + bss + 4096 < 16 * 1024     # far inside 1 MiB / 128 KiB
+
+
+def test_both_cores_refuse_a_watchdog_longer_than_one_second():
+    """A CONFIG whose watchdog_us fits the field (up to 71 min) but would keep the outputs on long
+    after the host is gone is refused as a bad config (detail 1 = the watchdog field)."""
+    args = (1000, 16, 0, 0b00, ANALOG, [0, 0])
+    for core in (PythonCore(*args), NativeCore(*args)):
+        for watchdog_us in (0, 1_000_001, 0xFFFFFFFF):
+            core.receive(encode_frame(MsgType.CONFIG, 0, 1000, watchdog_us, 16, 0, 0, 0))
+            while core.poll():
+                pass
+            assert not core.configured
+            parser = StreamParser()
+            parser.feed(core.take_tx())
+            assert parser.next_frame() and parser.mtype == MsgType.FAULT
+            assert PAYLOADS[MsgType.FAULT].unpack_from(parser.buf, parser.offset) == (1, 1)
+            assert not parser.next_frame()
+        core.receive(encode_frame(MsgType.CONFIG, 0, 1000, 1_000_000, 16, 0, 0, 0))
+        while core.poll():
+            pass
+        assert core.configured and core.watchdog_ticks == 1000

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import os
 from pathlib import Path
 
 import pytest
@@ -73,6 +74,14 @@ def _same(a: list[dict], b: list[dict]) -> None:
     ({"overrides": {"controller": {"type": "impedance"}},      # the loop's limits move with the sampled plant
       "parameters": {"actuator.damping": {"dist": "uniform", "low": 0.05, "high": 0.06}}},
      "actuator.damping=0.05"),
+    ({"base": 5}, "base"),
+    ({"criteria": ["max_overshoot_pct"]}, "criteria"),
+    ({"metrics": ["cable_pretension_n"]}, "metrics"),
+    ({"dask": {"scheduler": [1, 2]}}, "dask"),
+    ({"sampling": {"method": "lhs", "runs": 10 ** 12}}, "sampling.runs"),     # not a MemoryError
+    ({"sampling": {"method": "grid"},
+      "parameters": {"actuator.coulomb": {"dist": "uniform", "low": 0.1, "high": 0.2, "steps": 10 ** 8}}},
+     "sampling.method"),
 ])
 def test_a_bad_spec_is_refused_naming_the_key_before_any_run(tmp_path, capsys, changes, key):
     spec = _spec(tmp_path, **changes)
@@ -255,3 +264,15 @@ def test_a_changed_study_does_not_resume_from_the_old_batches(tmp_path):
     assert len(ran) == 3
     assert [r["transmission.cable_stiffness (factor)"] for r in rows] == \
         [r.values["transmission.cable_stiffness (factor)"] for r in changed.runs]
+
+
+@pytest.mark.parametrize("content, reason", [(b"base: \xff\xfe\n", "not UTF-8"), (b"\0\1\2", "binary"),
+                                             (None, "a FIFO")])
+def test_a_spec_that_is_not_a_text_file_is_refused_by_name(tmp_path, capsys, content, reason):
+    spec = tmp_path / "spec.yaml"
+    if content is None:
+        os.mkfifo(spec)                  # must not block waiting for a writer
+    else:
+        spec.write_bytes(content)
+    assert main(["sweep", str(spec), "--out", str(tmp_path / "out")]) == 2
+    assert reason in capsys.readouterr().err

@@ -56,7 +56,8 @@ def describe(cfg) -> list[str]:
         gains = c[c["pd_gains"] + "_gains"]
         controller = f"pd, {c['pd_gains']}_gains kp {gains['kp']:g} N m/rad, kd {gains['kd']:g} N m s/rad"
     elif c["type"] == "impedance":
-        controller = "impedance, " + ", ".join(f"{k} {v:g}" for k, v in c["impedance"].items())
+        controller = "impedance, " + ", ".join(f"{k} {v:g}" if isinstance(v, (int, float)) else f"{k} {v}"
+                                             for k, v in c["impedance"].items())
     else:
         controller = f"{c['type']} (plugin), params {dict(c['params'])}"
     if c["friction_ff"]["enabled"]:

@@ -147,9 +147,12 @@ def send(path: Path, request: dict, timeout: float) -> dict:
     finally:
         sock.close()
     try:
-        return json.loads(data)
+        reply = json.loads(data)
     except ValueError:
         raise Unreachable(f"the reply from {path} is not JSON: {data[:80]!r}") from None
+    if not isinstance(reply, dict):
+        raise Unreachable(f"the reply from {path} is not a JSON object: {data[:80]!r}")
+    return reply
 
 
 def format_fields(data: dict, prefix: str = "") -> list[str]:

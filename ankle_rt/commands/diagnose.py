@@ -4,7 +4,9 @@ the gain (method: docs/diagnosis.md)."""
 from __future__ import annotations
 
 import argparse
+import os
 import sys
+from pathlib import Path
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -64,6 +66,20 @@ def _format(diag, closed) -> str:
     return "\n".join(lines)
 
 
+def _output_problem(path: str, inputs: tuple[str | None, ...]) -> str | None:
+    """Why ``path`` cannot take an output file (checked before the long diagnosis), or None: it must
+    be a regular file or not exist yet, in an existing directory, and none of the files read."""
+    out = Path(path)
+    if out.exists() or out.is_symlink():
+        if not out.is_file():
+            return "exists and is not a regular file"
+        if any(p and Path(p).exists() and os.path.samefile(out, p) for p in inputs):
+            return "is one of the input files (it would be overwritten); choose another path"
+    elif not out.parent.is_dir():
+        return f"no such directory: {out.parent}"
+    return None
+
+
 def run(args: argparse.Namespace) -> int:
     from ankle_rt.commands import jsonout
 
@@ -73,6 +89,9 @@ def run(args: argparse.Namespace) -> int:
         print("ankle-rt diagnose: needs the analysis extra (scipy, matplotlib): pip install 'ankle-rt[analysis]'",
               file=sys.stderr)
         return 3
+    if args.report and os.path.exists(args.report) and not os.path.isdir(args.report):
+        print(f"ankle-rt diagnose: --report {args.report}: exists and is not a directory", file=sys.stderr)
+        return 2
     if args.batch:
         from ankle_rt.sweep.logs import batch_command
         return batch_command(args)
@@ -87,6 +106,11 @@ def run(args: argparse.Namespace) -> int:
     from ankle_rt.interchange import InterchangeError
     from ankle_rt.progress import Progress
 
+    if args.write_model:
+        problem = _output_problem(args.write_model, (args.data, args.validation, args.config))
+        if problem:
+            print(f"ankle-rt diagnose: --write-model {args.write_model}: {problem}", file=sys.stderr)
+            return 2
     cfg = load_config(args.config) if args.config else None
     progress = Progress("diagnose", 4)   # stages: read, fit and select, closed-loop gain, write
     try:
@@ -110,7 +134,12 @@ def run(args: argparse.Namespace) -> int:
         closed = closed_loop_gain(run_data, args.config, diag)
     progress.update(3, "writing the results")
     if args.write_model:
-        write_fragment(args.write_model, diag, args.config)
+        try:
+            write_fragment(args.write_model, diag, args.config)
+        except OSError as exc:
+            progress.close()
+            print(f"ankle-rt diagnose: cannot write {args.write_model}: {exc.strerror}", file=sys.stderr)
+            return 1
     if args.report:
         from ankle_rt.diagnosis.report import write_report
         write_report(args.report, diag, closed)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 
 
@@ -88,6 +89,14 @@ def export_cmd(args: argparse.Namespace) -> int:
         return 2
     from ankle_rt.log.reader import LogFormatError, read_parts
 
+    for out in (args.csv, args.mcap):      # the export replaces its output: never a run log it reads
+        if out and os.path.isdir(out):
+            print(f"ankle-rt log export: {out} is a directory; give a file name", file=sys.stderr)
+            return 2
+        if out and any(os.path.exists(out) and os.path.exists(p) and os.path.samefile(out, p) for p in args.path):
+            print(f"ankle-rt log export: {out} is one of the logs being exported; choose another output",
+                  file=sys.stderr)
+            return 2
     try:
         log, notes = read_parts(args.path)
     except LogFormatError as exc:

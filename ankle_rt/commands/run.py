@@ -98,19 +98,26 @@ def run(args: argparse.Namespace) -> int:
           f"{'until stopped' if not duration else f'{duration:g} s'}; log: {log_path or 'off'}", flush=True)
     for note in notes:
         print(f"  {note}", flush=True)
+    error = None
     try:
         if daemon.service is not None:
             daemon.service.ready(f"running {cfg['backend']} at {cfg['controller']['rate_hz']} Hz")
-        daemon.run(duration or None)
+        try:
+            daemon.run(duration or None)
+        except Exception as exc:   # e.g. a plugin controller's update raised: run() went safe (amplifiers off)
+            error = f"{type(exc).__name__}: {exc}"
     finally:
         if daemon.service is not None:
             daemon.service.stopping()
         daemon.close()
         for s, h in old.items():
             signal.signal(s, h)
+    if error:
+        print(f"ankle-rt run: the cycle raised {error}; the run ended in the safe state (amplifiers off)",
+              file=sys.stderr)
     if log_path is None:
         print(f"stopped after {daemon.loop.stats.cycles} cycles (no log written)")
-        return _exit_code(daemon)
+        return 1 if error else _exit_code(daemon)
     # Only the most recent records: a run of days must not load gigabytes after the safe state
     # (systemd's stop timeout, mlockall). The whole run's loop timing is in the live histograms.
     # With rotation, the last part (and the one before) hold the most recent records.
@@ -142,7 +149,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"log: {log_path}  (ankle-rt log info / ankle-rt log export {log_path} --csv OUT.csv)")
         if plot_note:
             print(plot_note)
-    return _exit_code(daemon)
+    return 1 if error else _exit_code(daemon)
 
 
 def _exit_code(daemon) -> int:

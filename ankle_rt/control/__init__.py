@@ -53,10 +53,13 @@ def build_controller(cfg: "Config", kin: "Kinematics", ref: np.ndarray) -> Cycle
         raise ConfigError(str(exc), source, "controller.type") from None
     try:
         controller = factory(ControllerContext.from_config(cfg, kin, ref))
+    except ConfigError:
+        raise
     except (ValueError, TypeError, KeyError) as exc:
-        if isinstance(exc, ConfigError):
-            raise
         raise ConfigError(f"controller {name!r}: {exc}", source, "controller.params") from None
+    except Exception as exc:   # a plugin's own error while building: still a message, not a traceback
+        raise ConfigError(f"controller {name!r} failed to build: {type(exc).__name__}: {exc}", source,
+                          "controller.type") from None
     if not isinstance(controller, CycleController):
         raise ConfigError(f"controller {name!r} built a {type(controller).__name__}, which has no "
                           "reset(est) and update(est, out_torque)", source, "controller.type")

@@ -133,6 +133,9 @@ def read_parts(paths: list[str | Path]) -> tuple[RunLog, list[str]]:
     notes = []
     for a, b in zip(logs, logs[1:]):
         missing = b.meta["first_record"] - (a.meta["first_record"] + a.total_records)
+        if missing < 0:
+            raise LogFormatError(f"{a.source}, {b.source}: parts overlap ({-missing} records in both; "
+                                 "the same part given twice?)")
         if missing:
             notes.append(f"{missing} records missing between {a.source} and {b.source}")
     joined = RunLog(meta=logs[0].meta, records=np.concatenate([log.records for log in logs]),

@@ -53,6 +53,11 @@ SCENARIOS: dict[str, dict] = {
 }
 
 
+MAX_SPEC_BYTES = 1 << 20
+# Every run's config is built up front: a typo like runs: 1000000000000 must fail by name, not by memory.
+MAX_RUNS = 100_000            # samples x scenarios
+
+
 class SpecError(ValueError):
     """A bad study spec; ``key`` names the spec entry."""
 
@@ -249,10 +254,11 @@ def load_study(path: str | Path, *, runs: int | None = None, scheduler: str | No
     """Read, check and expand a spec into its runs (each config validated). ``runs`` overrides
     ``sampling.runs``; ``scheduler`` the spec's ``dask.scheduler``. Raises SpecError / ConfigError."""
     path = Path(path)
+    from ankle_rt.textfile import TextFileError, read_text
     try:
-        raw = yaml.safe_load(path.read_text())
-    except OSError as exc:
-        raise SpecError("spec", f"cannot read {path}: {exc.strerror}") from None
+        raw = yaml.safe_load(read_text(path, MAX_SPEC_BYTES))
+    except TextFileError as exc:
+        raise SpecError("spec", f"cannot read {path}: {exc}") from None
     except yaml.YAMLError as exc:
         raise SpecError("spec", f"{path} is not valid YAML: {exc}") from None
     if not isinstance(raw, dict):
@@ -263,6 +269,8 @@ def load_study(path: str | Path, *, runs: int | None = None, scheduler: str | No
     if unknown:
         raise SpecError(unknown[0], f"unknown spec key (expected one of: {', '.join(sorted(known))})")
     from ankle_rt.paths import default_config_path
+    if "base" in raw and not isinstance(raw["base"], str):
+        raise SpecError("base", f"expected the path of a config file, got {raw['base']!r}")
     base = (path.parent / raw["base"]).resolve() if "base" in raw else default_config_path()
     duration = raw.get("duration_s", 5.0)
     if isinstance(duration, bool) or not isinstance(duration, (int, float)) or not 0 < duration <= 600:
@@ -299,12 +307,16 @@ def load_study(path: str | Path, *, runs: int | None = None, scheduler: str | No
     if not isinstance(overrides, dict):
         raise SpecError("overrides", "expected a mapping of config sections")
     criteria = raw.get("criteria", {}) or {}
+    if not isinstance(criteria, dict):
+        raise SpecError("criteria", f"expected a mapping of criteria to limits, got {criteria!r}")
     from ankle_rt.sweep.metrics import CRITERIA
     for k, v in criteria.items():
         if k not in CRITERIA:
             raise SpecError(f"criteria.{k}", f"unknown criterion (known: {', '.join(CRITERIA)})")
         _number(f"criteria.{k}", criteria, k, positive=True)
     metrics = raw.get("metrics", {}) or {}
+    if not isinstance(metrics, dict):
+        raise SpecError("metrics", f"expected a mapping like {{cable_pretension_n: 20}}, got {metrics!r}")
     if set(metrics) - {"cable_pretension_n"}:
         raise SpecError(f"metrics.{sorted(set(metrics) - {'cable_pretension_n'})[0]}",
                         "unknown metrics option (known: cable_pretension_n)")
@@ -314,11 +326,16 @@ def load_study(path: str | Path, *, runs: int | None = None, scheduler: str | No
     if isinstance(batch_size, bool) or not isinstance(batch_size, int) or batch_size < 1:
         raise SpecError("batch_size", f"must be a positive integer, got {batch_size!r}")
     dask = raw.get("dask", {}) or {}
-    if not isinstance(dask, dict) or set(dask) - {"scheduler"}:
+    if not isinstance(dask, dict) or set(dask) - {"scheduler"} or not isinstance(dask.get("scheduler", ""), str):
         raise SpecError("dask", "expected {scheduler: ADDRESS}")
     study = Study(path=path, base=base, duration_s=float(duration), method=method, runs_requested=n_runs, seed=seed,
                   parameters=parameters, scenarios=scenarios, overrides=overrides, criteria=criteria,
                   batch_size=batch_size, scheduler=scheduler or dask.get("scheduler"), cable_pretension_n=pretension)
+    n_samples = math.prod(len(p.args["values"]) if p.dist == "choice" else p.args.get("steps", 1)
+                          for p in parameters) if method == "grid" else n_runs
+    if n_samples * len(scenarios) > MAX_RUNS:
+        raise SpecError("sampling.method" if method == "grid" else "sampling.runs",
+                        f"{n_samples} samples x {len(scenarios)} scenarios is more than {MAX_RUNS} runs")
     study.runs = expand(study)
     return study
 

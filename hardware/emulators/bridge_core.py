@@ -14,8 +14,8 @@ import math
 from dataclasses import dataclass
 from typing import Sequence
 
-from hardware.serial_protocol import (FAULT_BAD_CONFIG, OUT_ENABLE_1, OUT_ENABLE_2, PAYLOADS, ST_ADC_STALE,
-                                      ST_CONFIGURED, ST_QUADRATURE, ST_WATCHDOG, FrameWriter, MsgType, StreamParser)
+from hardware.serial_protocol import (FAULT_BAD_CONFIG, MAX_WATCHDOG_US, OUT_ENABLE_1, OUT_ENABLE_2, PAYLOADS,
+                                      ST_ADC_STALE, ST_CONFIGURED, ST_QUADRATURE, ST_WATCHDOG, FrameWriter, MsgType, StreamParser)
 
 BRIDGE_STATE_RUNNING = 2
 PARSER_CAPACITY = 256     # as BP_PARSER_CAPACITY in frame.h
@@ -132,7 +132,7 @@ class PythonCore:
 
     def _configure(self, fields: tuple) -> None:
         rate_hz, watchdog_us, counter_bits, modes, safe_1, safe_2 = fields
-        for index, ok in enumerate((rate_hz == self.rate_hz, watchdog_us > 0, counter_bits == self.counter_bits,
+        for index, ok in enumerate((rate_hz == self.rate_hz, 0 < watchdog_us <= MAX_WATCHDOG_US, counter_bits == self.counter_bits,
                                     modes == self.modes)):
             if not ok:   # the board's hardware cannot do what the host asks (field index in detail)
                 self._send(MsgType.FAULT, FAULT_BAD_CONFIG, index)

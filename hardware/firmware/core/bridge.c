@@ -90,7 +90,7 @@ static void configure(bridge *b, const uint8_t *p)
     uint8_t counter_bits = p[6];
     uint8_t modes = p[7];
     uint8_t width = counter_bits == 16 ? BRIDGE_COUNTERS_16 : (counter_bits == 32 ? BRIDGE_COUNTERS_32 : 0u);
-    const bool ok[4] = {rate_hz == b->caps.rate_hz, watchdog_us > 0, (width & b->caps.counter_bits) != 0,
+    const bool ok[4] = {rate_hz == b->caps.rate_hz, watchdog_us > 0 && watchdog_us <= BRIDGE_MAX_WATCHDOG_US, (width & b->caps.counter_bits) != 0,
                         modes == b->caps.modes};
     for (uint16_t i = 0; i < 4; i++) {
         if (!ok[i]) {           /* the hardware cannot do it: which field */

@@ -34,6 +34,7 @@
 #define BRIDGE_OUT_ENABLE_2 0x02u
 /* FAULT codes */
 #define BRIDGE_FAULT_BAD_CONFIG 1u
+#define BRIDGE_MAX_WATCHDOG_US 1000000u   /* longer: outputs on long after the host is gone (hardware/serial_protocol.py) */
 #define BRIDGE_FAULT_INTERNAL 2u
 /* HEARTBEAT.state */
 #define BRIDGE_STATE_UNCONFIGURED 0u
