@@ -115,3 +115,19 @@ def test_an_elementwise_effect_with_per_plant_tables_falls_back_to_plant_by_plan
     assert stack_effects(effects).table == [1.0, 2.0]
     effects[1].table = [1.0, 3.0]
     assert isinstance(stack_effects(effects), PlantByPlant)
+
+
+def test_bench_batch_prints_one_json_object_and_refuses_absurd_sizes(capsys):
+    """`ankle-rt bench batch --json`: the issue's key with one factor per size; a size that would only
+    exhaust memory (or is not a positive integer) is refused before anything runs."""
+    import json
+
+    from ankle_rt.cli import main
+
+    assert main(["bench", "batch", "--seconds", "0.05", "--sizes", "1,3", "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert set(result["realtime_factor_by_batch"]) == {"1", "3"}
+    assert all(f > 0 for f in result["realtime_factor_by_batch"].values())
+    for bad in ("100000000", "0", "2.5", "1,,2"):
+        assert main(["bench", "batch", "--sizes", bad, "--json"]) == 2
+        assert "--sizes must be integers from 1 to" in capsys.readouterr().err

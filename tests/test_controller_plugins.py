@@ -52,6 +52,10 @@ def raising_factory(ctx):
     raise RuntimeError("cannot build")
 
 
+def exiting_factory(ctx):
+    raise SystemExit(0)     # a plugin calling sys.exit() must not end `run` silently with success
+
+
 def install_entry_points(where: Path, entries: dict[str, str]) -> str:
     """Write a dist-info declaring ``entries`` in the controllers group under ``where``; return the
     directory to put on sys.path / PYTHONPATH."""
@@ -158,11 +162,13 @@ def test_a_plugin_that_raises_gets_a_message_naming_it_not_a_traceback(tmp_path,
     monkeypatch.syspath_prepend(install_entry_points(site, {
         "syntax_error": "broken_syntax_xyz:C", "import_raises": "import_raises_xyz:C", "empty": ":",
         "factory_raises": "tests.test_controller_plugins:raising_factory",
+        "factory_exits": "tests.test_controller_plugins:exiting_factory",
         "update_raises": "tests.test_controller_plugins:RaisesInUpdate"}))
     (site / "broken_syntax_xyz.py").write_text("def (\n")
     (site / "import_raises_xyz.py").write_text("raise RuntimeError('plugin import failed')\n")
     for name, reason in (("syntax_error", "SyntaxError"), ("import_raises", "plugin import failed"),
-                         ("empty", "cannot load"), ("factory_raises", "failed to build: RuntimeError: cannot build")):
+                         ("empty", "cannot load"), ("factory_raises", "failed to build: RuntimeError: cannot build"),
+                         ("factory_exits", "failed to build: SystemExit")):
         assert main(["config", "check", str(plugin_config(tmp_path, f"controller: {{type: {name}}}\n"))]) == 2
         assert f"controller.type: controller '{name}'" in capsys.readouterr().err
         with pytest.raises(ConfigError, match=reason):

@@ -129,6 +129,11 @@ def bench_loop(args: argparse.Namespace) -> int:
     return 0
 
 
+MAX_BATCH = 65536
+"""Largest batch ``bench batch`` runs (plants; about 100 MB of state and buffers): beyond it a typo
+would exhaust memory instead of measuring anything."""
+
+
 def batch_speed(cfg, plants: int, sim_s: float) -> float:
     """Aggregate real-time factor of ``plants`` copies of ``cfg`` run as one batch (build excluded)."""
     import time
@@ -151,10 +156,11 @@ def bench_batch(args: argparse.Namespace) -> int:
     cfg = load_config(Path(args.config) if args.config else default_config_path())
     try:
         sizes = [int(s) for s in args.sizes.split(",")]
-        if not sizes or min(sizes) < 1:
+        if not sizes or min(sizes) < 1 or max(sizes) > MAX_BATCH:
             raise ValueError
     except ValueError:
-        print(f"ankle-rt bench batch: --sizes must be positive integers separated by commas, got {args.sizes!r}",
+        print(f"ankle-rt bench batch: --sizes must be integers from 1 to {MAX_BATCH} separated by commas, "
+              f"got {args.sizes!r}",
               file=sys.stderr)
         return 2
     factors = {}

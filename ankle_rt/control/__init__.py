@@ -57,7 +57,7 @@ def build_controller(cfg: "Config", kin: "Kinematics", ref: np.ndarray) -> Cycle
         raise
     except (ValueError, TypeError, KeyError) as exc:
         raise ConfigError(f"controller {name!r}: {exc}", source, "controller.params") from None
-    except Exception as exc:   # a plugin's own error while building: still a message, not a traceback
+    except (Exception, SystemExit) as exc:   # a plugin's own error (even sys.exit) while building: a message
         raise ConfigError(f"controller {name!r} failed to build: {type(exc).__name__}: {exc}", source,
                           "controller.type") from None
     if not isinstance(controller, CycleController):
