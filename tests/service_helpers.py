@@ -105,3 +105,18 @@ def activate(client: LineClient) -> dict:
             return reply
         time.sleep(0.1)
     pytest.fail("the strain gauges were never tared")
+
+
+def reply_of(srv, sock, polls: int = 200) -> dict:
+    """The JSON reply to what ``sock`` sent, polling the in-process CommandServer ``srv`` (no timing)."""
+    sock.setblocking(False)
+    data = b""
+    for _ in range(polls):
+        srv.poll()
+        try:
+            data += sock.recv(65536)
+        except BlockingIOError:
+            pass
+        if data.endswith(b"\n"):
+            return json.loads(data)
+    raise AssertionError(f"no reply (got {data!r})")

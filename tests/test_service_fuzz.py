@@ -17,7 +17,7 @@ import socket
 from ankle_rt.service.protocol import (MAX_LINE_BYTES, Command, CommandError, CommandLimits, SetGains, SetReference,
                                        parse_command)
 from ankle_rt.service.server import CommandServer
-from tests.service_helpers import LineClient, activate, daemon, status  # noqa: F401  (daemon is a fixture)
+from tests.service_helpers import LineClient, activate, daemon, reply_of, status  # noqa: F401  (daemon is a fixture)
 
 GUARD_POLLS = 5000  # generous bound on polls while waiting; no wall-clock timing
 DEFAULT_SEED = 20261123
@@ -142,17 +142,7 @@ def test_server_survives_fuzz_and_only_valid_commands_reach_the_handler(tmp_path
     probe = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
     probe.connect(str(server.path))
     probe.sendall(b'{"cmd":"status"}\n')
-    probe.setblocking(False)
-    reply = b""
-    for _ in range(GUARD_POLLS):
-        server.poll()
-        try:
-            reply += probe.recv(4096)
-        except BlockingIOError:
-            pass
-        if reply.endswith(b"\n"):
-            break
-    assert json.loads(reply) == {"ok": True, "state": "configured"}
+    assert reply_of(server, probe, GUARD_POLLS) == {"ok": True, "state": "configured"}
     server.close()
 
 

@@ -7,6 +7,7 @@ import socket
 
 from ankle_rt.service.protocol import Deactivate, Pending
 from ankle_rt.service.server import CommandServer
+from tests.service_helpers import reply_of
 
 
 class FakeClock:
@@ -22,20 +23,6 @@ def connect(path) -> socket.socket:
     sock.settimeout(5.0)  # a guard only
     sock.connect(str(path))
     return sock
-
-
-def reply_of(srv, sock, polls: int = 200) -> dict:
-    sock.setblocking(False)
-    data = b""
-    for _ in range(polls):
-        srv.poll()
-        try:
-            data += sock.recv(65536)
-        except BlockingIOError:
-            pass
-        if data.endswith(b"\n"):
-            return json.loads(data)
-    raise AssertionError(f"no reply (got {data!r})")
 
 
 def test_eight_half_line_clients_do_not_lock_out_deactivate(tmp_path):
