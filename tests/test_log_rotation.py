@@ -29,6 +29,15 @@ def _values(k: int) -> tuple:
     return tuple([k * 1e-3] + [k * 1e-2] * 17 + [k, 1000.0, 10.0, 0, 1, 0, 0])
 
 
+def _rotated_run(first: Path, records: int) -> list[str]:
+    """Write ``records`` records (``_values``) as a run rotated every 30 records; the parts' paths."""
+    w = LogWriter(first, {"rate_hz": 1000}, capacity=1024, rotation=Rotation(size_bytes=HEADER_SIZE + 30 * RECORD_SIZE))
+    for k in range(records):
+        w.append(*_values(k))
+    w.close()
+    return [str(part_path(first, i)) for i in range(w.part + 1)]
+
+
 def _wait_flushed(w: LogWriter, timeout_s: float = 30.0) -> None:
     """Until the writer thread has taken every record packed so far (no fixed sleep)."""
     deadline = time.monotonic() + timeout_s
@@ -169,12 +178,7 @@ def test_run_with_rotation_summarises_the_last_records_across_parts(tmp_path, ca
 
 
 def test_export_joins_the_parts_of_a_rotated_run_and_names_a_gap(tmp_path, capsys):
-    first = tmp_path / "j.arlog"
-    w = LogWriter(first, {"rate_hz": 1000}, capacity=1024, rotation=Rotation(size_bytes=HEADER_SIZE + 30 * RECORD_SIZE))
-    for k in range(100):
-        w.append(*_values(k))
-    w.close()
-    parts = [str(part_path(first, i)) for i in range(w.part + 1)]
+    parts = _rotated_run(tmp_path / "j.arlog", 100)
     out = tmp_path / "j.csv"
     assert main(["log", "export", *reversed(parts), "--csv", str(out)]) == 0     # any order
     assert "wrote 100 rows" in capsys.readouterr().out
@@ -192,11 +196,7 @@ def test_read_tail_takes_the_rest_from_the_part_before(tmp_path):
     from ankle_rt.log.reader import read_tail
 
     first = tmp_path / "t.arlog"
-    w = LogWriter(first, {}, capacity=1024, rotation=Rotation(size_bytes=HEADER_SIZE + 30 * RECORD_SIZE))
-    for k in range(100):
-        w.append(*_values(k))
-    w.close()
-    newest = part_path(first, 3)                       # parts of 30, 30, 30 and 10 records
+    newest = Path(_rotated_run(first, 100)[3])         # parts of 30, 30, 30 and 10 records
     tail = read_tail(newest, 25)
     assert tail.records["seq"].tolist() == list(range(75, 100)) and tail.total_records == 100 and tail.is_tail
     assert len(read_tail(newest, 500)) == 40            # this part and the one before, no further
@@ -205,12 +205,7 @@ def test_read_tail_takes_the_rest_from_the_part_before(tmp_path):
 
 
 def test_export_refuses_overlapping_parts_and_an_output_that_is_an_input(tmp_path, capsys):
-    first = tmp_path / "o.arlog"
-    w = LogWriter(first, {"rate_hz": 1000}, capacity=1024, rotation=Rotation(size_bytes=HEADER_SIZE + 30 * RECORD_SIZE))
-    for k in range(60):
-        w.append(*_values(k))
-    w.close()
-    parts = [str(part_path(first, i)) for i in range(w.part + 1)]
+    parts = _rotated_run(tmp_path / "o.arlog", 60)
     out = tmp_path / "o.csv"
     assert main(["log", "export", parts[0], parts[1], parts[0], "--csv", str(out)]) == 1   # a part given twice
     assert "overlap" in capsys.readouterr().err and not out.exists()
