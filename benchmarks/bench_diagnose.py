@@ -32,19 +32,9 @@ import numpy as np  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from ankle_rt.diagnosis import diagnose  # noqa: E402
-from tests.diagnosis_cases import SIM_CONFIG, draw_scenario, make_case, primary_error  # noqa: E402
+from tests.diagnosis_cases import README_RUN_YAML, draw_scenario, make_case, primary_error  # noqa: E402
 
 NAMES_EXCLUDED = ("none", "unknown")
-README_RUN = """\
-include: [{config}]
-reference:
-  profile: chirp
-  chirp: {{amplitude_dp: 0.09, amplitude_ie: 0.05, f0_hz: 0.2, f1_hz: 3.0, duration_s: 20.0, start_s: 0.3}}
-loop:
-  duration_s: 20.0
-"""
-
-
 def pct(x: float) -> str:
     return f"{100 * x:.1f} %"
 
@@ -58,7 +48,7 @@ def readme_rotor_cogging() -> str:
 
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "run.yaml"
-        path.write_text(README_RUN.format(config=SIM_CONFIG))
+        path.write_text(README_RUN_YAML)
         nominal = load_config(path)
         rated = nominal["actuator"]["torque_constant"] * nominal["amplifier"]["current_limit_continuous"]
         n = 6 * int(nominal["actuator"]["gear_ratio"])

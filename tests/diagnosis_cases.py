@@ -35,6 +35,15 @@ from sim_backend.plant import SimulatedPlant
 
 ROOT = Path(__file__).resolve().parent.parent
 SIM_CONFIG = ROOT / "config" / "sim.yaml"
+README_RUN_YAML = f"""\
+include: [{SIM_CONFIG}]
+reference:
+  profile: chirp
+  chirp: {{amplitude_dp: 0.09, amplitude_ie: 0.05, f0_hz: 0.2, f1_hz: 3.0, duration_s: 20.0, start_s: 0.3}}
+loop:
+  duration_s: 20.0
+"""
+"""The README's identification run (docs/diagnosis.md walkthrough): a 20 s chirp on the simulator."""
 PERTURBATION = 0.15
 RAMP_S = 0.5                # s, references and loads fade in over this
 CURRENT_NOISE_A = 0.005     # A rms, amplifier current ripple (the set value is what gets recorded)

@@ -10,16 +10,8 @@ import numpy as np
 
 from ankle_rt.cli import main
 from ankle_rt.interchange import read_csv
-from tests.diagnosis_cases import SIM_CONFIG
+from tests.diagnosis_cases import README_RUN_YAML, SIM_CONFIG
 
-RUN_YAML = f"""\
-include: [{SIM_CONFIG}]
-reference:
-  profile: chirp
-  chirp: {{amplitude_dp: 0.09, amplitude_ie: 0.05, f0_hz: 0.2, f1_hz: 3.0, duration_s: 20.0, start_s: 0.3}}
-loop:
-  duration_s: 20.0
-"""
 TRUTH_YAML = """\
 include: [run.yaml]
 sim:
@@ -36,7 +28,7 @@ def _position_nrmse(sim_csv, measured) -> float:
 
 def test_readme_walkthrough(tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    (tmp_path / "run.yaml").write_text(RUN_YAML)
+    (tmp_path / "run.yaml").write_text(README_RUN_YAML)
     (tmp_path / "truth.yaml").write_text(TRUTH_YAML)
 
     # 1. the "device": the daemon on the simulator with the hidden effect records a run
