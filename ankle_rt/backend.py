@@ -115,12 +115,27 @@ class Backend(ABC):
         self.close()
 
 
+BATCH_PLANTS: dict[str, str] = {
+    "sim": "sim_backend.batch:BatchPlant",
+}
+"""Backends that can step many devices at once (``ankle-rt sweep``): the simulator only."""
+
+
+def _registered(table: dict[str, str], name: str, what: str, source: str | None) -> type:
+    if name not in table:
+        raise ConfigError(f"unknown {what} {name!r} (expected one of: {', '.join(table)})", source, "backend")
+    module_name, _, cls_name = table[name].partition(":")
+    return getattr(importlib.import_module(module_name), cls_name)
+
+
 def backend_class(name: str, source: str | None = None) -> type[Backend]:
     """Import and return the backend class registered under ``name`` (``source``: the config file, for errors)."""
-    if name not in BACKENDS:
-        raise ConfigError(f"unknown backend {name!r} (expected one of: {', '.join(BACKENDS)})", source, "backend")
-    module_name, _, cls_name = BACKENDS[name].partition(":")
-    return getattr(importlib.import_module(module_name), cls_name)
+    return _registered(BACKENDS, name, "backend", source)
+
+
+def batch_plant_class(name: str, source: str | None = None) -> type:
+    """The batch plant class of backend ``name`` (:data:`BATCH_PLANTS`), for studies over many devices."""
+    return _registered(BATCH_PLANTS, name, "backend for a batch (sweeps simulate)", source)
 
 
 def open_backend(cfg: "Config", clock: "Clock") -> Backend:

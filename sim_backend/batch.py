@@ -10,7 +10,7 @@ slower), so a new effect works in a batch without edits. The amplifier limits ar
 :class:`~sim_backend.amplifier.EsconCurrentLimit` law, stacked.
 
 Plants in one batch must share the structure: control period, substeps, the effect types in order,
-``sim.cables`` (:func:`structure_key` groups configs that can share a batch).
+``sim.cables`` (:meth:`BatchPlant.structure_key` groups configs that can share a batch).
 """
 
 from __future__ import annotations
@@ -19,8 +19,9 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from sim_backend.effects import Effect
 from ankle_rt.elementwise import stack
+from ankle_rt.params import PlantParams
+from sim_backend.effects import Effect, build_effects
 from sim_backend.model import CompliantModel
 from sim_backend.plant import SimulatedPlant
 
@@ -28,13 +29,6 @@ from sim_backend.plant import SimulatedPlant
 # plant's larger blocks (a generator's normals do not depend on the chunking), and the transpose to
 # (samples, 2, plants) stays in cache (twice as fast per tick as 4096 at 256 plants)
 NOISE_BLOCK = 512
-
-
-def structure_key(cfg: Mapping[str, Any]) -> tuple:
-    """Configs with equal keys can be stepped in one batch."""
-    sim = cfg["sim"]
-    return (cfg["controller"]["rate_hz"], sim["substeps"], sim["cables"], sim["friction"],
-            tuple(e["type"] for e in sim["effects"]))
 
 
 class PlantByPlant:
@@ -156,6 +150,19 @@ class BatchPlant:
     """``len(cfgs)`` simulated devices (:class:`SimulatedPlant` each, stacked): ESCON limits,
     quantised encoders, strain-gauge noise (each plant's own seeded stream, as alone) and the
     configured disturbances. Sensor outputs are arrays over the plants."""
+
+    @staticmethod
+    def structure_key(cfg: Mapping[str, Any]) -> tuple:
+        """Configs with equal keys can be stepped in one batch."""
+        sim = cfg["sim"]
+        return (cfg["controller"]["rate_hz"], sim["substeps"], sim["cables"], sim["friction"],
+                tuple(e["type"] for e in sim["effects"]))
+
+    @staticmethod
+    def check_config(cfg: Mapping[str, Any]) -> None:
+        """What the config validation leaves to the plant (the effects' own parameters), without
+        building it; raises ConfigError naming the key."""
+        build_effects(cfg["sim"]["effects"], PlantParams.from_config(cfg), 1.0 / cfg["controller"]["rate_hz"])
 
     def __init__(self, cfgs: Sequence[Mapping[str, Any]], source: str = "config"):
         plants = [SimulatedPlant(c, source) for c in cfgs]

@@ -99,3 +99,16 @@ def test_the_graph_sees_the_imports_it_should():
 
 def test_no_import_circles_in_ankle_rt():
     assert cycles(import_graph()) == []
+
+
+def test_ankle_rt_reaches_backends_and_simulators_only_by_name():
+    """The core knows hardware/ and sim_backend/ by registered names (ankle_rt.backend), never by an
+    import statement, deferred or not (the batch simulator of the sweeps came in directly once)."""
+    direct = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            names = ([a.name for a in node.names] if isinstance(node, ast.Import)
+                     else [node.module or ""] if isinstance(node, ast.ImportFrom) and not node.level else [])
+            direct += [f"{path.relative_to(PACKAGE.parent)}:{node.lineno} {n}" for n in names
+                       if n.split(".")[0] in ("hardware", "sim_backend")]
+    assert direct == []

@@ -23,6 +23,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from ankle_rt.backend import batch_plant_class
 from ankle_rt.config import ConfigError
 from ankle_rt.control import build_controller
 from ankle_rt.control.friction import FrictionFeedForward
@@ -33,7 +34,6 @@ from ankle_rt.kinematics import Kinematics
 from ankle_rt.params import TransmissionParams
 from ankle_rt.references import Hold, reference_from_config
 from ankle_rt.safety import Fault, Safety
-from sim_backend.batch import BatchPlant, structure_key
 
 CONFIGURED, ACTIVE, FAULTED = 0, 1, 2
 
@@ -80,7 +80,7 @@ def batch_key(cfg: Mapping[str, Any]) -> tuple:
         raise ConfigError(f"the batched daemon cycle runs the built-in pd and impedance controllers, not {name!r} "
                           "(a plugin runs in the daemon: ankle-rt run --fast)", getattr(cfg, "source", None),
                           "controller.type")
-    return structure_key(cfg) + (name, torque_feedback(cfg) if name == "impedance" else None)
+    return batch_plant_class(cfg["backend"], getattr(cfg, "source", None)).structure_key(cfg) + (name, torque_feedback(cfg) if name == "impedance" else None)
 
 
 def _column(objects: Sequence[Any], get) -> np.ndarray:
@@ -98,7 +98,7 @@ class BatchRun:
         (a plugin, a mix of controller types or of open- and closed-loop impedance)."""
         self.n = n = len(cfgs)
         self.slack_torque = np.broadcast_to(np.asarray(slack_torque, dtype=float), (n,))
-        self.plant = BatchPlant(cfgs, source)
+        self.plant = batch_plant_class(cfgs[0]["backend"], source)(cfgs, source)
         self.dt = dt = self.plant.dt
         self.ticks = -(-round(duration_s * 1e9) // round(1e9 * dt))
         kins = [Kinematics.from_params(TransmissionParams(**c["transmission"])) for c in cfgs]

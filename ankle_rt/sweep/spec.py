@@ -422,13 +422,13 @@ def _preflight(cfg: Config, run_id: int, sample: int, scenario: str, values: dic
     limits, which the daemon derives from the config's actuator)."""
     from ankle_rt.control import build_controller
     from ankle_rt.kinematics import Kinematics
-    from ankle_rt.params import PlantParams, TransmissionParams
+    from ankle_rt.params import TransmissionParams
     from ankle_rt.references import reference_from_config
     from ankle_rt.sweep.cycle import batch_key
-    from sim_backend.effects import build_effects
+    from ankle_rt.backend import batch_plant_class
 
     try:
-        build_effects(cfg["sim"]["effects"], PlantParams.from_config(cfg), 1.0 / cfg["controller"]["rate_hz"])
+        batch_plant_class(cfg["backend"], cfg.source).check_config(cfg)
         for i, d in enumerate(cfg["sim"]["disturbances"]):
             if d["stop"] <= d["start"]:
                 raise ConfigError("stop must be after start", cfg.source, f"sim.disturbances.{i}.stop")
