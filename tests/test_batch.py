@@ -27,6 +27,8 @@ EFFECT_CASES = {
     "delay": [[{"type": "delay", "delay": 0.0025}], [{"type": "delay", "delay": 0.004}]],
     "stiffness_nonlinear": [[{"type": "stiffness_nonlinear", "hardening_stretch": 3e-4}],
                             [{"type": "stiffness_nonlinear", "hardening_stretch": 6e-4}]],
+    "torque_offset": [[{"type": "torque_offset", "torque_1": 0.3, "torque_2": -0.1}],
+                      [{"type": "torque_offset", "torque_1": -0.2}]],
 }
 
 

@@ -16,6 +16,7 @@ class TorqueOffset(Effect):
         "torque_2": Field(float, "N m, constant torque resisting positive motion of motor 2", default=0.0),
     })
     cause = "torque_offset"
+    elementwise = True      # constants: the batch stacks them into arrays, one call for all plants
 
     def __init__(self, params, plant, dt):
         super().__init__(params, plant, dt)
