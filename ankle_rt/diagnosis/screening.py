@@ -124,9 +124,8 @@ def screen(rec: Recording, v_eps: float, current_limit: float | None = None, lab
         good &= ~(rail | held)
     motors = [c for c in ("motor_pos_1", "motor_pos_2") if c in rec]
     if motors:
-        from scipy.signal import savgol_filter
-        window = max(5, int(round(0.021 / dt)) | 1)
-        vel = np.column_stack([savgol_filter(rec[c], window, 3, deriv=1, delta=dt) for c in motors])
+        from ankle_rt.diagnosis.signals import Smoother
+        vel = Smoother.for_period(dt).fast_derivative(np.column_stack([rec[c] for c in motors]))
         v99 = float(np.percentile(np.abs(vel), 99))
         moving = np.abs(vel) > max(5.0 * v_eps, 0.01 * v99)
         share = float(np.mean(moving))
