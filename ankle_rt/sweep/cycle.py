@@ -292,7 +292,7 @@ class BatchRun:
             n2 = q2 + (i2 * i2 - self.i_cont2) * dt
             q1 = np.where(controlling & ~bad, np.maximum(n1, 0.0), q1)
             q2 = np.where(controlling & ~bad, np.maximum(n2, 0.0), q2)
-            code = first_fault(code, [(controlling & ~bad & ((n1 >= self.i2t_budget) | (n2 >= self.i2t_budget)),
+            code = first_fault(code, [(controlling & ~bad & ((n1 > self.i2t_budget) | (n2 > self.i2t_budget)),
                                        Fault.OVERCURRENT)])
             # -- faults latch, set values reach the amplifiers only while active and fault-free
             tripped = live & (code != 0)
