@@ -12,7 +12,6 @@ Lockstep: the same daemon on a SimClock; real-time factor = simulated s / wall-c
 from __future__ import annotations
 
 import argparse
-import math
 from pathlib import Path
 
 BATCH_GOAL = 1000.0   # aggregate real-time factor of 256 nominal plants under PD (issue 14)
@@ -310,20 +309,8 @@ def plot_loops(variants: dict[str, dict], png: str) -> str:
     return f"plot: {png}"
 
 
-def _finite_or_null(x):
-    """JSON has no NaN / inf: undefined figures (e.g. a damping error for zero commanded damping) -> null."""
-    if isinstance(x, float):
-        return x if math.isfinite(x) else None
-    if isinstance(x, dict):
-        return {k: _finite_or_null(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_finite_or_null(v) for v in x]
-    return x
-
-
 def bench_impedance(args: argparse.Namespace) -> int:
-    import json
-
+    from ankle_rt.commands import jsonout
     from ankle_rt.config import load_config
     from ankle_rt.impedance_bench import Experiment
     from ankle_rt.paths import default_config_path
@@ -359,7 +346,7 @@ def bench_impedance(args: argparse.Namespace) -> int:
                             for name, v in variants.items()},
                   plot=note)
     if args.json:
-        print(json.dumps(_finite_or_null(result)))
+        print(jsonout.dumps(result))
         return 0
     print(f"plant: nominal + {', '.join(e['type'] for e in effects) or 'no extra effects'}; "
           f"commanded K_dp {', '.join(f'{k:g}' for k in args.stiffness)} N m/rad, damping {args.damping[0]:g} / "

@@ -11,10 +11,11 @@ again, a study resumes from them). Runs on all cores, or on a Dask cluster with 
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
+
+from ankle_rt.commands import jsonout
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -65,29 +66,14 @@ def sweep(args: argparse.Namespace) -> int:
     summary["wall_s"] = wall
     summary["table"] = str(table)
     summary["plots"] = [] if args.no_plots else [str(p) for p in plot(study, rows, summary, out / "plots")]
-    safe = _json_safe(summary)
-    (out / "summary.json").write_text(json.dumps(safe, indent=1))
+    (out / "summary.json").write_text(jsonout.dumps(summary, indent=1))
     if args.json:
-        print(json.dumps(safe))
+        print(jsonout.dumps(summary))
     else:
         print(format_summary(summary))
         print(f"{len(rows)} runs in {wall:.1f} s wall; table {table}, summary {out / 'summary.json'}"
               + (f", plots in {out / 'plots'}" if summary["plots"] else ""))
     return 0
-
-
-def _json_safe(value):
-    """NaN and infinity as null (strict JSON), numpy scalars as numbers."""
-    import math
-    if isinstance(value, dict):
-        return {k: _json_safe(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_json_safe(v) for v in value]
-    if hasattr(value, "item"):
-        value = value.item()
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
 
 
 def _without_none(value):
@@ -114,7 +100,7 @@ def rerun(study, run_id: int, out: Path) -> int:
     cfg = _without_none(dict(r.config))     # None is "the default" in a validated config
     cfg["logging"] = {**cfg["logging"], "directory": str(directory)}
     header = (f"# run {run_id} of {study.path}: sample {r.sample}, scenario {r.scenario}, seed {r.seed}\n"
-              f"# sampled: {json.dumps(r.values)}\n")
+              f"# sampled: {jsonout.dumps(r.values)}\n")
     cfg_path.write_text(header + yaml.safe_dump(cfg, sort_keys=False))
     print(f"run {run_id}: config {cfg_path}", flush=True)
     return run_command(argparse.Namespace(config=str(cfg_path), duration=study.duration_s, fast=True,
