@@ -33,10 +33,6 @@ def sin(x):
     return np.sin(x) if x.__class__ is _ARRAY else _sin(x)
 
 
-def absolute(x):
-    return abs(x)   # abs() is numpy's absolute on arrays
-
-
 def clip(x, low, high):
     """``x`` limited to [low, high] (bounds broadcast over the batch)."""
     if x.__class__ is _ARRAY or low.__class__ is _ARRAY:

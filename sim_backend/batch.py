@@ -234,11 +234,6 @@ class BatchPlant:
         self._noise_i += 1
         return (t0 + self.noise_rms * n[0] + self.sg_offset[0], t1 + self.noise_rms * n[1] + self.sg_offset[1])
 
-    def ankle_positions(self) -> tuple[np.ndarray, np.ndarray]:
-        """rad [DP, IE]: the true joint angles."""
-        x = self.model.x
-        return x[0].copy(), x[1].copy()
-
     def cable_torques(self, joint=None) -> tuple[np.ndarray, np.ndarray]:
         """N m: the cable torque each motor feels, R^-T of the joint torque (reciprocal transmission)."""
         t0, t1 = self.model.joint_torque() if joint is None else joint
