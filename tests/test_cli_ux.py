@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from ankle_rt.cli import EXIT_BROKEN_PIPE, build_parser, main
-from ankle_rt.commands.jsonout import dumps
+from ankle_rt.jsonout import dumps
 from ankle_rt.progress import Progress
 from hardware.can_hints import open_hint
 

@@ -32,7 +32,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ankle_rt.analysis import analyze
-    from ankle_rt.commands import jsonout
+    from ankle_rt import jsonout
     from ankle_rt.config import load_config
     from ankle_rt.params import PlantParams
     from ankle_rt.paths import default_config_path

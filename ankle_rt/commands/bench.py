@@ -76,7 +76,7 @@ def lockstep_speed(cfg, sim_s: float) -> float:
 def bench_loop(args: argparse.Namespace) -> int:
     import tempfile
 
-    from ankle_rt.commands import jsonout
+    from ankle_rt import jsonout
 
     from ankle_rt.config import load_config
     from ankle_rt.paths import default_config_path
@@ -310,7 +310,7 @@ def plot_loops(variants: dict[str, dict], png: str) -> str:
 
 
 def bench_impedance(args: argparse.Namespace) -> int:
-    from ankle_rt.commands import jsonout
+    from ankle_rt import jsonout
     from ankle_rt.config import load_config
     from ankle_rt.impedance_bench import Experiment
     from ankle_rt.paths import default_config_path

@@ -81,7 +81,7 @@ def _output_problem(path: str, inputs: tuple[str | None, ...]) -> str | None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ankle_rt.commands import jsonout
+    from ankle_rt import jsonout
 
     try:
         import scipy  # noqa: F401

@@ -54,8 +54,7 @@ def _damage_lines(log) -> list[str]:
 
 
 def info_cmd(args: argparse.Namespace) -> int:
-    import json
-
+    from ankle_rt import jsonout
     from ankle_rt.log.summary import SUMMARY_MAX_RECORDS, format_summary, summarize_log
 
     log = _read(args.path, SUMMARY_MAX_RECORDS)
@@ -69,7 +68,7 @@ def info_cmd(args: argparse.Namespace) -> int:
     summary["header_note"] = log.header_note
     summary["format"] = log.version
     if args.json:
-        print(json.dumps(summary, indent=2, default=float))
+        print(jsonout.dumps(summary, indent=2))
         return 0
     m = log.meta
     print(f"{log.source}: started {m.get('started_utc', '?')}, config {m.get('config', '?')}, backend "

@@ -40,7 +40,7 @@ def run(args: argparse.Namespace) -> int:
     import signal
 
     from ankle_rt.backend import BackendError
-    from ankle_rt.commands import jsonout
+    from ankle_rt import jsonout
     from ankle_rt.clock import MonotonicClock, SimClock
     from ankle_rt.config import load_config
     from ankle_rt.daemon import Daemon

@@ -15,7 +15,7 @@ import sys
 import time
 from pathlib import Path
 
-from ankle_rt.commands import jsonout
+from ankle_rt import jsonout
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:

@@ -26,6 +26,8 @@ import math
 from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping, Union
 
+from ankle_rt.jsonout import finite_or_none
+
 MAX_LINE_BYTES = 4096
 """Longest accepted request line in bytes, newline included."""
 
@@ -281,22 +283,9 @@ def parse_command(line: bytes, limits: CommandLimits | None = None) -> Command:
     raise CommandError("cmd", f"unknown command {_short(name)} (expected one of: {', '.join(COMMAND_NAMES)})")
 
 
-def _jsonable(value: Any) -> Any:
-    """Plain JSON types; non-finite floats become null (NaN is not JSON), numpy values plain numbers."""
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, dict):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_jsonable(v) for v in value]
-    if hasattr(value, "tolist"):  # numpy scalars and arrays
-        return _jsonable(value.tolist())
-    return value
-
-
 def format_reply(ok: bool, **data: Any) -> bytes:
     """One reply line: ``{"ok": ok, ...data}`` + newline. NaN/inf become null."""
-    return json.dumps({"ok": ok, **_jsonable(data)}, allow_nan=False, separators=(",", ":")).encode() + b"\n"
+    return json.dumps({"ok": ok, **finite_or_none(data)}, allow_nan=False, separators=(",", ":")).encode() + b"\n"
 
 
 def error_reply(exc: CommandError) -> bytes:
