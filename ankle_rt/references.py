@@ -279,6 +279,12 @@ PROFILE_PARAMS: dict[str, Section] = {
 }
 
 
+def angle_params(profile: str) -> set[str]:
+    """The parameters of ``profile`` that are angles (their schema gives them in rad): what the
+    command line shows and takes in degrees."""
+    return {key for key, spec in PROFILE_PARAMS[profile].fields.items() if getattr(spec, "doc", "").startswith("rad")}
+
+
 def validate_profile_params(name: str, params: Mapping[str, Any], source: str = "command") -> dict[str, Any]:
     """The checked parameters of profile ``name`` (defaults filled in). Bad names or values raise
     ConfigError naming the key (``params.<key>``)."""

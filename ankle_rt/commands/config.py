@@ -42,6 +42,8 @@ def emulated(cfg):
 
 def describe(cfg) -> list[str]:
     """What the config would run, one fact per line."""
+    from ankle_rt.references import angle_params
+
     c, ref, loop, rt = cfg["controller"], cfg["reference"], cfg["loop"], cfg["loop"]["realtime"]
     backend = cfg["backend"]
     if backend == "serial":
@@ -63,8 +65,9 @@ def describe(cfg) -> list[str]:
     if c["friction_ff"]["enabled"]:
         controller += "; friction feed-forward on"
     profile = ref["profile"]
-    params = ", ".join(f"{k} {math.degrees(v):.3g} deg" if k in ("dp", "ie", "amplitude_dp", "amplitude_ie")
-                       else f"{k} {v}" for k, v in ref.get(profile, {}).items())
+    angles = angle_params(profile)
+    params = ", ".join(f"{k} {math.degrees(v):.3g} deg" if k in angles else f"{k} {v}"
+                       for k, v in ref.get(profile, {}).items())
     amp, safety = cfg["amplifier"], cfg["safety"]
     log = cfg["logging"]
     service = cfg["service"]

@@ -12,6 +12,7 @@ import socket
 import sys
 from pathlib import Path
 
+from ankle_rt.references import angle_params
 from ankle_rt.service.protocol import GAIN_FIELDS, PROFILE_NAMES
 
 EXIT_REFUSED = 1
@@ -85,13 +86,6 @@ def request_from_args(args: argparse.Namespace) -> dict:
             params["path"] = str(Path(params["path"]).resolve())
         return {"cmd": "start_profile", "name": args.name, "params": params}
     return {"cmd": name}
-
-
-def angle_params(profile: str) -> set[str]:
-    """The parameters of ``profile`` that are angles (their schema gives them in rad)."""
-    from ankle_rt.references import PROFILE_PARAMS
-
-    return {key for key, spec in PROFILE_PARAMS[profile].fields.items() if getattr(spec, "doc", "").startswith("rad")}
 
 
 def _param(text: str) -> tuple[str, float | str]:
