@@ -30,7 +30,7 @@ def _kind(mode: int) -> str:
     return "not a regular file"
 
 
-def _open_regular(path: str | Path, limit_bytes: int | None) -> int:
+def open_regular(path: str | Path, limit_bytes: int | None) -> int:
     """A read-only descriptor of the regular file ``path`` (never blocks on a FIFO), at most
     ``limit_bytes`` long when given; TextFileError otherwise. The caller closes it."""
     try:
@@ -58,7 +58,7 @@ def _read(fd: int, n: int) -> bytes:
 
 def read_head(path: str | Path, n: int) -> bytes:
     """The first ``n`` bytes (fewer if the file is shorter) of the regular file ``path``."""
-    fd = _open_regular(path, None)
+    fd = open_regular(path, None)
     try:
         return _read(fd, n)
     finally:
@@ -68,7 +68,7 @@ def read_head(path: str | Path, n: int) -> bytes:
 def read_bytes(path: str | Path, limit_bytes: int) -> bytes:
     """The content of the regular file ``path``; TextFileError if it is something else, cannot be
     opened, or is larger than ``limit_bytes``."""
-    fd = _open_regular(path, limit_bytes)
+    fd = open_regular(path, limit_bytes)
     try:
         chunks, total = [], 0
         while total <= limit_bytes:      # the size can change after fstat: never read past the limit
@@ -105,7 +105,7 @@ def iter_lines(path: str | Path, limit_bytes: int, chunk_bytes: int = 1 << 16) -
     """The lines of a UTF-8 text file (a leading byte-order mark dropped), read ``chunk_bytes`` at a
     time (a large file is never held whole). The same checks as :func:`read_text` (regular file, size
     limit, UTF-8, no NUL), raised as TextFileError when reached."""
-    fd = _open_regular(path, limit_bytes)
+    fd = open_regular(path, limit_bytes)
     try:
         decoder = codecs.getincrementaldecoder("utf-8-sig")()
         offset, tail = 0, ""

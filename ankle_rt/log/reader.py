@@ -19,6 +19,7 @@ import numpy as np
 from ankle_rt.log.header import HEADER_SIZE, LogFormatError, decode_header
 from ankle_rt.log.record import crc_ok
 from ankle_rt.safety import Fault, State
+from ankle_rt.textfile import TextFileError, open_regular
 
 __all__ = ["LogFormatError", "RunLog", "read_log", "read_tail", "read_parts", "interchange_columns"]
 
@@ -65,10 +66,12 @@ def read_log(path: str | Path, last: int | None = None) -> RunLog:
     """Read a run log; ``last`` keeps memory and time bounded for long runs: only the most recent
     ``last`` records are read (a seek, then one read), never the whole file."""
     path = Path(path)
-    if path.exists() and not path.is_file():      # a FIFO would block the read, a directory fail it
-        raise LogFormatError(f"{path}: not a regular file")
+    try:                       # a regular file only: a FIFO would block the read, a directory fail it
+        handle = os.fdopen(open_regular(path, None), "rb")
+    except TextFileError as exc:
+        raise LogFormatError(f"{path}: {exc}") from None
     try:
-        with path.open("rb") as handle:
+        with handle:
             file_size = os.fstat(handle.fileno()).st_size
             header = decode_header(handle.read(HEADER_SIZE), str(path))
             size = header.dtype.itemsize
