@@ -40,7 +40,7 @@ from typing import TYPE_CHECKING
 
 from ankle_rt.config import Config, ConfigError
 from hardware.emulators.bridge_core import BridgeInputs, PythonCore
-from hardware.escon import escon_amplifiers
+from hardware.escon import enable_outputs, escon_amplifiers
 from hardware.emulators.fault_schedule import ScheduledFault, parse_schedule
 from hardware.sensors import JointEncoders, MotorEncoders, StrainGauges
 from hardware.serial_protocol import (HEADER, CRC, IN_JOINT_VALID, IN_READY_1, IN_READY_2, OUT_ENABLE_1,
@@ -58,14 +58,13 @@ NOISE_FLIP_EVERY = 8      # ... and one random bit flipped in one sample in this
 SETTLE_TIMEOUT_S = 5.0   # LockstepLink: longest wait for bytes to cross the pty (a safety net only)
 
 
-def make_core(name: str, cfg: Config, amps: tuple) -> PythonCore | NativeCore:
-    """The firmware core ``name`` (one of :data:`CORES`) for a board wired as ``cfg`` says."""
+def make_core(name: str, rate_hz: int, counter_bits: int, modes: int, amps: tuple) -> PythonCore | NativeCore:
+    """The firmware core ``name`` (one of :data:`CORES`) for a board at ``rate_hz`` with
+    ``counter_bits`` encoder counters, CONFIG set-value ``modes`` and these amplifiers' wiring."""
     if name not in CORES:
         raise ValueError(f"unknown bridge core {name!r} (expected one of: {', '.join(CORES)})")
-    enable_off = ((OUT_ENABLE_1 if amps[0].enable_level(False) else 0)
-                  | (OUT_ENABLE_2 if amps[1].enable_level(False) else 0))
-    args = (cfg["controller"]["rate_hz"], cfg["encoders"]["counter_bits"], set_value_modes(amps[0].mode, amps[1].mode),
-            enable_off, [(a.codec.code_min, a.codec.code_max) for a in amps], [a.zero_code for a in amps])
+    args = (rate_hz, counter_bits, modes, enable_outputs(amps, (OUT_ENABLE_1, OUT_ENABLE_2), False),
+            [(a.codec.code_min, a.codec.code_max) for a in amps], [a.zero_code for a in amps])
     if name == "c":
         from hardware.emulators.native_core import NativeCore
 
@@ -92,7 +91,7 @@ class BridgeEmulator:
         self.period_us = round(1e6 / self.rate_hz)
         self.modes = set_value_modes(self.amps[0].mode, self.amps[1].mode)
         self.core_name = core
-        self.core = make_core(core, cfg, self.amps)
+        self.core = make_core(core, self.rate_hz, cfg["encoders"]["counter_bits"], self.modes, self.amps)
         self.lockstep = lockstep
         self.output = bytearray()
         self.enable_delay_ticks = round(enable_delay_s * self.rate_hz)
