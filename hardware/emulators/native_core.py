@@ -1,6 +1,6 @@
 """The bridge firmware's portable C core (hardware/firmware/core/), compiled natively and loaded with
 ctypes: firmware in the loop. :class:`NativeCore` offers the interface of the Python core in
-``serial_emulator`` (``PythonCore``), so the emulator's plant side drives either; only the protocol
+``bridge_core`` (``PythonCore``), so the emulator's plant side drives either; only the protocol
 and safety logic differ between the two, and the same tests run against both.
 
 The shared library is built on first use with the host's C compiler (``cc``/``gcc``) into a cache
@@ -121,7 +121,7 @@ def load_library() -> ctypes.CDLL:
 
 
 class NativeCore:
-    """One instance of the C core (bridge.h) with the interface of ``serial_emulator.PythonCore``."""
+    """One instance of the C core (bridge.h) with the interface of ``bridge_core.PythonCore``."""
 
     TX_CHUNK = 512
 

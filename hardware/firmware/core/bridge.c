@@ -1,4 +1,4 @@
-/* The bridge's protocol and safety logic (bridge.h): exactly what hardware/emulators/serial_emulator.py
+/* The bridge's protocol and safety logic (bridge.h): exactly what hardware/emulators/bridge_core.py
  * implements in Python; tests run the daemon against both. */
 #include "bridge.h"
 

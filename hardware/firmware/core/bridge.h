@@ -1,6 +1,6 @@
 /* The bridge firmware's portable core: the protocol and safety logic of docs/serial-protocol.md,
  * with no register access, so that the same code runs on the microcontroller (board/) and, compiled
- * natively, in the firmware-in-the-loop emulator (hardware/emulators/firmware_emulator.py).
+ * natively, in the firmware-in-the-loop emulator (hardware/emulators/native_core.py).
  *
  * The board calls, each tick of its 1 kHz timer:
  *   1. bridge_receive() with the bytes its UART received, then bridge_poll() until it returns 0
