@@ -19,7 +19,7 @@ from __future__ import annotations
 import enum
 import importlib
 from abc import ABC, abstractmethod
-from typing import TYPE_CHECKING, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
@@ -121,11 +121,18 @@ BATCH_PLANTS: dict[str, str] = {
 """Backends that can step many devices at once (``ankle-rt sweep``): the simulator only."""
 
 
+def load_by_name(spec: str) -> Any:
+    """The attribute ``spec`` ("package.module:name") names, imported on first use: how the core
+    reaches backends, and a driver its device's emulator, without importing them (so each runs
+    where the others are not installed)."""
+    module_name, _, attr = spec.partition(":")
+    return getattr(importlib.import_module(module_name), attr)
+
+
 def _registered(table: dict[str, str], name: str, what: str, source: str | None) -> type:
     if name not in table:
         raise ConfigError(f"unknown {what} {name!r} (expected one of: {', '.join(table)})", source, "backend")
-    module_name, _, cls_name = table[name].partition(":")
-    return getattr(importlib.import_module(module_name), cls_name)
+    return load_by_name(table[name])
 
 
 def backend_class(name: str, source: str | None = None) -> type[Backend]:

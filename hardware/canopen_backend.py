@@ -32,7 +32,7 @@ import time
 import can
 import canopen
 
-from ankle_rt.backend import Backend, BackendError, BackendFault, SensorFrame
+from ankle_rt.backend import Backend, BackendError, BackendFault, SensorFrame, load_by_name
 from ankle_rt.clock import Clock
 from ankle_rt.config import Config, ConfigError
 from hardware.can_hints import describe_open_error
@@ -42,7 +42,6 @@ from hardware.canopen_pdo import (COUNTER_1, COUNTER_2, DIGITAL_IN, DIGITAL_OUT,
                                   SYNC_COB_ID, ANALOG_CODE_SHIFT, EdsError, NodeLayout, analog_codec,
                                   counter_bits, eds_path, load_node)
 from hardware.escon import enable_outputs, escon_amplifiers
-from hardware.registry import load_by_name
 from hardware.sensors import MotorEncoders, StrainGauges, StuckEncoderDetector
 
 # canopen.emulator: lockstep: the bench's in-process node, named here and imported only then (the

@@ -30,12 +30,11 @@ import math
 import time
 from typing import Protocol
 
-from ankle_rt.backend import Backend, BackendError, BackendFault, SensorFrame
+from ankle_rt.backend import Backend, BackendError, BackendFault, SensorFrame, load_by_name
 from ankle_rt.clock import Clock
 from ankle_rt.config import Config
 from hardware.config_values import config_error, required
 from hardware.escon import enable_outputs, escon_amplifiers
-from hardware.registry import load_by_name
 from hardware.sensors import JointEncoders, MotorEncoders, StrainGauges, StuckEncoderDetector
 from hardware.serial_protocol import (IN_JOINT_VALID, IN_READY_1, IN_READY_2, OUT_ENABLE_1, OUT_ENABLE_2,
                                       PAYLOADS, SEQ_MODULUS, ST_ADC_STALE, ST_QUADRATURE, ST_WATCHDOG,

@@ -18,7 +18,6 @@ documentation for the names). Each transport registers ``run_standalone(cfg, arg
 from __future__ import annotations
 
 import argparse
-import importlib
 
 # transport -> "module:function" taking (validated config, parsed arguments) and returning an exit code
 EMULATORS: dict[str, str] = {
@@ -53,9 +52,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from ankle_rt.backend import load_by_name
     from ankle_rt.config import load_config
     from ankle_rt.paths import default_config_path
 
     cfg = load_config(args.config or default_config_path(f"bench-{args.transport}.yaml"))
-    module_name, _, func = EMULATORS[args.transport].partition(":")
-    return int(getattr(importlib.import_module(module_name), func)(cfg, args) or 0)
+    return int(load_by_name(EMULATORS[args.transport])(cfg, args) or 0)
