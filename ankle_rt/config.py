@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import copy
 from pathlib import Path
+from typing import Callable
 
 import yaml
 
@@ -144,7 +145,13 @@ def load_config(path: str | Path, overrides: dict | None = None) -> Config:
                 return origins[key_path[:n]]
         return str(path.resolve())
 
+    return config_from_data(data, origin, str(path))
+
+
+def config_from_data(data: dict, origin: Callable[[KeyPath], str], source: str) -> Config:
+    """Merged config data validated key by key and across keys: the Config a run uses (``origin``:
+    the file each key came from, for errors; ``source``: the config's name)."""
     cfg = Config(validate(data, SCHEMA, origin))
     check_consistency(cfg, origin)
-    cfg.source = str(path)
+    cfg.source = source
     return cfg

@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from ankle_rt.config import Config, ConfigError, merge, read_with_includes, validate
+from ankle_rt.config import Config, ConfigError, config_from_data, merge, read_with_includes
 
 DISTRIBUTIONS = ("uniform", "normal", "log-uniform", "choice")
 METHODS = ("lhs", "sobol", "random", "grid")
@@ -357,8 +357,6 @@ def _plain(v: Any) -> Any:
 
 def expand(study: Study) -> list[Run]:
     """Every (sample, scenario) run with its validated config; errors name the spec key."""
-    from ankle_rt.config_schema import SCHEMA, check_consistency
-
     origins: dict = {}
     base_raw = read_with_includes(study.base, origins)
     study.base_data = copy.deepcopy(base_raw)
@@ -389,16 +387,13 @@ def expand(study: Study) -> list[Run]:
                     v = int(round(v))          # an integer key (substeps, tare_samples) gets the nearest integer
                 _set(data, p.key, v)
             try:
-                checked = validate(data, SCHEMA, lambda _k: source)
-                check_consistency(checked, lambda _k: source)        # as load_config does for the daemon
-                cfg = Config(checked)
+                cfg = config_from_data(data, lambda _k: source, source)
             except ConfigError as exc:
                 hint = next((p.key for p in study.parameters if exc.key and (exc.key == p.key or
                              exc.key.startswith(p.key + ".") or p.key.startswith(exc.key + "."))), None)
                 raise SpecError(f"parameters.{hint}" if hint else "overrides",
                                 f"run {run_id} (sample {sample}, {scen_name}): the config rejects it: "
                                 f"{exc.key}: {exc.message}") from None
-            cfg.source = source
             _preflight(cfg, run_id, sample, scen_name, values, study)
             runs.append(Run(run_id, sample, scen_name, cfg["sim"]["seed"], values, cfg))
     return runs
