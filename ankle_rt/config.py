@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import copy
 from pathlib import Path
-from typing import Callable
+from typing import Any, Callable, Mapping
 
 import yaml
 
@@ -146,6 +146,13 @@ def load_config(path: str | Path, overrides: dict | None = None) -> Config:
         return str(path.resolve())
 
     return config_from_data(data, origin, str(path))
+
+
+def config_data(cfg: Mapping[str, Any]) -> dict:
+    """A validated config as data :func:`config_from_data` validates again to the same config (keys
+    left without a value dropped, as if absent): a copy to change a key of and re-check."""
+    return {key: config_data(value) if isinstance(value, Mapping) else copy.deepcopy(value)
+            for key, value in cfg.items() if value is not None}
 
 
 def config_from_data(data: dict, origin: Callable[[KeyPath], str], source: str) -> Config:

@@ -21,7 +21,7 @@ import numpy as np
 
 from ankle_rt.backend import Backend, SensorFrame, open_backend
 from ankle_rt.clock import Clock, SimClock
-from ankle_rt.config import Config, ConfigError
+from ankle_rt.config import Config, ConfigError, config_data
 from ankle_rt.control import CycleController, build_controller
 from ankle_rt.control.gains import GainError
 from ankle_rt.estimation import Estimate, Estimator
@@ -278,6 +278,10 @@ class Daemon:
                 profile = make_profile(command.name, command.params)
                 self._check_reach(profile)
                 self._command_reference(profile)
+            elif isinstance(command, proto.ListControllers):
+                return self._list_controllers()
+            elif isinstance(command, proto.SetController):
+                return self._set_controller(command)
             else:
                 raise proto.CommandError("cmd", f"not supported: {type(command).__name__}")
         except proto.CommandError:   # already names its field (a ValueError: keep it from the catch-all below)
@@ -293,6 +297,66 @@ class Daemon:
         except ValueError as exc:  # set_gains on a controller without run-time gains
             raise proto.CommandError("cmd", str(exc)) from None
         return {"state": State(self.safety.state).name.lower()}
+
+    # -- controllers at run time -------------------------------------------------------------------
+    def _in_background(self, fn, what: str, field: str) -> proto.Pending:
+        """Run ``fn`` on the background loader (an entry-point scan or a plugin import may take tens of
+        ms: never in the loop thread); the reply is ``finish(result)``'s once it is done."""
+        running = self.loader.pending()
+        if running is not None:
+            raise proto.CommandError(field, f"busy: still loading {running.what}")
+        return self.loader.submit(fn, what)
+
+    def _list_controllers(self) -> proto.Pending:
+        """The built-in and installed controllers (found off the loop thread) and the running one."""
+        from ankle_rt.controller_registry import available_controllers
+
+        job = self._in_background(available_controllers, "the controller list", "cmd")
+
+        def poll() -> dict | None:
+            if not job.done:
+                return None
+            if job.error is not None:
+                raise proto.CommandError("cmd", f"cannot list the controllers: {job.error}")
+            return {"controllers": job.result, "current": self.cfg["controller"]["type"]}
+        return proto.Pending(poll)
+
+    def _set_controller(self, command: proto.SetController) -> proto.Pending:
+        """Replace the controller while not active: the config with the new ``controller.type`` and
+        ``controller.params`` goes through the config's own validation, and the controller is built,
+        off the loop thread; the loop thread swaps it in if the daemon is still not active."""
+        if not self.own_controller:
+            raise proto.CommandError("cmd", "this run's controller was given by an experiment, not the config")
+        if self.safety.state == State.ACTIVE:
+            raise proto.CommandError("cmd", "cannot switch the controller while active (deactivate first)")
+        data = config_data(self.cfg)
+        data["controller"]["type"] = command.type
+        data["controller"].pop("params", None)
+        if command.params:
+            data["controller"]["params"] = dict(command.params)
+        job = self._in_background(lambda: self._build_controller(data), f"controller {command.type!r}", "type")
+
+        def poll() -> dict | None:
+            if not job.done:
+                return None
+            if isinstance(job.error, ConfigError):
+                key = job.error.key or "controller.type"
+                raise proto.CommandError({"controller.type": "type"}.get(key, key.removeprefix("controller.")),
+                                         job.error.message)
+            if job.error is not None:
+                raise job.error
+            if self.safety.state == State.ACTIVE:   # activated while it was being built
+                raise proto.CommandError("cmd", "cannot switch the controller while active (deactivate first)")
+            self.cfg, self.controller = job.result
+            return {"state": State(self.safety.state).name.lower(), "controller": command.type}
+        return proto.Pending(poll)
+
+    def _build_controller(self, data: dict) -> tuple[Config, CycleController]:
+        """The validated config (the schema and cross-key checks of load_config) and its controller."""
+        from ankle_rt.config import config_from_data
+
+        cfg = config_from_data(data, lambda key: "the set_controller command", getattr(self.cfg, "source", "<memory>"))
+        return cfg, build_controller(cfg, self.kin, self.reference.ref)
 
     def _check_reach(self, profile: Profile) -> None:
         """Refuse (before it starts) a profile that would take the reference beyond the ankle range."""
@@ -317,6 +381,7 @@ class Daemon:
             "reference_deg": [math.degrees(v) for v in self.reference.ref],
             "motor_pos_rad": est.motor_pos.tolist(), "motor_vel_rad_s": est.motor_vel.tolist(),
             "sg_torque_nm": est.sg_torque.tolist(), "current_a": list(s.current),
+            "controller": self.cfg["controller"]["type"] if self.own_controller else type(self.controller).__name__,
             "gains": gains.as_dict() if hasattr(gains, "as_dict") else None,
             "loop": self.loop.stats.summary(),
             "backend": self.backend.counters(),

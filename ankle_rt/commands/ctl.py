@@ -8,12 +8,12 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import socket
 import sys
 from pathlib import Path
 
+from ankle_rt.client import AnkleClient, DaemonUnreachable, socket_path_of
 from ankle_rt.references import angle_params
-from ankle_rt.service.protocol import GAIN_FIELDS, PROFILE_NAMES
+from ankle_rt.service.protocol import GAIN_FIELDS, PROFILE_NAMES, CommandError
 
 EXIT_REFUSED = 1
 EXIT_UNREACHABLE = 3
@@ -62,6 +62,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     profile.add_argument("name", choices=PROFILE_NAMES)
     profile.add_argument("params", nargs="*", metavar="KEY=VALUE")
     profile.add_argument("--rad", action="store_true", help="angles are given in rad")
+    sub.add_parser("controllers", help="list the built-in and installed plugin controllers, and the running one")
+    controller = sub.add_parser("controller", help="switch the controller (refused while active)",
+                                description="Replace the running controller by NAME (a built-in or an installed "
+                                            "plugin, see `ctl controllers`) with KEY=VALUE as its controller.params "
+                                            "(numbers or strings). Validated like the config; refused while active.")
+    controller.add_argument("name", metavar="NAME")
+    controller.add_argument("params", nargs="*", metavar="KEY=VALUE")
     parser.set_defaults(handler=run)
 
 
@@ -85,13 +92,17 @@ def request_from_args(args: argparse.Namespace) -> dict:
         if args.name == "csv" and isinstance(params.get("path"), str):
             params["path"] = str(Path(params["path"]).resolve())
         return {"cmd": "start_profile", "name": args.name, "params": params}
+    if name == "controllers":
+        return {"cmd": "list_controllers"}
+    if name == "controller":
+        return {"cmd": "set_controller", "type": args.name, "params": dict(_param(p) for p in args.params)}
     return {"cmd": name}
 
 
 def _param(text: str) -> tuple[str, float | str]:
     key, sep, value = text.partition("=")
     if not sep or not key:
-        raise SystemExit(f"ankle-rt ctl: profile parameter {text!r} is not KEY=VALUE")
+        raise SystemExit(f"ankle-rt ctl: parameter {text!r} is not KEY=VALUE")
     try:
         return key, float(value)
     except ValueError:
@@ -99,54 +110,18 @@ def _param(text: str) -> tuple[str, float | str]:
 
 
 def resolve_socket(args: argparse.Namespace) -> Path:
-    from ankle_rt.config_schema import SERVICE
-    from ankle_rt.service.link import socket_path
-
-    if args.socket is not None:
-        return args.socket
-    if args.config is not None:
-        from ankle_rt.config import load_config
-        return socket_path(load_config(args.config))
-    return socket_path({"service": {"socket_path": SERVICE.fields["socket_path"].default}})
-
-
-class Unreachable(Exception):
-    """No daemon answered on the socket."""
+    """--socket, else service.socket_path of --config, else the automatic path."""
+    return args.socket if args.socket is not None else socket_path_of(args.config)
 
 
 def send(path: Path, request: dict, timeout: float) -> dict:
-    """Send one request line and return the decoded reply line."""
-    sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
-    sock.settimeout(timeout)
-    try:
+    """Send one request (``{"cmd": ..., fields}``) on a new connection; the reply as sent
+    (``ok`` included, a refusal as ``{"ok": false, "error", "field"}``). Raises DaemonUnreachable."""
+    with AnkleClient(path, timeout) as client:
         try:
-            sock.connect(str(path))
-        except (FileNotFoundError, ConnectionRefusedError):
-            raise Unreachable(f"no daemon is listening on {path} (is it running? `systemctl status ankle-rt`, "
-                              "or start one with `ankle-rt run`)") from None
-        except PermissionError:
-            raise Unreachable(f"permission denied on {path}: the socket is for the service's user and group "
-                              "(add yourself to group ankle-rt)") from None
-        sock.sendall(json.dumps(request).encode() + b"\n")
-        data = b""
-        while not data.endswith(b"\n"):
-            chunk = sock.recv(65536)
-            if not chunk:
-                raise Unreachable(f"the daemon on {path} closed the connection without a reply")
-            data += chunk
-    except socket.timeout:
-        raise Unreachable(f"no reply from {path} within {timeout:g} s") from None
-    except OSError as exc:
-        raise Unreachable(f"cannot talk to the daemon on {path}: {exc.strerror or exc}") from None
-    finally:
-        sock.close()
-    try:
-        reply = json.loads(data)
-    except ValueError:
-        raise Unreachable(f"the reply from {path} is not JSON: {data[:80]!r}") from None
-    if not isinstance(reply, dict):
-        raise Unreachable(f"the reply from {path} is not a JSON object: {data[:80]!r}")
-    return reply
+            return {"ok": True, **client.request(**request)}
+        except CommandError as exc:   # the daemon's refusal, or a field that cannot be sent (NaN)
+            return {"ok": False, "error": exc.message, "field": exc.field}
 
 
 def format_fields(data: dict, prefix: str = "") -> list[str]:
@@ -221,7 +196,7 @@ def watch(args: argparse.Namespace, path: Path) -> int:
         while True:
             try:
                 status = send(path, {"cmd": "status"}, args.timeout)
-            except Unreachable as exc:
+            except DaemonUnreachable as exc:
                 print(f"ankle-rt ctl: {exc}", file=sys.stderr)
                 return EXIT_UNREACHABLE
             view = "\n".join(watch_view(status, path))
@@ -240,7 +215,7 @@ def run(args: argparse.Namespace) -> int:
         return watch(args, path)
     try:
         reply = send(path, request_from_args(args), args.timeout)
-    except Unreachable as exc:
+    except DaemonUnreachable as exc:
         print(f"ankle-rt ctl: {exc}", file=sys.stderr)
         return EXIT_UNREACHABLE
     if args.json:

@@ -10,6 +10,7 @@ are its fields, in SI units (angles in rad, gains as the controller uses them)::
     {"cmd": "set_reference", "dp": 0.17, "ie": -0.05, "ramp": 1.0}
     {"cmd": "set_gains", "kp": 90.0, "kd": 5.0}
     {"cmd": "start_profile", "name": "sine", "params": {"amplitude_dp": 0.1, "freq_hz": 0.5}}
+    {"cmd": "list_controllers"}                           {"cmd": "set_controller", "type": "impedance"}
 
 Replies are ``{"ok": true, ...data}`` or ``{"ok": false, "error": MESSAGE, "field": FIELD}``.
 ``field`` names what was wrong: a request key (``"dp"``, ``"params.freq_hz"``), ``"cmd"`` for the
@@ -151,10 +152,26 @@ class StartProfile:
     params: Mapping[str, float | str] = field(default_factory=dict)
 
 
-Command = Union[Status, Activate, Deactivate, ResetFault, Stop, SetReference, SetGains, StartProfile]
+@dataclass(frozen=True)
+class ListControllers:
+    """Name the built-in and installed plugin controllers, and the running one."""
 
-_NO_FIELDS = {"status": Status, "activate": Activate, "deactivate": Deactivate, "reset": ResetFault, "stop": Stop}
-COMMAND_NAMES = (*_NO_FIELDS, "set_reference", "set_gains", "start_profile")
+
+@dataclass(frozen=True)
+class SetController:
+    """Replace the running controller by ``type`` (a built-in or plugin name) with ``params`` (its
+    ``controller.params``), validated like the config. Refused while active."""
+
+    type: str
+    params: Mapping[str, float | str] = field(default_factory=dict)
+
+
+Command = Union[Status, Activate, Deactivate, ResetFault, Stop, SetReference, SetGains, StartProfile,
+                ListControllers, SetController]
+
+_NO_FIELDS = {"status": Status, "activate": Activate, "deactivate": Deactivate, "reset": ResetFault, "stop": Stop,
+              "list_controllers": ListControllers}
+COMMAND_NAMES = (*_NO_FIELDS, "set_reference", "set_gains", "start_profile", "set_controller")
 
 
 def _number(obj: Mapping[str, Any], key: str, where: str | None = None) -> float:
@@ -223,26 +240,39 @@ def _set_gains(obj: Mapping[str, Any], limits: CommandLimits) -> SetGains:
     return SetGains(**values)
 
 
-def _start_profile(obj: Mapping[str, Any]) -> StartProfile:
-    _check_keys(obj, ("name", "params"), required=("name",))
-    name = obj["name"]
-    if name not in PROFILE_NAMES:
-        raise CommandError("name", f"unknown profile {_short(name)} (expected one of: {', '.join(PROFILE_NAMES)})")
+def _string(obj: Mapping[str, Any], key: str, where: str | None = None) -> str:
+    """A JSON string of at most MAX_STRING_CHARS characters."""
+    where = where or key
+    value = obj[key]
+    if not isinstance(value, str):
+        raise CommandError(where, f"expected a string, got {_short(value)}")
+    if len(value) > MAX_STRING_CHARS:
+        raise CommandError(where, f"string longer than {MAX_STRING_CHARS} characters")
+    return value
+
+
+def _params(obj: Mapping[str, Any]) -> dict[str, float | str]:
+    """The optional ``params`` object: at most MAX_PROFILE_PARAMS numbers or strings, named params.KEY."""
     raw = obj.get("params", {})
     if not isinstance(raw, dict):
         raise CommandError("params", f"expected an object, got {_short(raw)}")
     if len(raw) > MAX_PROFILE_PARAMS:
         raise CommandError("params", f"at most {MAX_PROFILE_PARAMS} parameters")
-    params: dict[str, float | str] = {}
-    for key, value in raw.items():
-        where = f"params.{key}"
-        if isinstance(value, str):
-            if len(value) > MAX_STRING_CHARS:
-                raise CommandError(where, f"string longer than {MAX_STRING_CHARS} characters")
-            params[key] = value
-        else:
-            params[key] = _number(raw, key, where)
-    return StartProfile(name, params)
+    return {key: _string(raw, key, f"params.{key}") if isinstance(value, str) else _number(raw, key, f"params.{key}")
+            for key, value in raw.items()}
+
+
+def _start_profile(obj: Mapping[str, Any]) -> StartProfile:
+    _check_keys(obj, ("name", "params"), required=("name",))
+    name = obj["name"]
+    if name not in PROFILE_NAMES:
+        raise CommandError("name", f"unknown profile {_short(name)} (expected one of: {', '.join(PROFILE_NAMES)})")
+    return StartProfile(name, _params(obj))
+
+
+def _set_controller(obj: Mapping[str, Any]) -> SetController:
+    _check_keys(obj, ("type", "params"), required=("type",))
+    return SetController(_string(obj, "type"), _params(obj))
 
 
 def parse_command(line: bytes, limits: CommandLimits | None = None) -> Command:
@@ -280,12 +310,35 @@ def parse_command(line: bytes, limits: CommandLimits | None = None) -> Command:
         return _set_gains(obj, limits)
     if name == "start_profile":
         return _start_profile(obj)
+    if name == "set_controller":
+        return _set_controller(obj)
     raise CommandError("cmd", f"unknown command {_short(name)} (expected one of: {', '.join(COMMAND_NAMES)})")
 
 
 def format_reply(ok: bool, **data: Any) -> bytes:
     """One reply line: ``{"ok": ok, ...data}`` + newline. NaN/inf become null."""
     return json.dumps({"ok": ok, **finite_or_none(data)}, allow_nan=False, separators=(",", ":")).encode() + b"\n"
+
+
+def encode_request(cmd: str, **fields: Any) -> bytes:
+    """One request line (the client's side): ``{"cmd": cmd, ...fields}`` + newline, refused here
+    (CommandError naming the field) when a number is not finite or the line is too long."""
+    try:
+        line = json.dumps({"cmd": cmd, **fields}, allow_nan=False, separators=(",", ":")).encode() + b"\n"
+    except ValueError:
+        bad = next((k for k, v in fields.items() if isinstance(v, float) and not math.isfinite(v)), "params")
+        raise CommandError(bad, "expected a finite number") from None
+    if len(line) > MAX_LINE_BYTES:
+        raise CommandError("line", f"longer than {MAX_LINE_BYTES} bytes")
+    return line
+
+
+def decode_reply(line: bytes) -> dict[str, Any]:
+    """A reply line as a dict; ValueError when it is not a JSON object."""
+    reply = json.loads(line)
+    if not isinstance(reply, dict):
+        raise ValueError(f"not a JSON object: {line[:80]!r}")
+    return reply
 
 
 def error_reply(exc: CommandError) -> bytes:
