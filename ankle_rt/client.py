@@ -29,7 +29,7 @@ import select
 import socket
 import time
 from pathlib import Path
-from typing import Any, Iterator, Mapping
+from typing import Any, Iterator, Mapping, Sequence
 
 import numpy as np
 
@@ -230,10 +230,11 @@ class AnkleClient:
         """``{"controllers": {name: "module:attribute"}, "current": name}``: built-ins and plugins."""
         return self.request("list_controllers")
 
-    def set_controller(self, name: str, **params: float | str) -> None:
-        """Replace the controller by ``name`` with ``params`` (its ``controller.params``), validated
-        like the config. The daemon refuses while active (deactivate first)."""
-        self.request("set_controller", type=name, params=params)
+    def set_controller(self, name: str, **params: float | str | Sequence[float]) -> None:
+        """Replace the controller by ``name`` with ``params`` (its ``controller.params``: numbers,
+        strings, lists of numbers), validated like the config. Refused while active (deactivate first)."""
+        self.request("set_controller", type=name,
+                     params={k: list(v) if isinstance(v, (tuple, list, np.ndarray)) else v for k, v in params.items()})
 
     # -- samples -----------------------------------------------------------------------------------
     def samples(self, interval_s: float = 0.01, duration_s: float | None = None,

@@ -66,7 +66,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     controller = sub.add_parser("controller", help="switch the controller (refused while active)",
                                 description="Replace the running controller by NAME (a built-in or an installed "
                                             "plugin, see `ctl controllers`) with KEY=VALUE as its controller.params "
-                                            "(numbers or strings). Validated like the config; refused while active.")
+                                            "(numbers, strings, or comma-separated numbers for a list: "
+                                            "stiffness=60,30). SI units. Validated like the config; refused while "
+                                            "active.")
     controller.add_argument("name", metavar="NAME")
     controller.add_argument("params", nargs="*", metavar="KEY=VALUE")
     parser.set_defaults(handler=run)
@@ -95,18 +97,26 @@ def request_from_args(args: argparse.Namespace) -> dict:
     if name == "controllers":
         return {"cmd": "list_controllers"}
     if name == "controller":
-        return {"cmd": "set_controller", "type": args.name, "params": dict(_param(p) for p in args.params)}
+        return {"cmd": "set_controller", "type": args.name,
+                "params": dict(_param(p, lists=True) for p in args.params)}
     return {"cmd": name}
 
 
-def _param(text: str) -> tuple[str, float | str]:
+def _param(text: str, lists: bool = False) -> tuple[str, float | str | list[float]]:
+    """KEY=VALUE: a number, else (with ``lists``) comma-separated numbers as a list, else a string."""
     key, sep, value = text.partition("=")
     if not sep or not key:
         raise SystemExit(f"ankle-rt ctl: parameter {text!r} is not KEY=VALUE")
     try:
         return key, float(value)
     except ValueError:
-        return key, value
+        pass
+    if lists and "," in value:
+        try:
+            return key, [float(v) for v in value.split(",")]
+        except ValueError:
+            pass
+    return key, value
 
 
 def resolve_socket(args: argparse.Namespace) -> Path:

@@ -163,7 +163,7 @@ class SetController:
     ``controller.params``), validated like the config. Refused while active."""
 
     type: str
-    params: Mapping[str, float | str] = field(default_factory=dict)
+    params: Mapping[str, float | str | list[float]] = field(default_factory=dict)
 
 
 Command = Union[Status, Activate, Deactivate, ResetFault, Stop, SetReference, SetGains, StartProfile,
@@ -174,7 +174,7 @@ _NO_FIELDS = {"status": Status, "activate": Activate, "deactivate": Deactivate, 
 COMMAND_NAMES = (*_NO_FIELDS, "set_reference", "set_gains", "start_profile", "set_controller")
 
 
-def _number(obj: Mapping[str, Any], key: str, where: str | None = None) -> float:
+def _number(obj: Any, key: Any, where: str | None = None) -> float:
     """A finite JSON number (not a boolean) as float."""
     where = where or key
     value = obj[key]
@@ -251,15 +251,26 @@ def _string(obj: Mapping[str, Any], key: str, where: str | None = None) -> str:
     return value
 
 
-def _params(obj: Mapping[str, Any]) -> dict[str, float | str]:
-    """The optional ``params`` object: at most MAX_PROFILE_PARAMS numbers or strings, named params.KEY."""
+def _params(obj: Mapping[str, Any], lists: bool = False) -> dict[str, Any]:
+    """The optional ``params`` object: at most MAX_PROFILE_PARAMS numbers or strings (with ``lists``
+    also lists of at most MAX_PROFILE_PARAMS numbers, e.g. [DP, IE] pairs), named params.KEY."""
     raw = obj.get("params", {})
     if not isinstance(raw, dict):
         raise CommandError("params", f"expected an object, got {_short(raw)}")
     if len(raw) > MAX_PROFILE_PARAMS:
         raise CommandError("params", f"at most {MAX_PROFILE_PARAMS} parameters")
-    return {key: _string(raw, key, f"params.{key}") if isinstance(value, str) else _number(raw, key, f"params.{key}")
-            for key, value in raw.items()}
+    params: dict[str, Any] = {}
+    for key, value in raw.items():
+        where = f"params.{key}"
+        if isinstance(value, str):
+            params[key] = _string(raw, key, where)
+        elif lists and isinstance(value, list):
+            if len(value) > MAX_PROFILE_PARAMS:
+                raise CommandError(where, f"at most {MAX_PROFILE_PARAMS} numbers")
+            params[key] = [_number(value, i, f"{where}[{i}]") for i in range(len(value))]
+        else:
+            params[key] = _number(raw, key, where)
+    return params
 
 
 def _start_profile(obj: Mapping[str, Any]) -> StartProfile:
@@ -272,7 +283,7 @@ def _start_profile(obj: Mapping[str, Any]) -> StartProfile:
 
 def _set_controller(obj: Mapping[str, Any]) -> SetController:
     _check_keys(obj, ("type", "params"), required=("type",))
-    return SetController(_string(obj, "type"), _params(obj))
+    return SetController(_string(obj, "type"), _params(obj, lists=True))
 
 
 def parse_command(line: bytes, limits: CommandLimits | None = None) -> Command:
