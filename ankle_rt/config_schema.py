@@ -292,6 +292,15 @@ SERVICE = Section({
 }, optional=True)
 
 
+LSL = Section({
+    "enabled": Field(bool, "publish the cycle records (stream 'ankle-rt') and events (marker stream "
+                           "'ankle-rt-events') on the Lab Streaming Layer, from the log writer's thread; needs "
+                           "pylsl (the 'lab' extra) and the run log (docs/lab.md)", default=False),
+    "source_id": Field(str, "the streams' LSL source id: LabRecorder reconnects to a restarted daemon by it",
+                       default="ankle-rt"),
+}, optional=True)
+
+
 # -- hardware backends (serial, canopen): ESCON map, encoders, strain gauges --------------------------
 # Calibration values have no default (None when absent): a simulation config need not state them, and a
 # hardware backend refuses to start without them, naming the key (hardware/config_values.py).
@@ -387,6 +396,7 @@ SCHEMA = Section({
     "sim": SIM,
     "canopen": CANOPEN,
     "service": SERVICE,
+    "lsl": LSL,
     "estimation": ESTIMATION,
     "reference": REFERENCE,
     "loop": LOOP,
@@ -401,13 +411,17 @@ SCHEMA = Section({
 
 
 def check_consistency(cfg: Mapping[str, Any], origin: Callable[[KeyPath], str]) -> None:
-    """What one key alone cannot state: the peak current is not below the continuous one, and the
-    configured gains lie within the run-time gain limits (``controller.gain_limits``)."""
+    """What one key alone cannot state: the peak current is not below the continuous one, LSL has the
+    run log to publish from, and the configured gains lie within the run-time gain limits
+    (``controller.gain_limits``)."""
     amp = cfg["amplifier"]
     if amp["current_limit_peak"] < amp["current_limit_continuous"]:
         raise ConfigError(f"must be >= amplifier.current_limit_continuous ({amp['current_limit_continuous']:g} A), "
                           f"got {amp['current_limit_peak']:g}", origin(("amplifier", "current_limit_peak")),
                           "amplifier.current_limit_peak")
+    if cfg["lsl"]["enabled"] and not cfg["logging"]["enabled"]:
+        raise ConfigError("needs logging.enabled: true (the log writer's thread publishes the streams)",
+                          origin(("lsl", "enabled")), "lsl.enabled")
     ctl = cfg["controller"]
     limits = ctl["gain_limits"]
     checks = [((set_name, gain), limits[gain], ctl[set_name][gain])

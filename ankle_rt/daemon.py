@@ -40,6 +40,7 @@ from ankle_rt.service.loader import BackgroundLoader, Job, pause
 from ankle_rt.service.profile_process import load_csv_profile
 
 if TYPE_CHECKING:
+    from ankle_rt.log.lsl import LslPublisher
     from ankle_rt.service.link import ServiceLink
 
 ACTIVE = int(State.ACTIVE)
@@ -87,6 +88,7 @@ class Daemon:
                                   on_overrun_limit=self._missed_deadlines,
                                   max_stall_ns=round(cfg["loop"]["max_stall_s"] * 1e9))
         self.recorder = recorder
+        self.lsl: "LslPublisher | None" = None   # set by open_log when lsl.enabled
         self.log_fault = cfg["logging"]["fault_on_error"]
         self.service = service
         self.auto_activate = cfg["safety"]["auto_activate"]
@@ -386,6 +388,7 @@ class Daemon:
             "loop": self.loop.stats.summary(),
             "backend": self.backend.counters(),
             "log": self.recorder.status() if self.recorder is not None else None,
+            "lsl": self.lsl.status() if self.lsl is not None else None,
         }
 
     # -- running ---------------------------------------------------------------------------------
@@ -424,8 +427,25 @@ class Daemon:
         the config's ``logging``; ``retention_pattern``: which files of its directory retention counts,
         default this log's parts). Raises OSError when it cannot be created."""
         log = self.cfg["logging"]
-        self.recorder = LogWriter(path, self.log_metadata(), log["ring_records"], log["flush_interval_s"],
-                                  Rotation.from_config(log, retention_pattern))
+        meta = self.log_metadata()
+        self.lsl = self._lsl_publisher(meta)
+        self.recorder = LogWriter(path, meta, log["ring_records"], log["flush_interval_s"],
+                                  Rotation.from_config(log, retention_pattern), tap=self.lsl)
+
+    def _lsl_publisher(self, meta: dict[str, Any]) -> "LslPublisher | None":
+        """The Lab Streaming Layer publisher the log writer's thread drives, when ``lsl.enabled`` and the
+        clock is real (lockstep time is not the lab's clock). Raises ConfigError without pylsl."""
+        from ankle_rt.log.lsl import LslPublisher, LslUnavailable
+
+        if not self.cfg["lsl"]["enabled"] or self.clock.simulated:
+            return None
+        try:
+            return LslPublisher(self.cfg["controller"]["rate_hz"], self.cfg["lsl"]["source_id"],
+                                lambda: self.loop.start_ns * 1e-9, meta["states"], meta["faults"],
+                                info={"config": str(meta["config"]), "backend": meta["backend"],
+                                      "controller": self.cfg["controller"]["type"]})
+        except LslUnavailable as exc:
+            raise ConfigError(str(exc), getattr(self.cfg, "source", None), "lsl.enabled") from None
 
     def log_metadata(self) -> dict[str, Any]:
         """The run log header's metadata. ``controller_config`` is the config's controller section the

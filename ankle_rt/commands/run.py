@@ -42,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
     from ankle_rt.backend import BackendError
     from ankle_rt import jsonout
     from ankle_rt.clock import MonotonicClock, SimClock
-    from ankle_rt.config import load_config
+    from ankle_rt.config import ConfigError, load_config
     from ankle_rt.daemon import Daemon
     from ankle_rt.log.reader import read_tail
     from ankle_rt.log.summary import SUMMARY_MAX_RECORDS, format_summary, plot_run, summarize_log
@@ -75,6 +75,14 @@ def run(args: argparse.Namespace) -> int:
             daemon.close()
             print(f"ankle-rt run: cannot write the log {log_path}: {exc.strerror or exc}", file=sys.stderr)
             return 1
+        except ConfigError:   # lsl.enabled without pylsl
+            daemon.close()
+            raise
+    if daemon.lsl is not None:
+        notes.append("lab streaming layer: streams 'ankle-rt' and 'ankle-rt-events' (docs/lab.md)")
+    elif cfg["lsl"]["enabled"]:
+        notes.append("lab streaming layer: off " + ("in lockstep (--fast)" if args.fast else "(--no-log: it publishes "
+                                                   "from the log writer)"))
     if not args.fast and cfg["service"]["enabled"]:
         from ankle_rt.service.link import ServiceLink
         from ankle_rt.service.server import ServiceError

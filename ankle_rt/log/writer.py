@@ -13,6 +13,10 @@ is opened with its own header (each part is a complete log), and the oldest logs
 the ring holds, records are dropped and counted; if a write fails (disk full, I/O error), logging
 stops for the rest of the run with the reason in :meth:`LogWriter.status` (``failed``), and every
 later record is counted as dropped. The loop is never delayed.
+
+A ``tap`` (the Lab Streaming Layer publisher, :mod:`ankle_rt.log.lsl`) is opened in the same thread
+and handed each flush's records, whether or not the file still takes them; a tap that raises is
+dropped with its reason in its ``error``, and logging goes on.
 """
 
 from __future__ import annotations
@@ -23,10 +27,27 @@ import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
+
+import numpy as np
 
 from ankle_rt.log.header import HEADER_SIZE, encode_header
-from ankle_rt.log.record import RECORD_SIZE, RecordRing
+from ankle_rt.log.record import RECORD_DTYPE, RECORD_SIZE, RecordRing
+
+
+class RecordTap(Protocol):
+    """Something else the writer thread hands the records to (e.g. the LSL publisher)."""
+
+    error: str
+
+    def open(self) -> None:
+        """Called once in the writer thread before the first records."""
+
+    def publish(self, records: np.ndarray) -> None:
+        """The records of one flush (RECORD_DTYPE, oldest first; a copy the tap may keep)."""
+
+    def close(self) -> None:
+        """Called once at the end (or when it failed)."""
 
 
 @dataclass(frozen=True)
@@ -56,7 +77,7 @@ class LogWriter:
     """Ring of ``capacity`` records plus the thread that appends them to ``path`` (and its next parts)."""
 
     def __init__(self, path: str | Path, meta: dict[str, Any], capacity: int = 16384,
-                 flush_interval_s: float = 0.05, rotation: Rotation | None = None):
+                 flush_interval_s: float = 0.05, rotation: Rotation | None = None, tap: RecordTap | None = None):
         self.first_path = self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.meta = dict(meta)
@@ -64,6 +85,8 @@ class LogWriter:
         self.ring = RecordRing(capacity)
         self.capacity = capacity
         self.pack = self.ring.pack
+        self.records = np.frombuffer(self.ring.buffer, RECORD_DTYPE)   # the ring as records (the tap's view)
+        self.tap = tap
         self.written = 0     # records packed by the loop (only the loop writes this)
         self.flushed = 0     # records handed to the kernel or dropped (only the writer thread writes this)
         self.dropped = 0
@@ -159,6 +182,8 @@ class LogWriter:
         if end - start > cap - 1:
             self.dropped += end - start - (cap - 1)
             start = end - (cap - 1)
+        if self.tap is not None and start < end:
+            self._tap_call(self.tap.publish, self.records[np.arange(start, end) % cap])
         if self.failed:
             self.dropped += end - start
             self.flushed = end
@@ -179,11 +204,26 @@ class LogWriter:
             self.error = f"{self.path}: {getattr(exc, 'strerror', None) or exc}"
         self.flushed = end
 
+    def _tap_call(self, method, *args: Any) -> None:
+        """Call a tap method; one that raises is closed and dropped, its reason in its ``error``."""
+        tap = self.tap
+        try:
+            method(*args)
+        except Exception as exc:   # a tap's library may raise anything: it must not stop the log
+            tap.error = f"{type(exc).__name__}: {exc}"
+            self.tap = None
+            try:
+                tap.close()
+            except Exception:
+                pass
+
     def _run(self) -> None:
         # A thread inherits its creator's scheduling policy; the writer must never run SCHED_FIFO
         # beside the loop (it would hold the GIL and the CPU at the loop's priority while it writes).
         if os.sched_getscheduler(0) != os.SCHED_OTHER:
             os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+        if self.tap is not None:   # here, so that threads the tap starts get normal scheduling too
+            self._tap_call(self.tap.open)
         while not self._stop.wait(self.interval):
             self._flush()
 
@@ -201,6 +241,8 @@ class LogWriter:
         self._stop.set()
         self._thread.join()
         self._flush()
+        if self.tap is not None:
+            self._tap_call(self.tap.close)
         if self.fd < 0:          # a rotation failed half-way: nothing open
             return
         try:
