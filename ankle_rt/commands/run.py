@@ -120,6 +120,8 @@ def run(args: argparse.Namespace) -> int:
         daemon.close()
         for s, h in old.items():
             signal.signal(s, h)
+    if daemon.lsl is not None and daemon.lsl.error:
+        print(f"WARNING: lab streaming layer stopped: {daemon.lsl.error}", file=sys.stderr)
     if error:
         print(f"ankle-rt run: the cycle raised {error}; the run ended in the safe state (amplifiers off)",
               file=sys.stderr)

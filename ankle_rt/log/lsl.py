@@ -19,12 +19,30 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from ankle_rt.log.record import FIELDS
+from ankle_rt.log.record import RECORD_DTYPE, RECORD_SIZE
 
 STREAM_NAME = "ankle-rt"
 EVENTS_NAME = "ankle-rt-events"
-CHANNELS: tuple[str, ...] = tuple(name for name, *_ in FIELDS)
-"""One channel per log record field, in the record's order (docs/design.md)."""
+
+
+def _leading_doubles() -> tuple[str, ...]:
+    """The record's leading float64 fields (t ... loop_time): contiguous in every record, so a chunk
+    of records is one strided (n, channels) view, pushed without Python work per value."""
+    names = []
+    for name in RECORD_DTYPE.names:
+        dtype, offset = RECORD_DTYPE.fields[name][:2]
+        if dtype != np.dtype("<f8") or offset != 8 * len(names):
+            break
+        names.append(name)
+    return tuple(names)
+
+
+CHANNELS: tuple[str, ...] = _leading_doubles()
+"""The stream's channels: the physical record fields, in the record's order (docs/design.md). The
+state and fault are the marker stream; loop timing and counters stay in the run log."""
+_LOOP_TIME = CHANNELS.index("loop_time")
+_STATE = RECORD_DTYPE.fields["state"][1]
+_FAULT = RECORD_DTYPE.fields["fault"][1]
 
 
 class LslUnavailable(RuntimeError):
@@ -83,15 +101,22 @@ class LslPublisher:
                                   self.source_id + "-events")
         self.markers = pylsl.StreamOutlet(events)
 
-    def publish(self, records: np.ndarray) -> None:
-        """Push ``records`` (RECORD_DTYPE, oldest first) as one chunk, then the events they hold."""
-        if self.outlet is None or len(records) == 0:
+    def publish(self, chunk: memoryview) -> None:
+        """Push the whole records in ``chunk`` (ring bytes, oldest first) as one LSL chunk, then
+        the events they hold. A few numpy calls per flush: the writer thread holds the interpreter
+        lock, which the loop may be waiting for, only briefly."""
+        n = len(chunk) // RECORD_SIZE
+        if self.outlet is None or n == 0:
             return
-        stamps = self.origin_s() + records["loop_time"]
-        self.outlet.push_chunk(np.column_stack([records[name].astype(np.float64) for name in CHANNELS]),
-                               stamps.tolist())
-        self.samples += len(records)
-        for stamp, marker in self._events(records["state"], records["fault"], stamps):
+        values = np.ndarray((n, len(CHANNELS)), "<f8", chunk, 0, (RECORD_SIZE, 8))
+        stamps = values[:, _LOOP_TIME] + self.origin_s()
+        self.outlet.push_chunk(values, stamps.tolist())
+        self.samples += n
+        states = np.ndarray((n,), "u1", chunk, _STATE, (RECORD_SIZE,))
+        faults = np.ndarray((n,), "u1", chunk, _FAULT, (RECORD_SIZE,))
+        if states.min() == states.max() == self._state and faults.min() == faults.max() == self._fault:
+            return   # nothing happened (almost every flush)
+        for stamp, marker in self._events(states, faults, stamps):
             self.markers.push_sample([marker], stamp)
             self.events += 1
 
@@ -100,7 +125,7 @@ class LslPublisher:
         state = np.concatenate(([self._state], states.astype(np.int64)))
         fault = np.concatenate(([self._fault], faults.astype(np.int64)))
         out = []
-        for i in np.flatnonzero((state[1:] != state[:-1]) | ((fault[1:] != fault[:-1]) & (fault[1:] != 0))):
+        for i in np.flatnonzero((state[1:] != state[:-1]) | (fault[1:] != fault[:-1])):
             if fault[i + 1] != fault[i] and fault[i + 1] != 0:
                 out.append((float(stamps[i]), f"fault:{self.fault_names.get(int(fault[i + 1]), fault[i + 1])}"))
             if state[i + 1] != state[i]:

@@ -29,10 +29,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
 
-import numpy as np
-
 from ankle_rt.log.header import HEADER_SIZE, encode_header
-from ankle_rt.log.record import RECORD_DTYPE, RECORD_SIZE, RecordRing
+from ankle_rt.log.record import RECORD_SIZE, RecordRing
 
 
 class RecordTap(Protocol):
@@ -43,8 +41,9 @@ class RecordTap(Protocol):
     def open(self) -> None:
         """Called once in the writer thread before the first records."""
 
-    def publish(self, records: np.ndarray) -> None:
-        """The records of one flush (RECORD_DTYPE, oldest first; a copy the tap may keep)."""
+    def publish(self, chunk: memoryview) -> None:
+        """Whole records of one flush as ring bytes (RECORD_SIZE each, oldest first), valid only during
+        the call (the loop reuses the slots)."""
 
     def close(self) -> None:
         """Called once at the end (or when it failed)."""
@@ -85,7 +84,6 @@ class LogWriter:
         self.ring = RecordRing(capacity)
         self.capacity = capacity
         self.pack = self.ring.pack
-        self.records = np.frombuffer(self.ring.buffer, RECORD_DTYPE)   # the ring as records (the tap's view)
         self.tap = tap
         self.written = 0     # records packed by the loop (only the loop writes this)
         self.flushed = 0     # records handed to the kernel or dropped (only the writer thread writes this)
@@ -183,7 +181,7 @@ class LogWriter:
             self.dropped += end - start - (cap - 1)
             start = end - (cap - 1)
         if self.tap is not None and start < end:
-            self._tap_call(self.tap.publish, self.records[np.arange(start, end) % cap])
+            self._publish(start, end)
         if self.failed:
             self.dropped += end - start
             self.flushed = end
@@ -203,6 +201,15 @@ class LogWriter:
             self.failed = True
             self.error = f"{self.path}: {getattr(exc, 'strerror', None) or exc}"
         self.flushed = end
+
+    def _publish(self, start: int, end: int) -> None:
+        """Hand records [start, end) to the tap as ring bytes: one slice, or two where the ring wraps."""
+        cap, view = self.capacity, self.ring.view
+        i = start % cap
+        n = min(end - start, cap - i)
+        self._tap_call(self.tap.publish, view[i * RECORD_SIZE:(i + n) * RECORD_SIZE])
+        if n < end - start and self.tap is not None:
+            self._tap_call(self.tap.publish, view[:(end - start - n) * RECORD_SIZE])
 
     def _tap_call(self, method, *args: Any) -> None:
         """Call a tap method; one that raises is closed and dropped, its reason in its ``error``."""
