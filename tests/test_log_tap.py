@@ -1,0 +1,107 @@
+"""The log writer's tap (what the Lab Streaming Layer publisher hangs on): it sees every record once,
+in order, across the ring's wrap; a tap that fails is dropped with its reason and the log goes on;
+and the LSL publisher turns state changes and faults into markers (with a real inlet)."""
+
+from __future__ import annotations
+
+import uuid
+
+import numpy as np
+import pytest
+
+from ankle_rt.log.lsl import CHANNELS
+from ankle_rt.log.reader import read_log
+from ankle_rt.log.record import RECORD_SIZE
+from ankle_rt.log.writer import LogWriter
+from ankle_rt.safety import Fault, State
+
+
+
+def record(k: int, state: int = State.ACTIVE, fault: int = Fault.NONE) -> tuple:
+    return (k * 1e-3, *[float(k)] * (len(CHANNELS) - 2), k * 1e-3, k, 1000.0, 50.0, 0, state, fault, 0)
+
+
+class Collecting:
+    """A tap that keeps the loop_time of every record it is handed; fails on call ``fail_at``."""
+
+    def __init__(self, fail_at: int = -1):
+        self.error = ""
+        self.opened = self.closed = 0
+        self.loop_times: list[float] = []
+        self.calls = 0
+        self.fail_at = fail_at
+
+    def open(self):
+        self.opened += 1
+
+    def publish(self, chunk):
+        self.calls += 1
+        if self.calls == self.fail_at:
+            raise RuntimeError("the lab network is gone")
+        values = np.ndarray((len(chunk) // RECORD_SIZE, len(CHANNELS)), "<f8", chunk, 0, (RECORD_SIZE, 8))
+        self.loop_times.extend(values[:, CHANNELS.index("loop_time")])
+
+    def close(self):
+        self.closed += 1
+
+
+def test_the_tap_sees_every_record_once_in_order_across_the_wrap(tmp_path):
+    tap = Collecting()
+    writer = LogWriter(tmp_path / "a.arlog", {}, capacity=256, flush_interval_s=3600.0, tap=tap)
+    for k in range(1000):     # about four times round the ring; flushed here (as the thread does) and by close()
+        writer.append(*record(k))
+        if k % 100 == 99:
+            writer._flush()   # as the thread would: the ring must not overflow in this test
+    writer.close()
+    assert tap.opened == 1 and tap.closed == 1 and not tap.error
+    assert tap.loop_times == [k * 1e-3 for k in range(1000)]
+    assert len(read_log(tmp_path / "a.arlog").records) == 1000
+
+
+def test_a_failing_tap_is_dropped_and_the_log_goes_on(tmp_path):
+    tap = Collecting(fail_at=2)
+    writer = LogWriter(tmp_path / "b.arlog", {}, capacity=256, flush_interval_s=3600.0, tap=tap)
+    for k in range(300):
+        writer.append(*record(k))
+        if k % 100 == 99:
+            writer._flush()
+    writer.close()
+    assert tap.error == "RuntimeError: the lab network is gone" and tap.closed == 1 and tap.calls == 2
+    assert len(tap.loop_times) == 100 and writer.tap is None
+    log = read_log(tmp_path / "b.arlog").records
+    assert len(log) == 300 and writer.status()["state"] == "closed"
+
+
+def test_state_changes_and_faults_become_markers(tmp_path):
+    pylsl = pytest.importorskip("pylsl", reason="pylsl is not installed (pip install 'ankle-rt[lab]')")
+    from ankle_rt.log.lsl import LslPublisher
+
+    source_id = f"ankle-rt-test-{uuid.uuid4().hex[:8]}"
+    publisher = LslPublisher(1000.0, source_id, lambda: 100.0, {s.name: int(s) for s in State},
+                             {f.name: int(f) for f in Fault})
+    publisher.open()
+    try:
+        found = pylsl.resolve_byprop("source_id", source_id + "-events", minimum=1, timeout=30.0)
+        inlet = pylsl.StreamInlet(found[0])
+        inlet.open_stream(timeout=30.0)
+        writer = LogWriter(tmp_path / "c.arlog", {}, capacity=256, flush_interval_s=3600.0)   # its ring only
+        states = [State.CONFIGURED] * 3 + [State.ACTIVE] * 5 + [State.FAULT] * 4 + [State.SAFE] * 3
+        faults = [Fault.NONE] * 8 + [Fault.MISSED_DEADLINES] * 7
+        for k, (state, fault) in enumerate(zip(states, faults)):
+            writer.append(*record(k, state, fault))
+        half = 6 * RECORD_SIZE
+        publisher.publish(writer.ring.view[:half])        # two flushes: a change at the boundary counts too
+        publisher.publish(writer.ring.view[half:len(states) * RECORD_SIZE])
+        writer.close()
+        markers, stamps = [], []
+        for _ in range(100):
+            got, ts = inlet.pull_chunk(timeout=0.2)
+            markers += [m[0] for m in got]
+            stamps += ts
+            if len(markers) >= 5:
+                break
+    finally:
+        publisher.close()
+    assert markers == ["state:configured", "state:active", "fault:missed_deadlines", "state:fault", "state:safe"]
+    assert stamps == pytest.approx([100.0, 100.003, 100.008, 100.008, 100.012])
+    assert publisher.samples == len(states) and publisher.events == 5
