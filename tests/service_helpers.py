@@ -4,12 +4,15 @@ daemon, never timing assertions."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import socket
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
+from typing import Callable, Iterator
 
 import pytest
 
@@ -120,3 +123,22 @@ def reply_of(srv, sock, polls: int = 200) -> dict:
         if data.endswith(b"\n"):
             return json.loads(data)
     raise AssertionError(f"no reply (got {data!r})")
+
+
+@contextlib.contextmanager
+def repeating(step: Callable[[], None]) -> Iterator[None]:
+    """Call ``step()`` over and over in a thread while the block runs (a server's polls, a lockstep
+    daemon's cycles)."""
+    stop = threading.Event()
+
+    def run():
+        while not stop.is_set():
+            step()
+
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        thread.join()

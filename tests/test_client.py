@@ -7,7 +7,6 @@ from __future__ import annotations
 import math
 import subprocess
 import sys
-import threading
 import time
 from pathlib import Path
 
@@ -20,7 +19,7 @@ from ankle_rt.safety import State
 from ankle_rt.service.link import ServiceLink
 from ankle_rt.service.protocol import CommandError
 from tests.daemon_helpers import lockstep_daemon, run_cycles, variant
-from tests.service_helpers import daemon  # noqa: F401  (the real-time daemon fixture)
+from tests.service_helpers import daemon, repeating  # noqa: F401  (daemon: the real-time daemon fixture)
 from tests.test_controller_plugins import plugins  # noqa: F401  (the example plugin as an entry point)
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -36,19 +35,16 @@ def lockstep(sim_cfg, tmp_path):
     d.recorder = None
     path = tmp_path / "ctl.sock"
     d.service = ServiceLink(cfg, d.handle, path=path, environ={})
-    stop = threading.Event()
 
     def step():
-        while not stop.is_set():
-            run_cycles(d, 5)
-            time.sleep(0.0005)
+        run_cycles(d, 5)
+        time.sleep(0.0005)
 
-    thread = threading.Thread(target=step, daemon=True)
-    thread.start()
-    yield path, d
-    stop.set()
-    thread.join()
-    d.close()
+    try:
+        with repeating(step):
+            yield path, d
+    finally:
+        d.close()
 
 
 def settle(ankle: AnkleClient, predicate, guard_s: float = 30.0) -> dict:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import threading
 import time
 from pathlib import Path
 
@@ -14,6 +13,7 @@ from ankle_rt.config import ConfigError
 from ankle_rt.references import make_profile
 from ankle_rt.service.protocol import CommandError, SetGains, SetReference, StartProfile, Status
 from ankle_rt.service.server import CommandServer
+from tests.service_helpers import repeating
 
 SIM_CONFIG = Path(__file__).resolve().parent.parent / "config" / "sim.yaml"
 
@@ -35,18 +35,13 @@ def daemon(tmp_path):
         return {"state": "safe", "ankle_deg": [1.5, float("nan")], "loop": {"overruns": 0}}
 
     server = CommandServer(tmp_path / "ctl.sock", 0o600, handle)
-    stop = threading.Event()
 
     def serve():
-        while not stop.is_set():
-            server.poll()
-            time.sleep(0.001)
+        server.poll()
+        time.sleep(0.001)
 
-    thread = threading.Thread(target=serve, daemon=True)
-    thread.start()
-    yield server, got
-    stop.set()
-    thread.join()
+    with repeating(serve):
+        yield server, got
     server.close()
 
 
