@@ -94,3 +94,18 @@ def test_unknown_effect_and_bad_effect_parameter(tmp_path):
                                                             "smoothing_velocity": 0.01}]}}))
     with pytest.raises(ConfigError, match=r"sim\.effects\.0\.coulomb: must be >= 0"):
         SimulatedPlant(cfg)
+
+
+def test_config_data_validates_again_to_the_same_config():
+    """What set_controller re-checks: a loaded config, as data, passes the same validation unchanged."""
+    from ankle_rt.config import config_data, config_from_data
+
+    for name in ("sim.yaml", "hw-serial.yaml", "hw-canopen.yaml"):
+        cfg = load_config(ROOT / "config" / name)
+        data = config_data(cfg)
+        assert None not in _leaves(data)
+        assert config_from_data(data, lambda key: name, name) == cfg
+
+
+def _leaves(data: dict) -> list:
+    return [v for value in data.values() for v in (_leaves(value) if isinstance(value, dict) else [value])]

@@ -11,7 +11,8 @@ import pytest
 from ankle_rt.cli import main
 from ankle_rt.config import ConfigError
 from ankle_rt.references import make_profile
-from ankle_rt.service.protocol import CommandError, SetGains, SetReference, StartProfile, Status
+from ankle_rt.service.protocol import (CommandError, ListControllers, SetController, SetGains, SetReference,
+                                       StartProfile, Status)
 from ankle_rt.service.server import CommandServer
 from tests.service_helpers import repeating
 
@@ -69,6 +70,14 @@ def test_gains_and_profile(daemon):
     assert ctl(server, "gains", "--kp", "90", "--stiffness-ie", "3") == 0
     assert ctl(server, "profile", "csv", "path=r.csv", "rate=2") == 0
     assert got == [SetGains(kp=90.0, stiffness_ie=3.0), StartProfile("csv", {"path": str(Path("r.csv").resolve()), "rate": 2.0})]
+
+
+def test_controllers_and_controller_switch(daemon):
+    server, got = daemon
+    assert ctl(server, "controllers") == 0
+    assert ctl(server, "controller", "load_stiffening", "stiffness=60,30", "stiffening=0.5", "mode=a,b") == 0
+    assert got == [ListControllers(), SetController("load_stiffening", {"stiffness": [60.0, 30.0], "stiffening": 0.5,
+                                                                       "mode": "a,b"})]
 
 
 def test_profile_angles_take_degrees_and_send_rad(daemon, capsys):

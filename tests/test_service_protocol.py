@@ -10,8 +10,9 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from ankle_rt.service.protocol import (
-    MAX_LINE_BYTES, Activate, CommandError, CommandLimits, Deactivate, ResetFault, SetGains, SetReference,
-    StartProfile, Status, Stop, error_reply, format_reply, parse_command,
+    MAX_LINE_BYTES, Activate, CommandError, CommandLimits, Deactivate, ListControllers, ResetFault, SetController,
+    SetGains, SetReference, StartProfile, Status, Stop, decode_reply, encode_request, error_reply, format_reply,
+    parse_command,
 )
 
 
@@ -26,7 +27,7 @@ def rejected(line: bytes, limits: CommandLimits | None = None) -> CommandError:
 
 
 @pytest.mark.parametrize("name, cls", [("status", Status), ("activate", Activate), ("deactivate", Deactivate),
-                                       ("reset", ResetFault), ("stop", Stop)])
+                                       ("reset", ResetFault), ("stop", Stop), ("list_controllers", ListControllers)])
 def test_commands_without_fields(name, cls):
     assert parse_command(req(cmd=name)) == cls()
     assert rejected(req(cmd=name, extra=1)).field == "extra"
@@ -103,6 +104,43 @@ def test_start_profile_rejections(fields, field):
     assert rejected(req(cmd="start_profile", **fields)).field == field
 
 
+def test_set_controller_takes_a_name_and_params_with_lists():
+    cmd = parse_command(req(cmd="set_controller", type="load_stiffening",
+                            params={"stiffness": [60, 30], "stiffening": 0.5, "mode": "x"}))
+    assert cmd == SetController("load_stiffening", {"stiffness": [60.0, 30.0], "stiffening": 0.5, "mode": "x"})
+    assert parse_command(req(cmd="set_controller", type="pd")) == SetController("pd", {})
+
+
+@pytest.mark.parametrize("fields, field", [
+    ({}, "type"), ({"type": 3}, "type"), ({"type": "x" * 300}, "type"), ({"type": "pd", "name": "pd"}, "name"),
+    ({"type": "pd", "params": [1]}, "params"),
+    ({"type": "pd", "params": {"k": [1, None]}}, "params.k[1]"),
+    ({"type": "pd", "params": {"k": [1, float("inf")]}}, "params.k[1]"),
+    ({"type": "pd", "params": {"k": list(range(17))}}, "params.k"),
+    ({"type": "pd", "params": {"k": {"a": 1}}}, "params.k"),
+])
+def test_set_controller_rejections(fields, field):
+    assert rejected(req(cmd="set_controller", **fields)).field == field
+
+
+def test_start_profile_takes_no_lists():
+    assert rejected(req(cmd="start_profile", name="sine", params={"amplitude_dp": [0.1]})).field == "params.amplitude_dp"
+
+
+def test_client_requests_round_trip_and_refuse_what_cannot_be_sent():
+    line = encode_request("set_gains", kp=90.0)
+    assert line.endswith(b"\n") and parse_command(line) == SetGains(kp=90.0)
+    with pytest.raises(CommandError) as info:
+        encode_request("set_reference", dp=float("nan"), ie=0.0)
+    assert info.value.field == "dp"
+    with pytest.raises(CommandError) as info:
+        encode_request("start_profile", name="csv", params={"path": "x" * MAX_LINE_BYTES})
+    assert info.value.field == "line"
+    assert decode_reply(b'{"ok": true, "state": "safe"}') == {"ok": True, "state": "safe"}
+    with pytest.raises(ValueError):
+        decode_reply(b"[1]")
+
+
 @pytest.mark.parametrize("line, field, words", [
     (b"\xff\xfe{}", "line", "UTF-8"),
     (b'{"cmd": "status"', "line", "not valid JSON"),
@@ -134,20 +172,25 @@ json_values = st.recursive(st.none() | st.booleans() | st.floats() | st.integers
 
 
 @settings(max_examples=300, deadline=None)
-@given(st.sampled_from(["status", "set_reference", "set_gains", "start_profile", "fly"]),
-       st.dictionaries(st.sampled_from(["dp", "ie", "ramp", "kp", "kd", "name", "params", "x"]), json_values, max_size=4))
+@given(st.sampled_from(["status", "set_reference", "set_gains", "start_profile", "set_controller", "list_controllers",
+                        "fly"]),
+       st.dictionaries(st.sampled_from(["dp", "ie", "ramp", "kp", "kd", "name", "type", "params", "x"]), json_values,
+                       max_size=4))
 def test_random_requests_yield_valid_commands_or_named_errors(name, fields):
     line = json.dumps({"cmd": name, **fields}).encode()
     try:
         cmd = parse_command(line)
     except CommandError as err:
-        assert err.field in ("line", "cmd", "dp", "ie", "name", *fields) or err.field.startswith("params.")
+        assert err.field in ("line", "cmd", "dp", "ie", "name", "type", *fields) or err.field.startswith("params.")
         return
     limit = CommandLimits().reference_limit_rad
     if isinstance(cmd, SetReference):
         assert abs(cmd.dp) <= limit and abs(cmd.ie) <= limit and math.isfinite(cmd.dp + cmd.ie)
     if isinstance(cmd, SetGains):
         assert cmd.given() and all(v >= 0 and math.isfinite(v) for v in cmd.given().values())
+    if isinstance(cmd, SetController):
+        numbers = [x for v in cmd.params.values() if not isinstance(v, str) for x in (v if isinstance(v, list) else [v])]
+        assert isinstance(cmd.type, str) and all(math.isfinite(x) for x in numbers)
 
 
 def test_replies_are_json_lines_without_nan():
