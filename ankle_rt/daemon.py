@@ -15,7 +15,7 @@ import gc
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
@@ -301,9 +301,9 @@ class Daemon:
         return {"state": State(self.safety.state).name.lower()}
 
     # -- controllers at run time -------------------------------------------------------------------
-    def _in_background(self, fn, what: str, field: str) -> proto.Pending:
-        """Run ``fn`` on the background loader (an entry-point scan or a plugin import may take tens of
-        ms: never in the loop thread); the reply is ``finish(result)``'s once it is done."""
+    def _in_background(self, fn: Callable[[], Any], what: str, field: str) -> Job:
+        """Submit ``fn`` to the background loader (an entry-point scan or a plugin import may take tens
+        of ms: never in the loop thread); refused, naming ``field``, while another job runs."""
         running = self.loader.pending()
         if running is not None:
             raise proto.CommandError(field, f"busy: still loading {running.what}")

@@ -1,7 +1,8 @@
 """The daemon's cycle records and events on the Lab Streaming Layer (``lsl.enabled``, docs/lab.md).
 
-Two outlets: ``ankle-rt`` (type ``ankle-rt``, one double channel per log record field, labels, units and
-meanings in the stream's ``desc/channels``, the nominal rate = the loop's) and ``ankle-rt-events``
+Two outlets: ``ankle-rt`` (type ``ankle-rt``, one double channel per physical field of the log record,
+:data:`CHANNELS`; labels, units and meanings in the stream's ``desc/channels``; the nominal rate =
+the loop's) and ``ankle-rt-events``
 (type ``Markers``, one string channel: ``state:active``, ``fault:missed_deadlines``, ...). Each
 sample is stamped with its cycle's start on the loop clock (CLOCK_MONOTONIC, which is LSL's
 ``local_clock()`` on Linux), so LabRecorder aligns it with motion capture, force plates and EMG.
@@ -19,7 +20,7 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from ankle_rt.log.record import RECORD_DTYPE, RECORD_SIZE
+from ankle_rt.log.record import RECORD_DTYPE, RECORD_SIZE, UNITS, field_doc
 
 STREAM_NAME = "ankle-rt"
 EVENTS_NAME = "ankle-rt-events"
@@ -79,8 +80,6 @@ class LslPublisher:
     def open(self) -> None:
         """Make the outlets (in the log writer's thread, at its normal scheduling)."""
         import pylsl
-
-        from ankle_rt.log.record import UNITS, field_doc
 
         info = pylsl.StreamInfo(STREAM_NAME, "ankle-rt", len(CHANNELS), self.rate_hz, pylsl.cf_double64,
                                 self.source_id)
