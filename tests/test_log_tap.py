@@ -105,3 +105,20 @@ def test_state_changes_and_faults_become_markers(tmp_path):
     assert markers == ["state:configured", "state:active", "fault:missed_deadlines", "state:fault", "state:safe"]
     assert stamps == pytest.approx([100.0, 100.003, 100.008, 100.008, 100.012])
     assert publisher.samples == len(states) and publisher.events == 5
+
+
+def test_without_pylsl_the_daemon_refuses_to_start_naming_the_key(sim_cfg, tmp_path, monkeypatch):
+    import ankle_rt.log.lsl as lsl
+    from ankle_rt.clock import MonotonicClock
+    from ankle_rt.config import ConfigError
+    from ankle_rt.daemon import Daemon
+
+    monkeypatch.setattr(lsl, "pylsl_available", lambda: False)
+    sim_cfg["lsl"]["enabled"] = True
+    daemon = Daemon(sim_cfg, MonotonicClock())
+    try:
+        with pytest.raises(ConfigError, match=r"lsl.enabled: lsl.enabled needs pylsl: pip install 'ankle-rt\[lab\]'"):
+            daemon.open_log(tmp_path / "x.arlog")
+        assert daemon.recorder is None and not (tmp_path / "x.arlog").exists()
+    finally:
+        daemon.close()
