@@ -17,9 +17,10 @@ Everything is in SI units (angles in rad), as on the wire. One connection carrie
 in the current state); no daemon, no permission or no reply within ``timeout_s`` raise
 :class:`DaemonUnreachable`. The framing is :mod:`ankle_rt.service.protocol`'s.
 
-Samples come from ``status`` requests, one per ``interval_s`` (the daemon answers within its
-``service.poll_period_s``, 10 ms by default): enough to watch and script an experiment. Every cycle
-is in the run log and, with ``lsl.enabled``, on the Lab Streaming Layer (docs/lab.md).
+Samples come from ``status`` requests, one per ``interval_s`` (a request waits for the daemon's next
+poll, every ``service.poll_period_s`` = 10 ms by default, so about 50 samples/s at most): enough to
+watch and script an experiment. Every cycle is in the run log and, with ``lsl.enabled``, on the Lab
+Streaming Layer (docs/lab.md).
 """
 
 from __future__ import annotations
@@ -237,7 +238,7 @@ class AnkleClient:
                      params={k: list(v) if isinstance(v, (tuple, list, np.ndarray)) else v for k, v in params.items()})
 
     # -- samples -----------------------------------------------------------------------------------
-    def samples(self, interval_s: float = 0.01, duration_s: float | None = None,
+    def samples(self, interval_s: float = 0.02, duration_s: float | None = None,
                 count: int | None = None) -> Iterator[dict[str, Any]]:
         """Yield one sample (SAMPLE_FIELDS) per ``interval_s`` until ``duration_s`` has passed or
         ``count`` samples came (both None: until the caller stops iterating)."""
@@ -250,7 +251,7 @@ class AnkleClient:
             next_due += interval_s
             time.sleep(max(0.0, next_due - time.monotonic()))
 
-    def record(self, duration_s: float, interval_s: float = 0.01) -> dict[str, np.ndarray]:
+    def record(self, duration_s: float, interval_s: float = 0.02) -> dict[str, np.ndarray]:
         """Samples for ``duration_s`` s as columns: name -> numpy array (``state`` as strings)."""
         return columns_of(list(self.samples(interval_s, duration_s=duration_s)))
 
