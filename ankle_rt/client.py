@@ -18,7 +18,7 @@ in the current state); no daemon, no permission or no reply within ``timeout_s``
 :class:`DaemonUnreachable`. The framing is :mod:`ankle_rt.service.protocol`'s.
 
 Samples come from ``status`` requests, one per ``interval_s`` (a request waits for the daemon's next
-poll, every ``service.poll_period_s`` = 10 ms by default, so about 50 samples/s at most): enough to
+poll, every ``service.poll_period_s`` = 10 ms by default, so fewer than 100 samples/s): enough to
 watch and script an experiment. Every cycle is in the run log and, with ``lsl.enabled``, on the Lab
 Streaming Layer (docs/lab.md).
 """
