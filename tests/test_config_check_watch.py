@@ -59,11 +59,11 @@ def test_watch_view_shows_degrees_and_names_units():
     status = {"state": "fault", "fault": "ankle_range", "fault_description": "ankle angle beyond the software limit",
               "fault_time_s": 1.25, "t": 2.5, "ankle_deg": [10.0, -5.0], "reference_deg": [10.0, -5.0],
               "motor_pos_rad": [3.141592653589793, 0.0], "motor_vel_rad_s": [0.0, 0.0], "sg_torque_nm": [0.5, 0.0],
-              "current_a": [0.0, 0.0], "gains": {"kp": 90.0, "kd": 5.0},
+              "current_a": [0.0, 0.0], "controller": "pd", "gains": {"kp": 90.0, "kd": 5.0},
               "loop": {"cycles": 10, "overruns": 0, "period_error": {"p99_us": 4.0}}}
     text = "\n".join(watch_view(status, Path("/x.sock")))
     assert "state: FAULT   fault: ankle_range (ankle angle beyond the software limit, at t = 1.25 s)" in text
-    assert "position" in text and "180.000" in text and "deg" in text and "gains: kp 90, kd 5" in text
+    assert "position" in text and "180.000" in text and "deg" in text and "controller: pd   gains: kp 90, kd 5" in text
 
 
 def test_watch_follows_a_running_daemon_and_ends_cleanly(daemon, capsys):  # noqa: F811

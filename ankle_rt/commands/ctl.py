@@ -190,7 +190,8 @@ def watch_view(status: dict, path: Path) -> list[str]:
              row("position", status.get("motor_pos_rad"), "deg", deg),
              row("velocity", status.get("motor_vel_rad_s"), "deg/s", deg, "10.1f"),
              row("current", status.get("current_a"), "A"),
-             "  gains: " + (", ".join(f"{k} {_fmt(v)}" for k, v in gains.items()) or "-"),
+             f"  controller: {status.get('controller', '-')}   gains: "
+             + (", ".join(f"{k} {_fmt(v)}" for k, v in gains.items()) or "-"),
              f"  loop: {loop.get('cycles', '-')} cycles, {loop.get('overruns', '-')} overruns, period error p99 "
              f"{_fmt(pe.get('p99_us'))} us"]
     return lines
