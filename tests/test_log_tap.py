@@ -122,3 +122,21 @@ def test_without_pylsl_the_daemon_refuses_to_start_naming_the_key(sim_cfg, tmp_p
         assert daemon.recorder is None and not (tmp_path / "x.arlog").exists()
     finally:
         daemon.close()
+
+
+def test_config_check_says_the_streams_and_whether_pylsl_is_there(tmp_path, capsys, monkeypatch):
+    import ankle_rt.log.lsl as lsl
+    from ankle_rt.cli import main
+    from tests.conftest import SIM_CONFIG
+
+    cfg = tmp_path / "lab.yaml"
+    cfg.write_text(f"include: [{SIM_CONFIG}]\nlsl: {{enabled: true, source_id: left-ankle}}\n")
+    monkeypatch.setattr(lsl, "pylsl_available", lambda: True)
+    assert main(["config", "check", str(cfg)]) == 0
+    assert "lsl:         streams ankle-rt and ankle-rt-events (source_id left-ankle) in real time\n" \
+        in capsys.readouterr().out
+    monkeypatch.setattr(lsl, "pylsl_available", lambda: False)
+    assert main(["config", "check", str(cfg)]) == 0
+    assert "pylsl is NOT installed here: pip install 'ankle-rt[lab]'" in capsys.readouterr().out
+    assert main(["config", "check", str(SIM_CONFIG)]) == 0
+    assert "lsl:" not in capsys.readouterr().out

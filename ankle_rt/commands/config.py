@@ -84,7 +84,16 @@ def describe(cfg) -> list[str]:
         f"{'activates itself after the tare' if safety['auto_activate'] else 'waits for ankle-rt ctl activate'}",
         "logging:     " + (f"on, into {log['directory']}" if log["enabled"] else "off"),
         "service:     " + (_socket_line(cfg) if service["enabled"] else "no command socket"),
-    ]
+    ] + ([_lsl_line(cfg)] if cfg["lsl"]["enabled"] else [])
+
+
+def _lsl_line(cfg) -> str:
+    """The Lab Streaming Layer streams, and whether pylsl is there to publish them."""
+    from ankle_rt.log.lsl import EVENTS_NAME, STREAM_NAME, pylsl_available
+
+    missing = "" if pylsl_available() else "; pylsl is NOT installed here: pip install 'ankle-rt[lab]'"
+    return (f"lsl:         streams {STREAM_NAME} and {EVENTS_NAME} (source_id {cfg['lsl']['source_id']}) in real "
+            f"time{missing}")
 
 
 def _socket_line(cfg) -> str:
