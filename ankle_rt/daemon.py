@@ -125,10 +125,10 @@ class Daemon:
         if self.service is not None:
             self._service_tick(t_start_ns * 1e-9)
         if self.recorder is not None:
-            ankle, mvel, sg, joint, ref = est.ankle_pos, est.motor_vel, est.sg_torque, est.joint_pos, self.reference.ref
+            ref = self.reference.ref
             self.recorder.append(
-                est.t, est.motor_pos[0], est.motor_pos[1], mvel[0], mvel[1], sg[0], sg[1], joint[0], joint[1],
-                ankle[0], ankle[1], ref[0], ref[1], torque[0], torque[1],
+                est.t, est.mp1, est.mp2, est.mv1, est.mv2, est.sg_dp, est.sg_ie, est.joint_dp, est.joint_ie,
+                est.dp, est.ie, ref[0], ref[1], torque[0], torque[1],
                 safety.current[0], safety.current[1],
                 (t_start_ns - loop.start_ns) * 1e-9, frame.seq, loop.last_period_ns * 1e-3, latency_ns * 1e-3,
                 loop.stats.overruns, safety.state, safety.fault, frame.faults)

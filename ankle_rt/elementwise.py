@@ -47,6 +47,27 @@ def select(condition, if_true, if_false):
     return if_true if condition else if_false
 
 
+def minimum(x, high):
+    """min(x, high)."""
+    if x.__class__ is _ARRAY or high.__class__ is _ARRAY:
+        return np.minimum(x, high)
+    return x if x < high else high
+
+
+def all_true(condition) -> bool:
+    """Whether ``condition`` holds (for a batch: on every device). A plain bool, to branch on."""
+    if condition.__class__ is _ARRAY:
+        return bool(condition.all())
+    return bool(condition)
+
+
+def any_true(condition) -> bool:
+    """Whether ``condition`` holds (for a batch: on some device). A plain bool, to branch on."""
+    if condition.__class__ is _ARRAY:
+        return bool(condition.any())
+    return bool(condition)
+
+
 def positive_part(x):
     """max(x, 0)."""
     if x.__class__ is _ARRAY:
@@ -64,18 +85,40 @@ def pick(buffer, index):
 
 def stack(objects, shared: tuple[str, ...] = ()):
     """One object of the same class standing for ``objects`` (one per plant of a batch): every
-    number becomes an array over the batch; anything else must be equal on every object (else
-    ValueError: the caller runs them one by one), except the ``shared`` attributes, which are
-    descriptive only and taken from the first object."""
+    number becomes an array over the batch, and so does each number of a list or tuple of numbers;
+    an attribute that is itself stackable (its class has ``stack``) is stacked by it; a flag (bool)
+    stays a plain bool where it is the same on every object (code may branch on it) and becomes a
+    bool array where it differs; anything else must be equal on every object (else ValueError: the
+    caller runs them one by one), except the ``shared`` attributes, which are descriptive only and
+    taken from the first object."""
     first = objects[0]
     out = object.__new__(type(first))
     for name, value in vars(first).items():
-        if isinstance(value, (int, float)) and not isinstance(value, bool):
-            value = np.array([getattr(o, name) for o in objects], dtype=float)
-        elif name not in shared and not all(_equal(getattr(o, name), value) for o in objects[1:]):
-            raise ValueError(f"{type(first).__name__}.{name} differs between plants and is not a number")
+        values = [getattr(o, name) for o in objects]
+        if name not in shared:
+            value = _stacked(type(first).__name__, name, values)
         setattr(out, name, value)
     return out
+
+
+def _number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _stacked(owner: str, name: str, values: list):
+    value = values[0]
+    if _number(value):
+        return np.array(values, dtype=float)
+    if isinstance(value, bool) and all(isinstance(v, bool) for v in values):
+        return value if all(v == value for v in values) else np.array(values)
+    if isinstance(value, (list, tuple)) and value and all(_number(v) for v in value) \
+            and all(isinstance(v, type(value)) and len(v) == len(value) for v in values):
+        return type(value)(np.array(column, dtype=float) for column in zip(*values))
+    if hasattr(type(value), "stack") and all(type(v) is type(value) for v in values):
+        return type(value).stack(values)
+    if not all(_equal(v, value) for v in values[1:]):
+        raise ValueError(f"{owner}.{name} differs between plants and is not a number")
+    return value
 
 
 def _equal(a, b) -> bool:

@@ -293,8 +293,8 @@ def test_the_closed_loop_update_keeps_no_memory(base):
 
     def cycles(n):
         for k in range(n):
-            est.sg_torque[0] = 0.01 * (k % 7)
-            est.motor_vel[0] = 0.3 * ((k % 5) - 2)
+            est.sg_dp = 0.01 * (k % 7)
+            est.mv1 = 0.3 * ((k % 5) - 2)
             ctl.update(est, out)
 
     cycles(500)
