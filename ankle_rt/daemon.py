@@ -115,7 +115,7 @@ class Daemon:
                 code = safety.check_reference(ref.item(0), ref.item(1))
             if code == 0 and state == ACTIVE:
                 self.controller.update(est, torque)
-                code = safety.limit_currents(torque[0] * self.inv_kt, torque[1] * self.inv_kt)
+                code = safety.limit_currents(torque.item(0) * self.inv_kt, torque.item(1) * self.inv_kt)
                 if code == 0:
                     backend.write(safety.current[0], safety.current[1])
             if code != 0:
