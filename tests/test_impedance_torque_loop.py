@@ -20,7 +20,7 @@ from ankle_rt.control.gains import GainError
 from ankle_rt.control.torque_loop import ImpedanceLimits, JointTorqueLoop, TorqueLoopGains
 from ankle_rt.daemon import run_lockstep
 from ankle_rt.estimation import Estimate
-from ankle_rt.impedance_bench import Experiment, TorqueProgramBackend, bench_config, run_impedance
+from ankle_rt.bench.impedance import Experiment, TorqueProgramBackend, bench_config, run_impedance
 from ankle_rt.kinematics import Kinematics
 from ankle_rt.params import PlantParams, TransmissionParams
 from ankle_rt.paths import default_config_path

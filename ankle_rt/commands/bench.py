@@ -286,7 +286,7 @@ def impedance_variant(cfg, stiffness: list[float], stiffness_ie: float | None, d
     """Run the bench for one controller variant over the commanded stiffnesses; its summary and runs."""
     from ankle_rt.analysis import ImpedanceLoop, torque_loop_margins
     from ankle_rt.control.torque_loop import torque_feedback
-    from ankle_rt.impedance_bench import bench_config, run_impedance
+    from ankle_rt.bench.impedance import bench_config, run_impedance
     from ankle_rt.params import PlantParams
 
     runs, margins = [], []
@@ -350,7 +350,7 @@ def plot_loops(variants: dict[str, dict], png: str) -> str:
 def bench_impedance(args: argparse.Namespace) -> int:
     from ankle_rt import jsonout
     from ankle_rt.config import load_config
-    from ankle_rt.impedance_bench import Experiment
+    from ankle_rt.bench.impedance import Experiment
     from ankle_rt.paths import default_config_path
 
     if args.stribeck[0] > 0.0 and args.stribeck[1] <= 0.0:
