@@ -83,37 +83,35 @@ def pick(buffer, index):
     return buffer[index]
 
 
-def stack(objects, shared: tuple[str, ...] = ()):
+def stack(objects, shared: tuple[str, ...] = (), columns: tuple[str, ...] = ()):
     """One object of the same class standing for ``objects`` (one per plant of a batch): every
-    number becomes an array over the batch, and so does each number of a list or tuple of numbers;
-    an attribute that is itself stackable (its class has ``stack``) is stacked by it; a flag (bool)
-    stays a plain bool where it is the same on every object (code may branch on it) and becomes a
-    bool array where it differs; anything else must be equal on every object (else ValueError: the
-    caller runs them one by one), except the ``shared`` attributes, which are descriptive only and
-    taken from the first object."""
+    number becomes an array over the batch; each ``columns`` attribute (a list or tuple of numbers
+    per object, e.g. a matrix's entries) a list or tuple of such arrays; an attribute that is itself
+    stackable (its class has ``stack``) is stacked by it; a flag (bool) stays a plain bool where it
+    is the same on every object (code may branch on it) and becomes a bool array where it differs;
+    anything else must be equal on every object (else ValueError: the caller runs them one by one),
+    except the ``shared`` attributes, which are descriptive only and taken from the first object."""
     first = objects[0]
     out = object.__new__(type(first))
+    owner = type(first).__name__
     for name, value in vars(first).items():
         values = [getattr(o, name) for o in objects]
-        if name not in shared:
-            value = _stacked(type(first).__name__, name, values)
+        if name in columns:
+            if any(len(v) != len(value) for v in values):
+                raise ValueError(f"{owner}.{name} differs in length between plants")
+            value = type(value)(np.array(column, dtype=float) for column in zip(*values))
+        elif name not in shared:
+            value = _stacked(owner, name, values)
         setattr(out, name, value)
     return out
 
 
-def _number(value) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
-
-
 def _stacked(owner: str, name: str, values: list):
     value = values[0]
-    if _number(value):
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
         return np.array(values, dtype=float)
     if isinstance(value, bool) and all(isinstance(v, bool) for v in values):
         return value if all(v == value for v in values) else np.array(values)
-    if isinstance(value, (list, tuple)) and value and all(_number(v) for v in value) \
-            and all(isinstance(v, type(value)) and len(v) == len(value) for v in values):
-        return type(value)(np.array(column, dtype=float) for column in zip(*values))
     if hasattr(type(value), "stack") and all(type(v) is type(value) for v in values):
         return type(value).stack(values)
     if not all(_equal(v, value) for v in values[1:]):

@@ -107,7 +107,7 @@ class Estimator:
     def stack(cls, estimators: Sequence["Estimator"]) -> "Estimator":
         """One estimator standing for ``estimators`` (one per device of a batch), numbers as arrays
         but the last sample time (the batch's devices are sampled together)."""
-        return stack(estimators, shared=("_t",))
+        return stack(estimators, shared=("_t",), columns=("Ri", "offset"))
 
     def reset(self) -> None:
         """Forget the filter state and the tare (the next samples are averaged again)."""

@@ -256,4 +256,4 @@ class Safety:
         """One safety layer standing for ``layers`` (one per device of a batch): limits, state,
         fault and I^2 t as arrays over the batch, for the element-wise checks and limits (the period
         and the last sample time are the batch's, one for all)."""
-        return stack(layers, shared=("dt", "_t"))
+        return stack(layers, shared=("dt", "_t"), columns=("i2t", "current"))

@@ -139,3 +139,31 @@ def test_batched_walking_scenario_matches_the_daemon(sim_cfg, controller):
     other["transmission"]["cable_stiffness"] *= 1.2
     other["sim"]["seed"] = 5
     assert _compare([sim_cfg, other]) == [0, 0]
+
+
+def test_stacking_keeps_shared_flags_and_stacks_numbers_lists_and_parts():
+    """The rules a batchable controller relies on (ankle_rt.elementwise.stack)."""
+    from ankle_rt.elementwise import stack
+
+    class Part:
+        def __init__(self, k):
+            self.k = k
+
+        @classmethod
+        def stack(cls, parts):
+            return stack(parts)
+
+    class Law:
+        def __init__(self, gain, flag, closed, rows, name):
+            self.gain, self.flag, self.closed, self.rows, self.name = gain, flag, closed, rows, name
+            self.part = Part(2.0 * gain)
+
+    out = stack([Law(1.0, True, True, [1.0, 2.0], "a"), Law(3.0, False, True, [5.0, 6.0], "a")], columns=("rows",))
+    assert out.gain.tolist() == [1.0, 3.0]
+    assert out.flag.tolist() == [True, False] and out.closed is True
+    assert [r.tolist() for r in out.rows] == [[1.0, 5.0], [2.0, 6.0]]
+    assert isinstance(out.part, Part) and out.part.k.tolist() == [2.0, 6.0]
+    with pytest.raises(ValueError, match="Law.name differs"):
+        stack([Law(1.0, True, True, [1.0], "a"), Law(1.0, True, True, [1.0], "b")])
+    with pytest.raises(ValueError, match="Law.rows differs"):
+        stack([Law(1.0, True, True, [1.0], "a"), Law(1.0, True, True, [2.0], "a")])

@@ -348,10 +348,13 @@ def plot_loops(variants: dict[str, dict], png: str) -> str:
 
 
 def bench_impedance(args: argparse.Namespace) -> int:
+    import time
+
     from ankle_rt import jsonout
+    from ankle_rt.bench.impedance import Experiment, schedule
     from ankle_rt.config import load_config
-    from ankle_rt.bench.impedance import Experiment
     from ankle_rt.paths import default_config_path
+    from ankle_rt.timing_reference import reference_step_s
 
     if args.stribeck[0] > 0.0 and args.stribeck[1] <= 0.0:
         raise SystemExit("ankle-rt bench impedance: --stribeck: the velocity VS must be > 0")
@@ -366,11 +369,16 @@ def bench_impedance(args: argparse.Namespace) -> int:
             plan[f"closed loop, {name} ff"] = ("auto", name)
             plan[f"open loop, {name} ff"] = ("off", name)
     variants = {}
+    ref_s = reference_step_s()
+    t0 = time.perf_counter()
     for name, (feedback, f) in plan.items():
         if not args.json:
             print(f"{name} ...", flush=True)
         variants[name] = impedance_variant(cfg, args.stiffness, args.stiffness_ie, tuple(args.damping), effects,
                                            feedback=feedback, friction_ff=f, experiment=exp, keep_loops=True)
+    # wall time per simulated cycle, the lockstep runs with their analysis (and the margin checks)
+    cycle_s = (time.perf_counter() - t0) / (len(plan) * len(args.stiffness) * round(schedule(exp)[1] * cfg["controller"]["rate_hz"]))
+    ref_s = 0.5 * (ref_s + reference_step_s())
     note = plot_loops({k: variants[k] for k in ("closed loop", "open loop")}, args.plot) if args.plot else ""
     main = variants["closed loop"]["summary"]
     result = {key: main[key] for key in SUMMARY_KEYS}
@@ -382,7 +390,7 @@ def bench_impedance(args: argparse.Namespace) -> int:
                   commanded_stiffness_dp=args.stiffness, damping=args.damping, plant_effects=effects,
                   variants={name: {**v["summary"], "runs": [{k: r[k] for k in r if k != "_result"} for r in v["runs"]]}
                             for name, v in variants.items()},
-                  plot=note)
+                  plot=note, cycle_us=cycle_s * 1e6, reference_step_us=ref_s * 1e6, cycle_ref_steps=cycle_s / ref_s)
     if args.json:
         print(jsonout.dumps(result))
         return 0
@@ -406,6 +414,8 @@ def bench_impedance(args: argparse.Namespace) -> int:
                               f"{s['hysteresis_j']:.3f}" for s in run["sines"]))
     print(f"hysteresis open loop / closed loop (worst commanded stiffness): "
           f"{result['hysteresis_ratio_open_to_closed']:.1f}x")
+    print(f"wall time per simulated cycle (lockstep runs and their analysis): {cycle_s * 1e6:.1f} us = "
+          f"{cycle_s / ref_s:.2f} ref steps of {ref_s * 1e6:.1f} us")
     if note:
         print(note)
     return 0

@@ -105,7 +105,8 @@ class BatchableController(abc.ABC):
       ``where`` (bool per device) holds.
     - ``ref``: the ankle reference array (rad [DP, IE]) the daemon refreshes in place every cycle.
     - optionally ``shared``: names of descriptive attributes taken from the first device on
-      :meth:`stack` (the reference array, limits), and :meth:`batch_key`.
+      :meth:`stack` (the reference array, limits); ``columns``: names of list attributes holding
+      numbers (a matrix's entries), each stacked into arrays; and :meth:`batch_key`.
 
     :meth:`stack` turns one object per device into one object whose numbers are arrays over the
     batch (sub-objects with their own ``stack``, such as the friction feed-forward or the torque
@@ -114,6 +115,7 @@ class BatchableController(abc.ABC):
     """
 
     shared: tuple[str, ...] = ("ref",)
+    columns: tuple[str, ...] = ()
 
     @abc.abstractmethod
     def law(self, est: Estimate, ref_dp: Value, ref_ie: Value) -> tuple[Value, Value]:
@@ -127,7 +129,7 @@ class BatchableController(abc.ABC):
     def stack(cls, controllers: Sequence["BatchableController"]) -> "BatchableController":
         """One controller standing for ``controllers`` (one per device of a batch, same class and
         :meth:`batch_key`); ValueError for a non-numeric attribute that differs."""
-        return stack(controllers, shared=cls.shared)
+        return stack(controllers, shared=cls.shared, columns=cls.columns)
 
     def batch_key(self) -> tuple[tuple[str, Any], ...]:
         """(config key, value) pairs that must be equal for controllers to run in one batch (their

@@ -48,7 +48,7 @@ class GainRamp:
     @classmethod
     def stack(cls, ramps: Sequence["GainRamp"]) -> "GainRamp":
         """One gain set standing for ``ramps`` (one per device of a batch): numbers as arrays."""
-        return stack(ramps)
+        return stack(ramps, columns=("values", "targets", "steps"))
 
     def set_targets(self, **gains: float) -> None:
         """Ramp the named gains to new values. Raises GainError naming an unknown or bad gain."""

@@ -81,6 +81,7 @@ class ImpedanceController(RampedGainController):
         super().set_gains(**gains)
 
     shared = ("ref", "limits")
+    columns = ("RiT",)
 
     def batch_key(self) -> tuple[tuple[str, bool], ...]:
         return (("controller.impedance.torque_feedback", self.torque_loop is not None),)

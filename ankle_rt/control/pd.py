@@ -17,6 +17,8 @@ from ankle_rt.kinematics import Kinematics
 
 
 class MotorPD(RampedGainController):
+    columns = ("R",)
+
     def __init__(self, kin: Kinematics, ref: np.ndarray, *, kp: float, kd: float, dt: float,
                  ramp_s: float = 0.0, soft_start_s: float = 0.0, friction: FrictionFeedForward | None = None):
         """``ref``: rad [DP, IE], read every update. ``kp`` N m/rad, ``kd`` N m s/rad, per motor."""
