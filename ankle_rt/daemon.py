@@ -21,6 +21,7 @@ import numpy as np
 
 from ankle_rt.backend import Backend, SensorFrame, open_backend
 from ankle_rt.clock import Clock, SimClock
+from ankle_rt.command_limits import gain_maxima, gain_problem, reference_problem
 from ankle_rt.config import Config, ConfigError
 from ankle_rt.control import CycleController, build_controller
 from ankle_rt.control.gains import GainError
@@ -80,7 +81,7 @@ class Daemon:
             self.controller = controller
         self.safety = Safety(cfg, self.dt)
         self.max_reference_step = cfg["reference"]["max_rate_rad_s"] * self.dt   # rad per cycle, commanded
-        self.gain_maxima = proto.gain_maxima(cfg["controller"]["gain_limits"])
+        self.gain_maxima = gain_maxima(cfg["controller"]["gain_limits"])
         self.loader = BackgroundLoader()
         self.torque = np.zeros(2)
         self.loop = FixedRateLoop(clock, self.period_ns, cfg["loop"]["max_consecutive_overruns"],
@@ -212,10 +213,9 @@ class Daemon:
         if setter is None:
             raise ValueError("this controller has no run-time gains")
         for name, value in gains.items():
-            limit = self.gain_maxima.get(name, math.inf)
-            if not (isinstance(value, (int, float)) and 0.0 <= value <= limit):   # False for NaN
-                raise GainError(name, f"gain {name!r} must be a finite number in [0, {limit:g}] "
-                                      f"(controller.gain_limits), got {value!r}")
+            problem = gain_problem(name, value, self.gain_maxima)
+            if problem:
+                raise GainError(name, f"gain {name!r} {problem}")
         setter(**gains)
 
     def _command_reference(self, profile: Profile) -> None:
@@ -265,10 +265,10 @@ class Daemon:
                 self.request_stop()
             elif isinstance(command, proto.SetReference):
                 ramp = self.cfg["reference"]["ramp_s"] if command.ramp is None else command.ramp
-                limit = self.safety.ankle_limit
-                if not (abs(command.dp) <= limit and abs(command.ie) <= limit):
-                    raise proto.CommandError("dp" if not abs(command.dp) <= limit else "ie",
-                                             f"outside the ankle range +/-{limit:.4g} rad")
+                for key, value in (("dp", command.dp), ("ie", command.ie)):
+                    problem = reference_problem(value, self.safety.ankle_limit)
+                    if problem:
+                        raise proto.CommandError(key, problem)
                 self._command_reference(RampTo(command.dp, command.ie, ramp))
             elif isinstance(command, proto.SetGains):
                 self.set_gains(**command.given())

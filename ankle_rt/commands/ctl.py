@@ -13,7 +13,8 @@ import sys
 from pathlib import Path
 
 from ankle_rt.references import angle_params
-from ankle_rt.service.protocol import GAIN_FIELDS, PROFILE_NAMES
+from ankle_rt.command_limits import GAIN_FIELDS
+from ankle_rt.service.protocol import PROFILE_NAMES
 
 EXIT_REFUSED = 1
 EXIT_UNREACHABLE = 3
