@@ -19,6 +19,13 @@ from sim_backend.model import CompliantModel
 NOISE_BLOCK = 4096  # strain-gauge noise samples drawn at a time (refilled in place, no allocation)
 
 
+def check_disturbances(disturbances: list, source: str | None) -> None:
+    """ConfigError naming ``sim.disturbances.<i>.stop`` for a pulse that does not stop after it starts."""
+    for i, d in enumerate(disturbances):
+        if d["stop"] <= d["start"]:
+            raise ConfigError("stop must be after start", source, f"sim.disturbances.{i}.stop")
+
+
 class SimulatedPlant:
     """Time ``t`` (s) counts from construction; disturbances in the config use that time."""
 
@@ -36,9 +43,7 @@ class SimulatedPlant:
         self.noise_rms = p.strain_gauge_noise_rms if sim["sensor_noise"] else 0.0
         self.sg_offset = list(sim["strain_gauge_offset"])
         self.disturbances = sim["disturbances"]
-        for i, d in enumerate(self.disturbances):
-            if d["stop"] <= d["start"]:
-                raise ConfigError("stop must be after start", source, f"sim.disturbances.{i}.stop")
+        check_disturbances(self.disturbances, source)
         self._pulses = [(d["start"], d["stop"], d["torque_dp"], d["torque_ie"]) for d in self.disturbances]
         self.rng = np.random.default_rng(sim["seed"])
         self._noise = np.empty((NOISE_BLOCK, 2))
