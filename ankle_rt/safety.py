@@ -29,7 +29,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from ankle_rt.backend import BackendFault, SensorFrame
-from ankle_rt.config_schema import ESCON_CONTINUOUS_A, ESCON_PEAK_A, ESCON_PEAK_S
+from ankle_rt.config_schema import SCHEMA
 from ankle_rt.elementwise import Value, any_true, clip, positive_part, select, stack
 from ankle_rt.estimation import Estimate
 from ankle_rt.schema import ConfigError
@@ -111,9 +111,11 @@ _ANKLE_RANGE, _OVERCURRENT, _OUTPUT_INVALID = int(Fault.ANKLE_RANGE), int(Fault.
 _REFERENCE_INVALID = int(Fault.REFERENCE_INVALID)
 
 
-def _limit(value: Any, key: str, low: float, high: float, low_open: bool = True) -> float:
-    """``value`` as a float if finite and within (low, high] ([low, high] when not ``low_open``);
-    else ConfigError naming ``key``: a limit the safety layer relies on must be a real number."""
+def _limit(value: Any, key: str, low: float, high: float | None, low_open: bool = True) -> float:
+    """``value`` as a float if finite and within (low, high] ([low, high] when not ``low_open``; no
+    upper bound for None); else ConfigError naming ``key``: a limit the safety layer relies on must
+    be a real number."""
+    high = math.inf if high is None else high
     ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
     if ok:
         ok = (value > low if low_open else value >= low) and value <= high
@@ -123,26 +125,34 @@ def _limit(value: Any, key: str, low: float, high: float, low_open: bool = True)
     return float(value)
 
 
+def _configured(cfg: Mapping[str, Any], key: str, low: float | None = None) -> float:
+    """The config's value at the dotted ``key``, checked again (a config built in code may have
+    skipped validation) against the bounds the schema gives it, the one place they are written;
+    ``low`` (closed) replaces the schema's lower bound where another setting sets it."""
+    section, name = key.split(".")
+    spec = SCHEMA.fields[section].fields[name]
+    if low is None:
+        return _limit(cfg[section][name], key, spec.low, spec.high, spec.low_open)
+    return _limit(cfg[section][name], key, low, spec.high, low_open=False)
+
+
 class Safety:
     """Sensor plausibility checks, current limits and the state machine (see the module docstring)."""
 
     def __init__(self, cfg: Mapping[str, Any], dt: float):
-        s = cfg["safety"]
-        amp = cfg["amplifier"]
         self.dt = _limit(dt, "dt", 0.0, 1.0)
-        self.ankle_limit = math.radians(_limit(cfg["limits"]["ankle_range_deg"], "limits.ankle_range_deg", 0.0, 90.0))
+        self.ankle_limit = math.radians(_configured(cfg, "limits.ankle_range_deg"))
         # With the motors detached from the cables (sim.cables: false, the actuator experiments) the
         # ankle angle estimated from the motors means nothing; only joint encoders are checked then.
         self.check_estimated_ankle = bool(cfg["sim"]["cables"])
-        self.max_motor_speed = _limit(s["max_motor_speed_rad_s"], "safety.max_motor_speed_rad_s", 0.0, 200.0)
-        self.max_sg_step = _limit(s["max_sg_step_nm"], "safety.max_sg_step_nm", 0.0, 500.0)
-        self.sg_rail = _limit(s["sg_rail_nm"], "safety.sg_rail_nm", 0.0, 500.0)
-        self.stale_cycles = int(_limit(s["stale_cycles"], "safety.stale_cycles", 1, 1000, low_open=False))
-        i_cont = _limit(amp["current_limit_continuous"], "amplifier.current_limit_continuous", 0.0, ESCON_CONTINUOUS_A)
-        self.i_peak = _limit(amp["current_limit_peak"], "amplifier.current_limit_peak", i_cont, ESCON_PEAK_A,
-                             low_open=False)
+        self.max_motor_speed = _configured(cfg, "safety.max_motor_speed_rad_s")
+        self.max_sg_step = _configured(cfg, "safety.max_sg_step_nm")
+        self.sg_rail = _configured(cfg, "safety.sg_rail_nm")
+        self.stale_cycles = int(_configured(cfg, "safety.stale_cycles"))
+        i_cont = _configured(cfg, "amplifier.current_limit_continuous")
+        self.i_peak = _configured(cfg, "amplifier.current_limit_peak", low=i_cont)
         self.i_cont2 = i_cont ** 2
-        peak_s = _limit(s["i2t_peak_duration_s"], "safety.i2t_peak_duration_s", 0.0, ESCON_PEAK_S)
+        peak_s = _configured(cfg, "safety.i2t_peak_duration_s")
         self.i2t_budget = (self.i_peak ** 2 - self.i_cont2) * peak_s  # A^2 s
         self.state = State.CONFIGURED
         self.fault = Fault.NONE
