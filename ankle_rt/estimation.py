@@ -26,6 +26,21 @@ from ankle_rt.elementwise import Value, all_true, select, stack
 from ankle_rt.kinematics import Kinematics
 
 
+class _Pair:
+    """A (2,) array of two of an :class:`Estimate`'s plain values, refreshed in place when read."""
+
+    def __init__(self, index: int, first: str, second: str):
+        self.index, self.first, self.second = index, first, second
+
+    def __get__(self, est: "Estimate | None", owner: type) -> "np.ndarray | _Pair":
+        if est is None:
+            return self
+        out = est._arrays[self.index]
+        out[0] = getattr(est, self.first)
+        out[1] = getattr(est, self.second)
+        return out
+
+
 class Estimate:
     """The estimated state of one cycle, preallocated once and filled in place.
 
@@ -57,35 +72,12 @@ class Estimate:
         self.tared = False
         self._arrays = [np.zeros(2) for _ in range(6)]
 
-    def _pair(self, i: int, a: float, b: float) -> np.ndarray:
-        out = self._arrays[i]
-        out[0] = a
-        out[1] = b
-        return out
-
-    @property
-    def motor_pos(self) -> np.ndarray:
-        return self._pair(0, self.mp1, self.mp2)
-
-    @property
-    def motor_vel(self) -> np.ndarray:
-        return self._pair(1, self.mv1, self.mv2)
-
-    @property
-    def ankle_pos(self) -> np.ndarray:
-        return self._pair(2, self.dp, self.ie)
-
-    @property
-    def ankle_vel(self) -> np.ndarray:
-        return self._pair(3, self.dp_vel, self.ie_vel)
-
-    @property
-    def sg_torque(self) -> np.ndarray:
-        return self._pair(4, self.sg_dp, self.sg_ie)
-
-    @property
-    def joint_pos(self) -> np.ndarray:
-        return self._pair(5, self.joint_dp, self.joint_ie)
+    motor_pos = _Pair(0, "mp1", "mp2")
+    motor_vel = _Pair(1, "mv1", "mv2")
+    ankle_pos = _Pair(2, "dp", "ie")
+    ankle_vel = _Pair(3, "dp_vel", "ie_vel")
+    sg_torque = _Pair(4, "sg_dp", "sg_ie")
+    joint_pos = _Pair(5, "joint_dp", "joint_ie")
 
 
 class Estimator:

@@ -15,7 +15,7 @@ import statistics
 import time
 from typing import TYPE_CHECKING, Callable
 
-from ankle_rt.backend import Backend, SensorFrame, open_backend
+from ankle_rt.backend import Backend, ForwardingBackend, SensorFrame, open_backend
 from ankle_rt.clock import SimClock
 from ankle_rt.daemon import Daemon, run_lockstep
 from ankle_rt.log.memory import MemoryRecorder
@@ -28,30 +28,17 @@ CHUNK = 50         # cycles per timed slice
 Row = tuple[float, int, float, float, float, float, float, float]   # t, seq, motor 1/2, sg DP/IE, joint DP/IE
 
 
-class RecordingBackend(Backend):
+class RecordingBackend(ForwardingBackend):
     """Passes everything to ``inner`` and keeps each frame it reads (not for the real-time loop)."""
 
     def __init__(self, inner: Backend):
-        super().__init__(inner.cfg, inner.clock)
-        self.inner = inner
+        super().__init__(inner)
         self.rows: list[Row] = []
-
-    def activate(self) -> None:
-        self.inner.activate()
-
-    def deactivate(self) -> None:
-        self.inner.deactivate()
-
-    def write(self, current_1: float, current_2: float) -> None:
-        self.inner.write(current_1, current_2)
 
     def read(self, frame: SensorFrame) -> None:
         self.inner.read(frame)
         m, s, j = frame.motor_pos, frame.sg_torque, frame.ankle_pos
         self.rows.append((frame.t, frame.seq, m.item(0), m.item(1), s.item(0), s.item(1), j.item(0), j.item(1)))
-
-    def close(self) -> None:
-        self.inner.close()
 
 
 class ReplayBackend(Backend):
