@@ -87,7 +87,10 @@ class Estimator:
     device and, on a :meth:`stack`, on arrays over a batch of devices sampled at the same times."""
 
     def __init__(self, kin: Kinematics, dt: float, velocity_cutoff_hz: float, tare_samples: int):
-        """``dt`` s is the nominal period (used for the filter constant); ``tare_samples`` >= 1."""
+        """``dt`` s is the nominal period (used for the filter constant); ``tare_samples`` >= 1
+        (else ValueError)."""
+        if not tare_samples >= 1:
+            raise ValueError(f"tare_samples must be >= 1, got {tare_samples!r}")
         self.Ri = list(kin.R_inv.ravel().tolist())
         self.Ki0, self.Ki1 = float(kin.K_inv[0, 0]), float(kin.K_inv[1, 1])
         self.dt = dt

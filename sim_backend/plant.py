@@ -100,10 +100,11 @@ class SimulatedPlant:
             if self._noise_i >= NOISE_BLOCK:
                 self.rng.standard_normal(out=self._noise)
                 self._noise_i = 0
-            n = self._noise[self._noise_i]
-            self._noise_i += 1
-            t0 += self.noise_rms * n[0]
-            t1 += self.noise_rms * n[1]
+            k = self._noise_i
+            self._noise_i = k + 1
+            noise = self._noise               # .item: plain floats, no view or numpy scalar per sample
+            t0 += self.noise_rms * noise.item(k, 0)
+            t1 += self.noise_rms * noise.item(k, 1)
         return t0 + self.sg_offset[0], t1 + self.sg_offset[1]
 
     def ankle_positions(self) -> tuple[float, float]:
