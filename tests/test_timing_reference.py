@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
 from ankle_rt.bench.replay import ReplayBackend, daemon_cycle_s, record_frames
 from ankle_rt.clock import SimClock
@@ -55,3 +56,19 @@ def test_the_replayed_daemon_computes_what_it_did_in_lockstep(sim_cfg):
         assert np.array_equal(want[name], got[name]), name
     assert np.ptp(want["current_cmd_1"]) > 0.0
     assert daemon_cycle_s(sim_cfg, 0.1, repeats=1) > 0.0
+
+
+def test_bench_loop_reports_the_daemon_alone_and_every_time_in_reference_steps(capsys):
+    import json
+
+    from ankle_rt.cli import main
+
+    assert main(["bench", "loop", "--duration", "0.2", "--lockstep", "0.2", "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    us = result["reference_step_us"]
+    assert us > 0
+    for name in ("lockstep_cycle", "daemon_cycle"):
+        assert result[f"{name}_ref_steps"] == pytest.approx(result[f"{name}_us"] / us)
+        assert name + "_ref_steps" in result["goals_met"]
+    for q in ("p50", "p99", "p999", "max"):
+        assert result[f"compute_{q}_ref_steps"] == pytest.approx(result[f"compute_{q}_us"] / us)
