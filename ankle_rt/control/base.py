@@ -7,7 +7,8 @@ A controller is one step of the fixed-rate cycle::
 **Inputs**, every cycle: the :class:`~ankle_rt.estimation.Estimate` ``est`` (SI, motor side at the
 gearbox output: ``t`` s; ``motor_pos`` rad, ``motor_vel`` rad/s (2,); ``ankle_pos`` rad,
 ``ankle_vel`` rad/s [DP, IE]; ``sg_torque`` N m [DP, IE], tared; ``joint_pos`` rad [DP, IE] or NaN
-without joint encoders) and the ankle reference ``context.ref`` (rad [DP, IE]; the loop refreshes
+without joint encoders; the same values as plain floats: ``est.mp1``, ``est.dp``, ``est.sg_dp``, ...,
+cheaper to read) and the ankle reference ``context.ref`` (rad [DP, IE]; the loop refreshes
 this array in place before each ``update``: keep the reference to the array, not its values).
 
 **Output**: the two motor torques, N m at the gearbox output, written into ``out_torque[0:2]``.
