@@ -120,11 +120,3 @@ def _median_cycle_s(backend: Callable[[SimClock], Backend], cfg: "Config", secon
             gc.enable()
             daemon.close()
     return statistics.median(times)
-
-
-def replay_daemon(cfg: "Config", rows: list[Row]) -> Daemon:
-    """The configured daemon on a SimClock reading ``rows``, recording into memory as in lockstep."""
-    clock = SimClock()
-    daemon = Daemon(cfg, clock, backend=ReplayBackend(cfg, clock, rows))
-    daemon.recorder = MemoryRecorder(len(rows) + 1)
-    return daemon
