@@ -5,12 +5,13 @@ The workload: one classical RK4 step (h = 1 ms) of the 8-state cable model (docs
 model": ankle and motor angles and rates, dx/dt = A x + B f) with the nominal parameters of the
 shipped ``config/sim.yaml``, written in plain Python floats (no numpy): the rates, the accelerations
 as dense rows of [A B] (zeros included, so the cost does not depend on the parameters' values), the
-non-linear gravity remainder (``sin``) and smoothed Coulomb friction (``tanh``) of both motors. Its code is frozen here:
-a change of the project's simulator or daemon does not change the unit. A machine 3x faster does
-the reference step and the benchmarked code about 3x faster, so a figure in ref steps stays.
+non-linear gravity remainder (``sin``) and smoothed Coulomb friction (``tanh``) of both motors.
+Its code is frozen here: a change of the project's simulator or daemon does not change the unit. A
+machine 3x faster does the reference step and the benchmarked code about 3x faster, so a figure in
+ref steps stays.
 
-``reference_step_s()`` times it (the median of many short slices, as the benchmarks time theirs);
-``ref_steps(seconds, reference)`` converts a benchmark's figure.
+``reference_step_s()`` times it (the median of many short slices, as the benchmarks time theirs); a
+benchmark's figure in reference steps is its time divided by that.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from functools import lru_cache
 H_S = 1e-3          # s, the RK4 step (one control period at 1 kHz)
 STEPS = 20          # reference steps per timed slice (~0.3-1 ms on this project's machines)
 REPEATS = 200
+START = (0.05, -0.02, 0.3, -0.1, 0.2, 0.1, -0.5, 0.4)   # rad, rad/s: the state each slice starts from
 
 
 @lru_cache(maxsize=1)
@@ -68,19 +70,14 @@ def reference_step(x: list[float], tau1: float, tau2: float) -> list[float]:
 
 def reference_step_s(repeats: int = REPEATS, steps: int = STEPS) -> float:
     """Seconds per reference step on this machine now: the median over ``repeats`` slices of
-    ``steps`` steps (short slices: on a busy machine most of them run undisturbed, as the
-    benchmarks' own slices do) of a driven oscillation (the state stays bounded, the inputs change)."""
+    ``steps`` steps from START with alternating motor torques (short slices: on a busy machine
+    most of them run undisturbed, as the benchmarks' own slices do)."""
     _nominal_model()
     times = []
-    x = [0.0] * 8
     for r in range(repeats):
+        x = list(START)       # each slice from the same state: bounded whatever the parameters
         t0 = time.perf_counter()
         for k in range(steps):
             x = reference_step(x, 0.1 if r % 10 < 5 else -0.1, 0.05)
         times.append((time.perf_counter() - t0) / steps)
     return statistics.median(times)
-
-
-def ref_steps(seconds: float, reference_s: float) -> float:
-    """``seconds`` of a benchmark in reference steps (``reference_s``: :func:`reference_step_s`)."""
-    return seconds / reference_s
