@@ -460,10 +460,23 @@ def spectral_radius(T: np.ndarray) -> float:
     return float(np.max(np.abs(np.linalg.eigvals(T))))
 
 
-def gain_margin_db(p: PlantParams, c: ImpedanceLoop, *, foot: str = "free", load_slope: float = 0.0) -> float:
+def loop_in_gain(p: PlantParams, c: ImpedanceLoop, *, foot: str = "free",
+                 load_slope: float = 0.0) -> Callable[[float], np.ndarray]:
+    """T(g), the transition matrix of :func:`closed_loop` at controller gain g, from two builds of the
+    loop (linear model, ZOH, controller) instead of one per gain: the gain scales only the
+    controller's output rows, so T is affine in it, T(g) = T(0) + g (T(1) - T(0))."""
+    T0 = closed_loop_matrix(p, c, foot=foot, load_slope=load_slope, gain=0.0)
+    dT = closed_loop_matrix(p, c, foot=foot, load_slope=load_slope, gain=1.0) - T0
+    return lambda g: T0 + g * dT
+
+
+def gain_margin_db(p: PlantParams, c: ImpedanceLoop, *, foot: str = "free", load_slope: float = 0.0,
+                   loop: Callable[[float], np.ndarray] | None = None) -> float:
     """dB by which the whole controller output may grow before the sampled loop goes unstable
-    (-inf when it already is; 20 log10(MAX_GAIN_MARGIN) when it stays stable that far)."""
-    stable = lambda g: spectral_radius(closed_loop_matrix(p, c, foot=foot, load_slope=load_slope, gain=g)) < 1.0  # noqa: E731
+    (-inf when it already is; 20 log10(MAX_GAIN_MARGIN) when it stays stable that far). ``loop``:
+    the :func:`loop_in_gain` of these arguments, if the caller has it already."""
+    T = loop_in_gain(p, c, foot=foot, load_slope=load_slope) if loop is None else loop
+    stable = lambda g: spectral_radius(T(g)) < 1.0  # noqa: E731
     if not stable(1.0):
         return -math.inf
     grid = np.logspace(0.0, math.log10(MAX_GAIN_MARGIN), 41)
@@ -508,6 +521,6 @@ def torque_loop_margins(p: PlantParams, c: ImpedanceLoop, *, load_coefficient: f
             pp = dataclasses.replace(pp, actuator=dataclasses.replace(pp.actuator, damping=pp.actuator.damping * vf))
             for slope in sorted({-load_coefficient, 0.0, load_coefficient}):
                 for foot in feet:
-                    rho = spectral_radius(closed_loop_matrix(pp, c, foot=foot, load_slope=slope))
-                    cases.append(MarginCase(kf, vf, slope, foot, gain_margin_db(pp, c, foot=foot, load_slope=slope), rho))
+                    T = loop_in_gain(pp, c, foot=foot, load_slope=slope)
+                    cases.append(MarginCase(kf, vf, slope, foot, gain_margin_db(pp, c, loop=T), spectral_radius(T(1.0))))
     return cases

@@ -115,6 +115,33 @@ class Backend(ABC):
         self.close()
 
 
+class ForwardingBackend(Backend):
+    """Passes everything to the backend ``inner`` (same config and clock): subclass it to watch or
+    change one call (benchmarks, tools), not to drive a device of its own."""
+
+    def __init__(self, inner: Backend):
+        super().__init__(inner.cfg, inner.clock)
+        self.inner = inner
+
+    def activate(self) -> None:
+        self.inner.activate()
+
+    def read(self, frame: SensorFrame) -> None:
+        self.inner.read(frame)
+
+    def write(self, current_1: float, current_2: float) -> None:
+        self.inner.write(current_1, current_2)
+
+    def deactivate(self) -> None:
+        self.inner.deactivate()
+
+    def close(self) -> None:
+        self.inner.close()
+
+    def counters(self) -> dict[str, int]:
+        return self.inner.counters()
+
+
 BATCH_PLANTS: dict[str, str] = {
     "sim": "sim_backend.batch:BatchPlant",
 }

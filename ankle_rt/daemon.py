@@ -21,6 +21,7 @@ import numpy as np
 
 from ankle_rt.backend import Backend, SensorFrame, open_backend
 from ankle_rt.clock import Clock, SimClock
+from ankle_rt.command_limits import gain_maxima, gain_problem, reference_problem
 from ankle_rt.config import Config, ConfigError, config_data
 from ankle_rt.control import CycleController, build_controller
 from ankle_rt.control.gains import GainError
@@ -81,7 +82,7 @@ class Daemon:
             self.controller = controller
         self.safety = Safety(cfg, self.dt)
         self.max_reference_step = cfg["reference"]["max_rate_rad_s"] * self.dt   # rad per cycle, commanded
-        self.gain_maxima = proto.gain_maxima(cfg["controller"]["gain_limits"])
+        self.gain_maxima = gain_maxima(cfg["controller"]["gain_limits"])
         self.loader = BackgroundLoader()
         self.torque = np.zeros(2)
         self.loop = FixedRateLoop(clock, self.period_ns, cfg["loop"]["max_consecutive_overruns"],
@@ -117,7 +118,7 @@ class Daemon:
                 code = safety.check_reference(ref.item(0), ref.item(1))
             if code == 0 and state == ACTIVE:
                 self.controller.update(est, torque)
-                code = safety.limit_currents(torque[0] * self.inv_kt, torque[1] * self.inv_kt)
+                code = safety.limit_currents(torque.item(0) * self.inv_kt, torque.item(1) * self.inv_kt)
                 if code == 0:
                     backend.write(safety.current[0], safety.current[1])
             if code != 0:
@@ -127,10 +128,10 @@ class Daemon:
         if self.service is not None:
             self._service_tick(t_start_ns * 1e-9)
         if self.recorder is not None:
-            ankle, mvel, sg, joint, ref = est.ankle_pos, est.motor_vel, est.sg_torque, est.joint_pos, self.reference.ref
+            ref = self.reference.ref
             self.recorder.append(
-                est.t, est.motor_pos[0], est.motor_pos[1], mvel[0], mvel[1], sg[0], sg[1], joint[0], joint[1],
-                ankle[0], ankle[1], ref[0], ref[1], torque[0], torque[1],
+                est.t, est.mp1, est.mp2, est.mv1, est.mv2, est.sg_dp, est.sg_ie, est.joint_dp, est.joint_ie,
+                est.dp, est.ie, ref[0], ref[1], torque[0], torque[1],
                 safety.current[0], safety.current[1],
                 (t_start_ns - loop.start_ns) * 1e-9, frame.seq, loop.last_period_ns * 1e-3, latency_ns * 1e-3,
                 loop.stats.overruns, safety.state, safety.fault, frame.faults)
@@ -214,10 +215,9 @@ class Daemon:
         if setter is None:
             raise ValueError("this controller has no run-time gains")
         for name, value in gains.items():
-            limit = self.gain_maxima.get(name, math.inf)
-            if not (isinstance(value, (int, float)) and 0.0 <= value <= limit):   # False for NaN
-                raise GainError(name, f"gain {name!r} must be a finite number in [0, {limit:g}] "
-                                      f"(controller.gain_limits), got {value!r}")
+            problem = gain_problem(name, value, self.gain_maxima)
+            if problem:
+                raise GainError(name, f"gain {name!r} {problem}")
         setter(**gains)
 
     def _command_reference(self, profile: Profile) -> None:
@@ -267,10 +267,10 @@ class Daemon:
                 self.request_stop()
             elif isinstance(command, proto.SetReference):
                 ramp = self.cfg["reference"]["ramp_s"] if command.ramp is None else command.ramp
-                limit = self.safety.ankle_limit
-                if not (abs(command.dp) <= limit and abs(command.ie) <= limit):
-                    raise proto.CommandError("dp" if not abs(command.dp) <= limit else "ie",
-                                             f"outside the ankle range +/-{limit:.4g} rad")
+                for key, value in (("dp", command.dp), ("ie", command.ie)):
+                    problem = reference_problem(value, self.safety.ankle_limit)
+                    if problem:
+                        raise proto.CommandError(key, problem)
                 self._command_reference(RampTo(command.dp, command.ie, ramp))
             elif isinstance(command, proto.SetGains):
                 self.set_gains(**command.given())

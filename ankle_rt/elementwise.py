@@ -47,6 +47,27 @@ def select(condition, if_true, if_false):
     return if_true if condition else if_false
 
 
+def minimum(x, high):
+    """min(x, high)."""
+    if x.__class__ is _ARRAY or high.__class__ is _ARRAY:
+        return np.minimum(x, high)
+    return x if x < high else high
+
+
+def all_true(condition) -> bool:
+    """Whether ``condition`` holds (for a batch: on every device). A plain bool, to branch on."""
+    if condition.__class__ is _ARRAY:
+        return bool(condition.all())
+    return bool(condition)
+
+
+def any_true(condition) -> bool:
+    """Whether ``condition`` holds (for a batch: on some device). A plain bool, to branch on."""
+    if condition.__class__ is _ARRAY:
+        return bool(condition.any())
+    return bool(condition)
+
+
 def positive_part(x):
     """max(x, 0)."""
     if x.__class__ is _ARRAY:
@@ -62,20 +83,40 @@ def pick(buffer, index):
     return buffer[index]
 
 
-def stack(objects, shared: tuple[str, ...] = ()):
+def stack(objects, shared: tuple[str, ...] = (), columns: tuple[str, ...] = ()):
     """One object of the same class standing for ``objects`` (one per plant of a batch): every
-    number becomes an array over the batch; anything else must be equal on every object (else
-    ValueError: the caller runs them one by one), except the ``shared`` attributes, which are
-    descriptive only and taken from the first object."""
+    number becomes an array over the batch; each ``columns`` attribute (a list or tuple of numbers
+    per object, e.g. a matrix's entries) a list or tuple of such arrays; an attribute that is itself
+    stackable (its class has ``stack``) is stacked by it; a flag (bool) stays a plain bool where it
+    is the same on every object (code may branch on it) and becomes a bool array where it differs;
+    anything else must be equal on every object (else ValueError: the caller runs them one by one),
+    except the ``shared`` attributes, which are descriptive only and taken from the first object."""
     first = objects[0]
     out = object.__new__(type(first))
+    owner = type(first).__name__
     for name, value in vars(first).items():
-        if isinstance(value, (int, float)) and not isinstance(value, bool):
-            value = np.array([getattr(o, name) for o in objects], dtype=float)
-        elif name not in shared and not all(_equal(getattr(o, name), value) for o in objects[1:]):
-            raise ValueError(f"{type(first).__name__}.{name} differs between plants and is not a number")
+        values = [getattr(o, name) for o in objects]
+        if name in columns:
+            if any(len(v) != len(value) for v in values):
+                raise ValueError(f"{owner}.{name} differs in length between plants")
+            value = type(value)(np.array(column, dtype=float) for column in zip(*values))
+        elif name not in shared:
+            value = _stacked(owner, name, values)
         setattr(out, name, value)
     return out
+
+
+def _stacked(owner: str, name: str, values: list):
+    value = values[0]
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return np.array(values, dtype=float)
+    if isinstance(value, bool) and all(isinstance(v, bool) for v in values):
+        return value if all(v == value for v in values) else np.array(values)
+    if hasattr(type(value), "stack") and all(type(v) is type(value) for v in values):
+        return type(value).stack(values)
+    if not all(_equal(v, value) for v in values[1:]):
+        raise ValueError(f"{owner}.{name} differs between plants and is not a number")
+    return value
 
 
 def _equal(a, b) -> bool:

@@ -10,58 +10,99 @@
 - Ankle angles from the motors and the cable stretch: ``theta = R^-1 theta_m - K^-1 tau_j`` with the
   tared strain-gauge torques (the paper's eq. 10 solved for theta).
 
-Everything is computed in plain floats and written into the preallocated :class:`Estimate` arrays:
-nothing is allocated per cycle.
+Everything is computed in plain floats and written into the preallocated :class:`Estimate`: nothing
+is allocated per cycle. The same code runs on arrays over a batch (:mod:`ankle_rt.sweep.cycle`).
 """
 
 from __future__ import annotations
 
 import math
+from typing import Sequence
 
 import numpy as np
 
 from ankle_rt.backend import SensorFrame
+from ankle_rt.elementwise import Value, all_true, select, stack
 from ankle_rt.kinematics import Kinematics
+
+
+class _Pair:
+    """A (2,) array of two of an :class:`Estimate`'s plain values, refreshed in place when read."""
+
+    def __init__(self, index: int, first: str, second: str):
+        self.index, self.first, self.second = index, first, second
+
+    def __get__(self, est: "Estimate | None", owner: type) -> "np.ndarray | _Pair":
+        if est is None:
+            return self
+        out = est._arrays[self.index]
+        out[0] = getattr(est, self.first)
+        out[1] = getattr(est, self.second)
+        return out
 
 
 class Estimate:
     """The estimated state of one cycle, preallocated once and filled in place.
 
-    Attributes (SI, motor side at the gearbox output):
-        t          s, sample time of the sensor frame
-        motor_pos  rad (2,), encoder angles
-        motor_vel  rad/s (2,), backward difference + first-order low-pass (see module docstring)
-        ankle_pos  rad (2,) [DP, IE], theta = R^-1 theta_m - K^-1 tau_j
-        ankle_vel  rad/s (2,) [DP, IE], R^-1 motor_vel (rigid-cable rate; cable stretch rate neglected)
-        sg_torque  N m (2,) [DP, IE], tared strain-gauge torques
-        joint_pos  rad (2,) [DP, IE] from joint encoders, NaN if the device has none
-        tared      True once the strain-gauge offset is known
+    Plain values (SI, motor side at the gearbox output), floats for one device and arrays over the
+    batch in the batched daemon cycle (:mod:`ankle_rt.elementwise`): what the element-wise cycle
+    pieces read.
+        t                  s, sample time of the sensor frame
+        mp1, mp2           rad, encoder angles of motor 1 and 2
+        mv1, mv2           rad/s, motor velocities: backward difference + first-order low-pass
+        dp, ie             rad, ankle angles theta = R^-1 theta_m - K^-1 tau_j
+        dp_vel, ie_vel     rad/s, R^-1 motor velocity (rigid-cable rate; cable stretch rate neglected)
+        sg_dp, sg_ie       N m, tared strain-gauge torques
+        joint_dp, joint_ie rad, joint encoders, NaN if the device has none
+        tared              True once the strain-gauge offset is known
+
+    The same values as (2,) arrays for controllers written on arrays (plugins, identification):
+    ``motor_pos``, ``motor_vel``, ``ankle_pos`` [DP, IE], ``ankle_vel``, ``sg_torque``, ``joint_pos``
+    (refreshed in place when read: no allocation, read-only views of the values above).
     """
 
-    __slots__ = ("t", "motor_pos", "motor_vel", "ankle_pos", "ankle_vel", "sg_torque", "joint_pos", "tared")
+    __slots__ = ("t", "mp1", "mp2", "mv1", "mv2", "dp", "ie", "dp_vel", "ie_vel", "sg_dp", "sg_ie",
+                 "joint_dp", "joint_ie", "tared", "_arrays")
 
     def __init__(self) -> None:
         self.t = 0.0
-        self.motor_pos = np.zeros(2)
-        self.motor_vel = np.zeros(2)
-        self.ankle_pos = np.zeros(2)
-        self.ankle_vel = np.zeros(2)
-        self.sg_torque = np.zeros(2)
-        self.joint_pos = np.full(2, np.nan)
+        self.mp1 = self.mp2 = self.mv1 = self.mv2 = 0.0
+        self.dp = self.ie = self.dp_vel = self.ie_vel = self.sg_dp = self.sg_ie = 0.0
+        self.joint_dp = self.joint_ie = math.nan
         self.tared = False
+        self._arrays = [np.zeros(2) for _ in range(6)]
+
+    motor_pos = _Pair(0, "mp1", "mp2")
+    motor_vel = _Pair(1, "mv1", "mv2")
+    ankle_pos = _Pair(2, "dp", "ie")
+    ankle_vel = _Pair(3, "dp_vel", "ie_vel")
+    sg_torque = _Pair(4, "sg_dp", "sg_ie")
+    joint_pos = _Pair(5, "joint_dp", "joint_ie")
 
 
 class Estimator:
-    """Fills an :class:`Estimate` from each :class:`SensorFrame` (see the module docstring)."""
+    """Fills an :class:`Estimate` from each sensor sample (see the module docstring).
+
+    Written element-wise (:mod:`ankle_rt.elementwise`): :meth:`estimate` runs on floats for one
+    device and, on a :meth:`stack`, on arrays over a batch of devices sampled at the same times."""
 
     def __init__(self, kin: Kinematics, dt: float, velocity_cutoff_hz: float, tare_samples: int):
-        """``dt`` s is the nominal period (used for the filter constant); ``tare_samples`` >= 1."""
-        self.Ri = tuple(kin.R_inv.ravel().tolist())
+        """``dt`` s is the nominal period (used for the filter constant); ``tare_samples`` >= 1
+        (else ValueError)."""
+        if not tare_samples >= 1:
+            raise ValueError(f"tare_samples must be >= 1, got {tare_samples!r}")
+        self.Ri = list(kin.R_inv.ravel().tolist())
         self.Ki0, self.Ki1 = float(kin.K_inv[0, 0]), float(kin.K_inv[1, 1])
         self.dt = dt
         self.alpha = 1.0 - math.exp(-2.0 * math.pi * velocity_cutoff_hz * dt)
         self.tare_samples = tare_samples
         self.reset()
+
+    @classmethod
+    def stack(cls, estimators: Sequence["Estimator"]) -> "Estimator":
+        """One estimator standing for ``estimators`` (one per device of a batch), numbers as arrays
+        but the last sample time (the batch's devices are sampled together)."""
+        return stack(estimators, shared=("_t",), columns=("Ri", "offset"))
 
     def reset(self) -> None:
         """Forget the filter state and the tare (the next samples are averaged again)."""
@@ -69,14 +110,19 @@ class Estimator:
         self._p1 = self._p2 = 0.0
         self._v1 = self._v2 = 0.0
         self._n = 0
+        self.taring = True          # some device still averages its tare
         self._sum0 = self._sum1 = 0.0
-        self.offset = [0.0, 0.0]   # N m [DP, IE], the tare
+        self.offset = [0.0, 0.0]    # N m [DP, IE], the tare
 
     def update(self, frame: SensorFrame, est: Estimate) -> None:
         """Estimate from ``frame`` into ``est`` (no allocation)."""
-        t = frame.t
-        mp, sg = frame.motor_pos, frame.sg_torque
-        p1, p2, s0, s1 = mp.item(0), mp.item(1), sg.item(0), sg.item(1)
+        mp, sg, j = frame.motor_pos, frame.sg_torque, frame.ankle_pos
+        self.estimate(frame.t, mp.item(0), mp.item(1), sg.item(0), sg.item(1), j.item(0), j.item(1), est)
+
+    def estimate(self, t: float, p1: Value, p2: Value, s0: Value, s1: Value, j0: Value, j1: Value,
+                 est: Estimate) -> None:
+        """Estimate into ``est`` from one sample: time ``t`` s (one for the whole batch), motor angles
+        rad, raw strain-gauge torques N m [DP, IE], joint encoders rad (NaN: none). Element-wise."""
         h = t - self._t
         if h > 0.0:          # NaN on the first sample; a repeated (stale) sample keeps the velocity
             a = self.alpha
@@ -84,36 +130,26 @@ class Estimator:
             self._v2 += a * ((p2 - self._p2) / h - self._v2)
         self._t, self._p1, self._p2 = t, p1, p2
 
-        n = self._n
-        if n < self.tare_samples:
-            self._sum0 += s0
-            self._sum1 += s1
-            n += 1
-            self._n = n
+        if self.taring:
+            n = self._n
+            adding = n < self.tare_samples
+            self._sum0 = self._sum0 + select(adding, s0, 0.0)
+            self._sum1 = self._sum1 + select(adding, s1, 0.0)
+            n = self._n = n + select(adding, 1, 0)
             self.offset[0] = self._sum0 / n
             self.offset[1] = self._sum1 / n
-            est.tared = n >= self.tare_samples
+            est.tared = tared = n >= self.tare_samples
+            self.taring = not all_true(tared)
         s0 -= self.offset[0]
         s1 -= self.offset[1]
 
         r0, r1, r2, r3 = self.Ri
         v1, v2 = self._v1, self._v2
         est.t = t
-        a = est.motor_pos
-        a[0] = p1
-        a[1] = p2
-        a = est.motor_vel
-        a[0] = v1
-        a[1] = v2
-        a = est.sg_torque
-        a[0] = s0
-        a[1] = s1
-        a = est.ankle_pos
-        a[0] = r0 * p1 + r1 * p2 - self.Ki0 * s0
-        a[1] = r2 * p1 + r3 * p2 - self.Ki1 * s1
-        a = est.ankle_vel
-        a[0] = r0 * v1 + r1 * v2
-        a[1] = r2 * v1 + r3 * v2
-        a, j = est.joint_pos, frame.ankle_pos
-        a[0] = j[0]
-        a[1] = j[1]
+        est.mp1, est.mp2, est.mv1, est.mv2 = p1, p2, v1, v2
+        est.sg_dp, est.sg_ie = s0, s1
+        est.dp = r0 * p1 + r1 * p2 - self.Ki0 * s0
+        est.ie = r2 * p1 + r3 * p2 - self.Ki1 * s1
+        est.dp_vel = r0 * v1 + r1 * v2
+        est.ie_vel = r2 * v1 + r3 * v2
+        est.joint_dp, est.joint_ie = j0, j1

@@ -24,10 +24,13 @@ from __future__ import annotations
 
 import enum
 import math
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
+
+import numpy as np
 
 from ankle_rt.backend import BackendFault, SensorFrame
-from ankle_rt.config_schema import ESCON_CONTINUOUS_A, ESCON_PEAK_A, ESCON_PEAK_S
+from ankle_rt.config_schema import SCHEMA
+from ankle_rt.elementwise import Value, any_true, clip, positive_part, select, stack
 from ankle_rt.estimation import Estimate
 from ankle_rt.schema import ConfigError
 
@@ -101,16 +104,18 @@ for _bit, _ in _BACKEND_FAULTS:
     _FATAL_BACKEND_BITS |= int(_bit)
 
 # Plain ints for the per-cycle code (an enum attribute lookup costs more than the check itself).
-_ACTIVE = int(State.ACTIVE)
+_ACTIVE, _FAULT = int(State.ACTIVE), int(State.FAULT)
 _AMP_NOT_READY, _SENSOR_INVALID, _SG_RAIL = int(Fault.AMP_NOT_READY), int(Fault.SENSOR_INVALID), int(Fault.SG_RAIL)
 _SENSOR_STALE, _MOTOR_JUMP, _SG_JUMP = int(Fault.SENSOR_STALE), int(Fault.MOTOR_JUMP), int(Fault.SG_JUMP)
 _ANKLE_RANGE, _OVERCURRENT, _OUTPUT_INVALID = int(Fault.ANKLE_RANGE), int(Fault.OVERCURRENT), int(Fault.OUTPUT_INVALID)
 _REFERENCE_INVALID = int(Fault.REFERENCE_INVALID)
 
 
-def _limit(value: Any, key: str, low: float, high: float, low_open: bool = True) -> float:
-    """``value`` as a float if finite and within (low, high] ([low, high] when not ``low_open``);
-    else ConfigError naming ``key``: a limit the safety layer relies on must be a real number."""
+def _limit(value: Any, key: str, low: float, high: float | None, low_open: bool = True) -> float:
+    """``value`` as a float if finite and within (low, high] ([low, high] when not ``low_open``; no
+    upper bound for None); else ConfigError naming ``key``: a limit the safety layer relies on must
+    be a real number."""
+    high = math.inf if high is None else high
     ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
     if ok:
         ok = (value > low if low_open else value >= low) and value <= high
@@ -120,26 +125,34 @@ def _limit(value: Any, key: str, low: float, high: float, low_open: bool = True)
     return float(value)
 
 
+def _configured(cfg: Mapping[str, Any], key: str, low: float | None = None) -> float:
+    """The config's value at the dotted ``key``, checked again (a config built in code may have
+    skipped validation) against the bounds the schema gives it, the one place they are written;
+    ``low`` (closed) replaces the schema's lower bound where another setting sets it."""
+    section, name = key.split(".")
+    spec = SCHEMA.fields[section].fields[name]
+    if low is None:
+        return _limit(cfg[section][name], key, spec.low, spec.high, spec.low_open)
+    return _limit(cfg[section][name], key, low, spec.high, low_open=False)
+
+
 class Safety:
     """Sensor plausibility checks, current limits and the state machine (see the module docstring)."""
 
     def __init__(self, cfg: Mapping[str, Any], dt: float):
-        s = cfg["safety"]
-        amp = cfg["amplifier"]
         self.dt = _limit(dt, "dt", 0.0, 1.0)
-        self.ankle_limit = math.radians(_limit(cfg["limits"]["ankle_range_deg"], "limits.ankle_range_deg", 0.0, 90.0))
+        self.ankle_limit = math.radians(_configured(cfg, "limits.ankle_range_deg"))
         # With the motors detached from the cables (sim.cables: false, the actuator experiments) the
         # ankle angle estimated from the motors means nothing; only joint encoders are checked then.
         self.check_estimated_ankle = bool(cfg["sim"]["cables"])
-        self.max_motor_speed = _limit(s["max_motor_speed_rad_s"], "safety.max_motor_speed_rad_s", 0.0, 200.0)
-        self.max_sg_step = _limit(s["max_sg_step_nm"], "safety.max_sg_step_nm", 0.0, 500.0)
-        self.sg_rail = _limit(s["sg_rail_nm"], "safety.sg_rail_nm", 0.0, 500.0)
-        self.stale_cycles = int(_limit(s["stale_cycles"], "safety.stale_cycles", 1, 1000, low_open=False))
-        i_cont = _limit(amp["current_limit_continuous"], "amplifier.current_limit_continuous", 0.0, ESCON_CONTINUOUS_A)
-        self.i_peak = _limit(amp["current_limit_peak"], "amplifier.current_limit_peak", i_cont, ESCON_PEAK_A,
-                             low_open=False)
+        self.max_motor_speed = _configured(cfg, "safety.max_motor_speed_rad_s")
+        self.max_sg_step = _configured(cfg, "safety.max_sg_step_nm")
+        self.sg_rail = _configured(cfg, "safety.sg_rail_nm")
+        self.stale_cycles = int(_configured(cfg, "safety.stale_cycles"))
+        i_cont = _configured(cfg, "amplifier.current_limit_continuous")
+        self.i_peak = _configured(cfg, "amplifier.current_limit_peak", low=i_cont)
         self.i_cont2 = i_cont ** 2
-        peak_s = _limit(s["i2t_peak_duration_s"], "safety.i2t_peak_duration_s", 0.0, ESCON_PEAK_S)
+        peak_s = _configured(cfg, "safety.i2t_peak_duration_s")
         self.i2t_budget = (self.i_peak ** 2 - self.i_cont2) * peak_s  # A^2 s
         self.state = State.CONFIGURED
         self.fault = Fault.NONE
@@ -153,12 +166,13 @@ class Safety:
         self._p1 = self._p2 = self._s0 = self._s1 = self._t = 0.0
 
     # -- state machine (commands; not per cycle) ---------------------------------------------------
-    def trip(self, fault: int, t: float) -> None:
-        """Enter FAULT with ``fault`` as the reason (the first reason is kept)."""
-        if self.state != State.FAULT:
-            self.state = State.FAULT
-            self.fault = fault
-            self.fault_time = t
+    def trip(self, fault: Value, t: float) -> None:
+        """Enter FAULT with ``fault`` as the reason where it is not 0 (the first reason is kept).
+        Element-wise: on a :meth:`stack`, ``fault`` is a code per device."""
+        tripping = (self.state != _FAULT) & (fault != 0)
+        self.state = select(tripping, State.FAULT, self.state)
+        self.fault = select(tripping, fault, self.fault)
+        self.fault_time = select(tripping, t, self.fault_time)
 
     def reset(self) -> None:
         """FAULT -> SAFE (the explicit operator action). Raises RuntimeError in any other state."""
@@ -181,13 +195,9 @@ class Safety:
         if self.state == _ACTIVE and not (frame.amp_ready[0] and frame.amp_ready[1]):
             return _AMP_NOT_READY
         mp, sg = frame.motor_pos, frame.sg_torque
-        p1, p2, s0, s1 = mp.item(0), mp.item(1), sg.item(0), sg.item(1)
-        t = frame.t
-        if not math.isfinite(p1 + p2 + s0 + s1 + t):      # any NaN or inf makes the sum non-finite
-            return _SENSOR_INVALID
-        rail = self.sg_rail
-        if s0 >= rail or s0 <= -rail or s1 >= rail or s1 <= -rail:
-            return _SG_RAIL
+        code = self.check_values(frame.t, mp.item(0), mp.item(1), sg.item(0), sg.item(1), est)
+        if code:
+            return code
         seq = frame.seq
         if seq == self._seq:
             self._stale += 1
@@ -196,50 +206,64 @@ class Safety:
         else:
             self._stale = 0
             self._seq = seq
+        return 0
+
+    def check_values(self, t: float, p1: Value, p2: Value, s0: Value, s1: Value, est: Estimate) -> Value:
+        """The first fault the sensor values show (0 if none): not finite, strain gauge at its rail,
+        motor or strain-gauge jump since the last sample, ankle (estimated or joint encoder) beyond
+        the range. ``t`` s (one for a batch), motor angles rad, raw strain-gauge torques N m; the
+        ankle from ``est``. Element-wise: a code per device on a :meth:`stack`."""
+        rail, lim = self.sg_rail, self.ankle_limit
+        a0, a1, j0, j1 = est.dp, est.ie, est.joint_dp, est.joint_ie
+        invalid = (p1 + p2 + s0 + s1 + t) * 0.0 != 0.0     # NaN or inf anywhere
+        railed = (abs(s0) >= rail) | (abs(s1) >= rail)
+        ranged = (self.check_estimated_ankle & ((abs(a0) > lim) | (abs(a1) > lim))) \
+            | (abs(j0) > lim) | (abs(j1) > lim)           # NaN (no joint encoders) compares False
         if self._have_last:
             h = t - self._t
             allowed = self.max_motor_speed * (h if h > self.dt else self.dt)
-            if abs(p1 - self._p1) > allowed or abs(p2 - self._p2) > allowed:
-                return _MOTOR_JUMP
             step = self.max_sg_step
-            if abs(s0 - self._s0) > step or abs(s1 - self._s1) > step:
-                return _SG_JUMP
+            motor_jump = (abs(p1 - self._p1) > allowed) | (abs(p2 - self._p2) > allowed)
+            sg_jump = (abs(s0 - self._s0) > step) | (abs(s1 - self._s1) > step)
+        else:
+            motor_jump = sg_jump = False
         self._have_last = True
         self._p1, self._p2, self._s0, self._s1, self._t = p1, p2, s0, s1, t
-        lim = self.ankle_limit
-        a0, a1 = est.ankle_pos.item(0), est.ankle_pos.item(1)
-        if self.check_estimated_ankle and (a0 > lim or a0 < -lim or a1 > lim or a1 < -lim):
-            return _ANKLE_RANGE
-        j0, j1 = est.joint_pos.item(0), est.joint_pos.item(1)
-        if j0 > lim or j0 < -lim or j1 > lim or j1 < -lim:   # NaN (no joint encoders) compares False
-            return _ANKLE_RANGE
-        return 0
+        if not any_true(invalid | railed | motor_jump | sg_jump | ranged):
+            return 0 * invalid
+        return select(invalid, _SENSOR_INVALID, select(railed, _SG_RAIL, select(
+            motor_jump, _MOTOR_JUMP, select(sg_jump, _SG_JUMP, select(ranged, _ANKLE_RANGE, 0)))))
 
-    def check_reference(self, dp: float, ie: float) -> int:
+    def check_reference(self, dp: Value, ie: Value) -> Value:
         """REFERENCE_INVALID when the ankle reference (rad) is NaN or inf. (Commands that would take it
         beyond the ankle range are refused before they start; the ankle itself is checked against
-        the range every cycle.)"""
-        return 0 if math.isfinite(dp + ie) else _REFERENCE_INVALID
+        the range every cycle.) Element-wise."""
+        return select((dp + ie) * 0.0 == 0.0, 0, _REFERENCE_INVALID)
 
-    def limit_currents(self, i1: float, i2: float) -> int:
+    def limit_currents(self, i1: Value, i2: Value, where: bool | np.ndarray = True) -> Value:
         """Clamp set values (A) to the peak current into ``self.current`` and update the I^2 t
-        estimate; return OVERCURRENT once the peak budget is spent, OUTPUT_INVALID for NaN."""
-        cur = self.current
-        if not math.isfinite(i1 + i2):
-            cur[0] = cur[1] = 0.0
-            return _OUTPUT_INVALID
-        pk = self.i_peak
-        if i1 > pk or i1 < -pk or i2 > pk or i2 < -pk:
-            self.saturated += 1
-            i1 = pk if i1 > pk else (-pk if i1 < -pk else i1)
-            i2 = pk if i2 > pk else (-pk if i2 < -pk else i2)
-        cur[0] = i1
-        cur[1] = i2
+        estimate; return OVERCURRENT once the peak budget is spent, OUTPUT_INVALID for NaN.
+        Element-wise; on a :meth:`stack` only the devices ``where`` holds count (saturation, I^2 t,
+        faults): the others are not driven this cycle."""
+        cur, pk = self.current, self.i_peak
+        valid = (i1 + i2) * 0.0 == 0.0          # False for NaN or inf
+        counted = valid & where
+        self.saturated = self.saturated + (counted & ((abs(i1) > pk) | (abs(i2) > pk)))
+        i1 = clip(i1, -pk, pk)
+        i2 = clip(i2, -pk, pk)
+        cur[0] = select(valid, i1, 0.0)
+        cur[1] = select(valid, i2, 0.0)
         dt, ic2, q = self.dt, self.i_cont2, self.i2t
         q0 = q[0] + (i1 * i1 - ic2) * dt
         q1 = q[1] + (i2 * i2 - ic2) * dt
-        q[0] = q0 if q0 > 0.0 else 0.0
-        q[1] = q1 if q1 > 0.0 else 0.0
-        if q0 > self.i2t_budget or q1 > self.i2t_budget:
-            return _OVERCURRENT
-        return 0
+        q[0] = select(counted, positive_part(q0), q[0])
+        q[1] = select(counted, positive_part(q1), q[1])
+        over = counted & ((q0 > self.i2t_budget) | (q1 > self.i2t_budget))
+        return select(over, _OVERCURRENT, select(valid | (where ^ True), 0, _OUTPUT_INVALID))
+
+    @classmethod
+    def stack(cls, layers: Sequence["Safety"]) -> "Safety":
+        """One safety layer standing for ``layers`` (one per device of a batch): limits, state,
+        fault and I^2 t as arrays over the batch, for the element-wise checks and limits (the period
+        and the last sample time are the batch's, one for all)."""
+        return stack(layers, shared=("dt", "_t"), columns=("i2t", "current"))

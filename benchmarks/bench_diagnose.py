@@ -32,6 +32,7 @@ import numpy as np  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from ankle_rt.diagnosis import diagnose  # noqa: E402
+from ankle_rt.timing_reference import reference_step_s  # noqa: E402
 from tests.diagnosis_cases import README_RUN_YAML, draw_scenario, make_case, primary_error  # noqa: E402
 
 NAMES_EXCLUDED = ("none", "unknown")
@@ -130,7 +131,9 @@ def main() -> int:
         print(f"primary parameter error (named effects): median {pct(np.median(errs))}, 90th pct "
               f"{pct(np.percentile(errs, 90))}   (goal median <= 10 %)")
     times = [r[2] for r in rows]
-    print(f"diagnose time per case: median {np.median(times):.2f} s, max {max(times):.2f} s")
+    ref_s = reference_step_s()     # the machine-independent unit (ankle_rt.timing_reference)
+    print(f"diagnose time per case: median {np.median(times):.2f} s, max {max(times):.2f} s "
+          f"(= {np.median(times) / ref_s:.3g} / {max(times) / ref_s:.3g} ref steps of {ref_s * 1e6:.1f} us)")
     print(f"README trajectory, 486-period rotor cogging at 1 % rated torque: {readme_rotor_cogging()}")
 
     if args.runtime_s > 0:
@@ -140,7 +143,7 @@ def main() -> int:
         diag = diagnose(case.ident, case.valid, plant="ankle", cfg=case.nominal_cfg)
         dt = time.perf_counter() - t0
         print(f"runtime: diagnose on a {args.runtime_s:g} s, 1 kHz, two-motor file (+ {args.runtime_s / 3:g} s "
-              f"validation): {dt:.1f} s (goal <= 20 s); named {diag.causes}")
+              f"validation): {dt:.1f} s = {dt / ref_s:.3g} ref steps (goal <= 20 s); named {diag.causes}")
     return 0
 
 

@@ -23,7 +23,7 @@ from ankle_rt.elementwise import stack
 from ankle_rt.params import PlantParams
 from sim_backend.effects import Effect, build_effects
 from sim_backend.model import CompliantModel
-from sim_backend.plant import SimulatedPlant
+from sim_backend.plant import SimulatedPlant, check_disturbances
 
 # strain-gauge noise drawn per plant this many samples at a time: the same stream as the single
 # plant's larger blocks (a generator's normals do not depend on the chunking), and the transpose to
@@ -160,9 +160,11 @@ class BatchPlant:
 
     @staticmethod
     def check_config(cfg: Mapping[str, Any]) -> None:
-        """What the config validation leaves to the plant (the effects' own parameters), without
-        building it; raises ConfigError naming the key."""
-        build_effects(cfg["sim"]["effects"], PlantParams.from_config(cfg), 1.0 / cfg["controller"]["rate_hz"])
+        """What the config validation leaves to the plant (the effects' own parameters, the
+        disturbance pulses), without building it; raises ConfigError naming the key."""
+        source = getattr(cfg, "source", "config")
+        build_effects(cfg["sim"]["effects"], PlantParams.from_config(cfg), 1.0 / cfg["controller"]["rate_hz"], source)
+        check_disturbances(cfg["sim"]["disturbances"], source)
 
     def __init__(self, cfgs: Sequence[Mapping[str, Any]], source: str = "config"):
         plants = [SimulatedPlant(c, source) for c in cfgs]

@@ -19,6 +19,13 @@ from sim_backend.model import CompliantModel
 NOISE_BLOCK = 4096  # strain-gauge noise samples drawn at a time (refilled in place, no allocation)
 
 
+def check_disturbances(disturbances: list, source: str | None) -> None:
+    """ConfigError naming ``sim.disturbances.<i>.stop`` for a pulse that does not stop after it starts."""
+    for i, d in enumerate(disturbances):
+        if d["stop"] <= d["start"]:
+            raise ConfigError("stop must be after start", source, f"sim.disturbances.{i}.stop")
+
+
 class SimulatedPlant:
     """Time ``t`` (s) counts from construction; disturbances in the config use that time."""
 
@@ -36,9 +43,7 @@ class SimulatedPlant:
         self.noise_rms = p.strain_gauge_noise_rms if sim["sensor_noise"] else 0.0
         self.sg_offset = list(sim["strain_gauge_offset"])
         self.disturbances = sim["disturbances"]
-        for i, d in enumerate(self.disturbances):
-            if d["stop"] <= d["start"]:
-                raise ConfigError("stop must be after start", source, f"sim.disturbances.{i}.stop")
+        check_disturbances(self.disturbances, source)
         self._pulses = [(d["start"], d["stop"], d["torque_dp"], d["torque_ie"]) for d in self.disturbances]
         self.rng = np.random.default_rng(sim["seed"])
         self._noise = np.empty((NOISE_BLOCK, 2))
@@ -95,10 +100,11 @@ class SimulatedPlant:
             if self._noise_i >= NOISE_BLOCK:
                 self.rng.standard_normal(out=self._noise)
                 self._noise_i = 0
-            n = self._noise[self._noise_i]
-            self._noise_i += 1
-            t0 += self.noise_rms * n[0]
-            t1 += self.noise_rms * n[1]
+            k = self._noise_i
+            self._noise_i = k + 1
+            noise = self._noise               # .item: plain floats, no view or numpy scalar per sample
+            t0 += self.noise_rms * noise.item(k, 0)
+            t1 += self.noise_rms * noise.item(k, 1)
         return t0 + self.sg_offset[0], t1 + self.sg_offset[1]
 
     def ankle_positions(self) -> tuple[float, float]:

@@ -130,6 +130,7 @@ def test_bench_batch_prints_one_json_object_and_refuses_absurd_sizes(capsys):
     result = json.loads(capsys.readouterr().out)
     assert set(result["realtime_factor_by_batch"]) == {"1", "3"}
     assert all(f > 0 for f in result["realtime_factor_by_batch"].values())
+    assert set(result["plant_cycle_ref_steps_by_batch"]) == {"1", "3"} and result["reference_step_us"] > 0
     for bad in ("100000000", "0", "2.5", "1,,2"):
         assert main(["bench", "batch", "--sizes", bad, "--json"]) == 2
         assert "--sizes must be integers from 1 to" in capsys.readouterr().err

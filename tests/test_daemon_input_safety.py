@@ -47,6 +47,20 @@ def test_huge_and_non_finite_gains_are_refused(daemon):
     assert daemon.controller.gains.as_dict() == {"kp": 90.0, "kd": 5.0}
 
 
+def test_the_protocol_and_the_daemon_refuse_gains_and_references_by_the_same_check(daemon):
+    """One check each (ankle_rt.command_limits): a request line and a direct daemon call give the
+    same reason, whichever way the command comes in."""
+    limits = CommandLimits.from_config(daemon.cfg)
+    for line, command in ((b'{"cmd":"set_gains","kd":600}', SetGains(kd=600.0)),
+                          (b'{"cmd":"set_reference","dp":0.1,"ie":-0.9}', SetReference(0.1, -0.9))):
+        with pytest.raises(CommandError) as parsed:
+            parse_command(line, limits)
+        with pytest.raises(CommandError) as handled:
+            daemon.handle(command)
+        assert parsed.value.field == handled.value.field
+        assert parsed.value.message in handled.value.message
+
+
 def test_a_reference_jump_is_rate_limited_and_the_current_stays_within_the_peak(daemon):
     run_cycles(daemon, 300)
     assert daemon.safety.state == State.ACTIVE

@@ -10,6 +10,7 @@ import sys
 import tracemalloc
 
 import numpy as np
+import pytest
 
 from ankle_rt.backend import BackendFault
 from ankle_rt.safety import Fault, State
@@ -96,9 +97,12 @@ def test_watchdog_pings_while_healthy_and_status_reports_a_fault(sim_cfg, tmp_pa
     assert d.safety.fault == Fault.DEVICE_FAULT
 
 
-def test_cycles_keep_no_memory(sim_cfg):
+@pytest.mark.parametrize("controller", ["pd", "impedance"])
+def test_cycles_keep_no_memory(sim_cfg, controller):
     """2000 cycles after warm-up: no growth in live allocations, and a peak of a few kB of
-    temporaries (floats and tuples of the plant and the cycle; no arrays, lists or dicts kept)."""
+    temporaries (floats and tuples of the plant and the cycle; no arrays, lists or dicts kept),
+    under each built-in controller (impedance: with the joint-torque loop)."""
+    sim_cfg["controller"]["type"] = controller
     d = lockstep_daemon(sim_cfg, capacity=4000)
     run_cycles(d, 600)
     gc.collect()

@@ -20,7 +20,7 @@ from ankle_rt.control.gains import GainError
 from ankle_rt.control.torque_loop import ImpedanceLimits, JointTorqueLoop, TorqueLoopGains
 from ankle_rt.daemon import run_lockstep
 from ankle_rt.estimation import Estimate
-from ankle_rt.impedance_bench import Experiment, TorqueProgramBackend, bench_config, run_impedance
+from ankle_rt.bench.impedance import Experiment, TorqueProgramBackend, bench_config, run_impedance
 from ankle_rt.kinematics import Kinematics
 from ankle_rt.params import PlantParams, TransmissionParams
 from ankle_rt.paths import default_config_path
@@ -293,8 +293,8 @@ def test_the_closed_loop_update_keeps_no_memory(base):
 
     def cycles(n):
         for k in range(n):
-            est.sg_torque[0] = 0.01 * (k % 7)
-            est.motor_vel[0] = 0.3 * ((k % 5) - 2)
+            est.sg_dp = 0.01 * (k % 7)
+            est.mv1 = 0.3 * ((k % 5) - 2)
             ctl.update(est, out)
 
     cycles(500)
@@ -308,3 +308,20 @@ def test_the_closed_loop_update_keeps_no_memory(base):
         tracemalloc.stop()
     assert sys.getallocatedblocks() - blocks < 20
     assert current < 1024 and peak < 4096
+
+
+def test_the_loop_is_built_twice_per_margin_not_once_per_gain(base, monkeypatch):
+    """gain_margin_db bisects over T(g) = T(0) + g (T(1) - T(0)), which is the loop built at g."""
+    import ankle_rt.analysis as analysis
+
+    cfg = impedance_cfg(base)
+    p, c = PlantParams.from_config(cfg), ImpedanceLoop.from_config(cfg, closed=True)
+    T = analysis.loop_in_gain(p, c, foot="grounded", load_slope=0.12)
+    for g in (0.5, 2.0, 7.3):
+        assert np.allclose(T(g), analysis.closed_loop_matrix(p, c, foot="grounded", load_slope=0.12, gain=g),
+                           rtol=1e-12, atol=1e-9)
+    builds = []
+    real = analysis.closed_loop
+    monkeypatch.setattr(analysis, "closed_loop", lambda *a, **k: builds.append(k.get("gain")) or real(*a, **k))
+    assert 0.0 < analysis.gain_margin_db(p, c) < 60.0
+    assert builds == [0.0, 1.0]

@@ -1,12 +1,18 @@
-"""``ankle-rt bench loop``: timing of the daemon's real-time loop on the simulator, and the lockstep
-speed of the whole stack; ``ankle-rt bench batch``: the batch simulator's aggregate speed (sweeps).
-Prints figures; it asserts nothing (timing depends on the machine).
+"""``ankle-rt bench loop``: timing of the daemon's real-time loop on the simulator, the lockstep
+speed of the whole stack and the daemon's own compute; ``ankle-rt bench batch``: the batch
+simulator's aggregate speed (sweeps). Prints figures; it asserts nothing (timing depends on the
+machine). Every time is also given in reference steps (``*_ref_steps``): units of a fixed plain-
+Python RK4 step of the cable model timed in the same run (ankle_rt.timing_reference), which
+travel between machines.
 
 Real time: the configured daemon (section 7 experiment, logging on, as deployed) on the monotonic
 clock for ``--duration`` s. Period error = |start-to-start period - nominal|; compute = cycle start
 to cycle end (read, estimate, control, safety, write, log record; the simulated plant's step runs
 inside read). A late cycle starts more than 2 periods after the previous one.
-Lockstep: the same daemon on a SimClock; real-time factor = simulated s / wall-clock s.
+Lockstep: the same daemon on a SimClock; real-time factor = simulated s / wall-clock s; lockstep
+cycle = wall time per cycle (daemon + plant), the median over slices of 50 cycles.
+Daemon cycle: the daemon alone (what the prosthesis computer pays), on sensor frames recorded from
+the lockstep run and replayed by a backend whose read and write cost nothing (ankle_rt.bench.replay).
 """
 
 from __future__ import annotations
@@ -15,7 +21,8 @@ import argparse
 from pathlib import Path
 
 BATCH_GOAL = 1000.0   # aggregate real-time factor of 256 nominal plants under PD (issue 14)
-GOALS = {"late_cycles": 0, "period_error_p99_us": 100.0, "compute_p99_us": 250.0, "lockstep_realtime_factor": 30.0}   # lockstep: issue 14
+GOALS = {"late_cycles": 0, "period_error_p99_us": 100.0, "compute_p99_us": 250.0, "lockstep_realtime_factor": 30.0,   # lockstep: issue 14
+         "lockstep_cycle_ref_steps": 3.0, "daemon_cycle_ref_steps": 1.5}   # issue 18, measured alone on an idle machine
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -77,9 +84,10 @@ def bench_loop(args: argparse.Namespace) -> int:
     import tempfile
 
     from ankle_rt import jsonout
-
+    from ankle_rt.bench.replay import daemon_cycle_s, lockstep_cycle_s
     from ankle_rt.config import load_config
     from ankle_rt.paths import default_config_path
+    from ankle_rt.timing_reference import reference_step_s
 
     cfg = load_config(Path(args.config) if args.config else default_config_path())
     cfg["loop"]["duration_s"] = args.duration
@@ -87,12 +95,18 @@ def bench_loop(args: argparse.Namespace) -> int:
         cfg["loop"]["realtime"]["priority"] = args.priority
     rate = cfg["controller"]["rate_hz"]
     if not args.json:
-        print(f"lockstep: {args.lockstep:g} simulated s ...", flush=True)
+        print(f"lockstep: {args.lockstep:g} simulated s, then the daemon alone on replayed frames ...", flush=True)
+    ref_s = reference_step_s()
     rtf = lockstep_speed(cfg, args.lockstep)
+    slices_s = min(args.lockstep, 5.0)
+    lockstep_s = lockstep_cycle_s(cfg, slices_s)
+    daemon_s = daemon_cycle_s(cfg, slices_s)
     if not args.json:
         print(f"real time: {args.duration:g} s at {rate} Hz on the simulator ...", flush=True)
     with tempfile.TemporaryDirectory() as tmp:
         stats, notes = realtime_run(cfg, args.duration, Path(tmp))
+    ref_s = 0.5 * (ref_s + reference_step_s())    # before and after: the machine's load may change
+    ref_us = ref_s * 1e6
     pe, cp = stats["period_error"], stats["compute"]
     result = {
         "rate_hz": rate, "duration_s": args.duration, "cycles": stats["cycles"],
@@ -102,6 +116,11 @@ def bench_loop(args: argparse.Namespace) -> int:
         "compute_max_us": cp["max_us"],
         "late_cycles": stats["late_cycles"], "overruns": stats["overruns"], "skipped_cycles": stats["skipped_cycles"],
         "lockstep_realtime_factor": rtf, "lockstep_sim_s": args.lockstep,
+        "lockstep_cycle_us": lockstep_s * 1e6, "daemon_cycle_us": daemon_s * 1e6,
+        "reference_step_us": ref_us,
+        "compute_p50_ref_steps": cp["p50_us"] / ref_us, "compute_p99_ref_steps": cp["p99_us"] / ref_us,
+        "compute_p999_ref_steps": cp["p99.9_us"] / ref_us, "compute_max_ref_steps": cp["max_us"] / ref_us,
+        "lockstep_cycle_ref_steps": lockstep_s / ref_s, "daemon_cycle_ref_steps": daemon_s / ref_s,
         "os_settings": notes,
     }
     met = {
@@ -109,22 +128,31 @@ def bench_loop(args: argparse.Namespace) -> int:
         "period_error_p99_us": result["period_error_p99_us"] <= GOALS["period_error_p99_us"],
         "compute_p99_us": result["compute_p99_us"] <= GOALS["compute_p99_us"],
         "lockstep_realtime_factor": result["lockstep_realtime_factor"] >= GOALS["lockstep_realtime_factor"],
+        "lockstep_cycle_ref_steps": result["lockstep_cycle_ref_steps"] <= GOALS["lockstep_cycle_ref_steps"],
+        "daemon_cycle_ref_steps": result["daemon_cycle_ref_steps"] <= GOALS["daemon_cycle_ref_steps"],
     }
     result["goals_met"] = met
     if args.json:
         print(jsonout.dumps(result))
         return 0
     ok = {True: "ok", False: "MISSED"}
+    r = lambda us: f"{us / ref_us:.2f}"  # noqa: E731
     print(f"loop at {rate} Hz, {result['cycles']} cycles in {args.duration:g} s "
-          f"({', '.join(notes) if notes else 'default OS settings'})")
+          f"({', '.join(notes) if notes else 'default OS settings'}); reference step {ref_us:.1f} us")
     print(f"  period error p50/p99/p99.9/max: {pe['p50_us']:.0f} / {pe['p99_us']:.0f} / {pe['p99.9_us']:.0f} / "
           f"{pe['max_us']:.0f} us   (goal p99 <= 100 us: {ok[met['period_error_p99_us']]})")
     print(f"  compute p50/p99/p99.9/max:      {cp['p50_us']:.0f} / {cp['p99_us']:.0f} / {cp['p99.9_us']:.0f} / "
           f"{cp['max_us']:.0f} us   (goal p99 <= 250 us: {ok[met['compute_p99_us']]})")
+    print(f"                    in ref steps: {r(cp['p50_us'])} / {r(cp['p99_us'])} / {r(cp['p99.9_us'])} / "
+          f"{r(cp['max_us'])}")
     print(f"  late cycles (> 2 periods): {result['late_cycles']} (goal 0: {ok[met['late_cycles']]}), "
           f"overruns {result['overruns']}, skipped deadlines {result['skipped_cycles']}")
     print(f"lockstep (daemon + simulated plant): {rtf:.1f}x real time "
-          f"(goal >= {GOALS['lockstep_realtime_factor']:g}x: {ok[met['lockstep_realtime_factor']]})")
+          f"(goal >= {GOALS['lockstep_realtime_factor']:g}x: {ok[met['lockstep_realtime_factor']]}), "
+          f"{lockstep_s * 1e6:.1f} us = {result['lockstep_cycle_ref_steps']:.2f} ref steps per cycle "
+          f"(goal <= {GOALS['lockstep_cycle_ref_steps']:g}: {ok[met['lockstep_cycle_ref_steps']]})")
+    print(f"daemon alone (replayed frames): {daemon_s * 1e6:.1f} us = {result['daemon_cycle_ref_steps']:.2f} ref steps "
+          f"per cycle (goal <= {GOALS['daemon_cycle_ref_steps']:g}: {ok[met['daemon_cycle_ref_steps']]})")
     return 0
 
 
@@ -151,6 +179,7 @@ def bench_batch(args: argparse.Namespace) -> int:
 
     from ankle_rt.config import load_config
     from ankle_rt.paths import default_config_path
+    from ankle_rt.timing_reference import reference_step_s
 
     cfg = load_config(Path(args.config) if args.config else default_config_path())
     try:
@@ -162,20 +191,29 @@ def bench_batch(args: argparse.Namespace) -> int:
               f"got {args.sizes!r}",
               file=sys.stderr)
         return 2
+    ref_s = reference_step_s()
     factors = {}
     for n in sizes:
         if not args.json:
             print(f"batch of {n}: {args.seconds:g} simulated s each ...", flush=True)
         factors[str(n)] = batch_speed(cfg, n, args.seconds)
-    result = {"realtime_factor_by_batch": factors, "sim_s": args.seconds, "controller": cfg["controller"]["type"],
+    ref_s = 0.5 * (ref_s + reference_step_s())
+    dt = 1.0 / cfg["controller"]["rate_hz"]
+    # wall s per tick and plant = dt / aggregate real-time factor
+    per_plant = {n: dt / f / ref_s for n, f in factors.items()}
+    result = {"realtime_factor_by_batch": factors, "plant_cycle_ref_steps_by_batch": per_plant,
+              "reference_step_us": ref_s * 1e6, "sim_s": args.seconds, "controller": cfg["controller"]["type"],
               "goal_256": BATCH_GOAL}
     if "256" in factors:
+        result["plant_cycle_ref_steps"] = per_plant["256"]
         result["goal_met"] = factors["256"] >= BATCH_GOAL
     if args.json:
         print(json.dumps(result))
         return 0
+    print(f"reference step {ref_s * 1e6:.1f} us (ankle_rt.timing_reference)")
     for n, f in factors.items():
-        print(f"  {n:>5} plants: {f:8.0f}x real time in aggregate ({f / int(n):.1f}x per plant)")
+        print(f"  {n:>5} plants: {f:8.0f}x real time in aggregate ({f / int(n):.1f}x per plant), "
+              f"{per_plant[n]:.3f} ref steps per plant and cycle")
     if "256" in factors:
         print(f"goal >= {BATCH_GOAL:g}x at 256 plants: {'ok' if result['goal_met'] else 'MISSED'}")
 
@@ -248,7 +286,7 @@ def impedance_variant(cfg, stiffness: list[float], stiffness_ie: float | None, d
     """Run the bench for one controller variant over the commanded stiffnesses; its summary and runs."""
     from ankle_rt.analysis import ImpedanceLoop, torque_loop_margins
     from ankle_rt.control.torque_loop import torque_feedback
-    from ankle_rt.impedance_bench import bench_config, run_impedance
+    from ankle_rt.bench.impedance import bench_config, run_impedance
     from ankle_rt.params import PlantParams
 
     runs, margins = [], []
@@ -310,10 +348,13 @@ def plot_loops(variants: dict[str, dict], png: str) -> str:
 
 
 def bench_impedance(args: argparse.Namespace) -> int:
+    import time
+
     from ankle_rt import jsonout
+    from ankle_rt.bench.impedance import Experiment, schedule
     from ankle_rt.config import load_config
-    from ankle_rt.impedance_bench import Experiment
     from ankle_rt.paths import default_config_path
+    from ankle_rt.timing_reference import reference_step_s
 
     if args.stribeck[0] > 0.0 and args.stribeck[1] <= 0.0:
         raise SystemExit("ankle-rt bench impedance: --stribeck: the velocity VS must be > 0")
@@ -328,11 +369,16 @@ def bench_impedance(args: argparse.Namespace) -> int:
             plan[f"closed loop, {name} ff"] = ("auto", name)
             plan[f"open loop, {name} ff"] = ("off", name)
     variants = {}
+    ref_s = reference_step_s()
+    t0 = time.perf_counter()
     for name, (feedback, f) in plan.items():
         if not args.json:
             print(f"{name} ...", flush=True)
         variants[name] = impedance_variant(cfg, args.stiffness, args.stiffness_ie, tuple(args.damping), effects,
                                            feedback=feedback, friction_ff=f, experiment=exp, keep_loops=True)
+    # wall time per simulated cycle, the lockstep runs with their analysis (and the margin checks)
+    cycle_s = (time.perf_counter() - t0) / (len(plan) * len(args.stiffness) * round(schedule(exp)[1] * cfg["controller"]["rate_hz"]))
+    ref_s = 0.5 * (ref_s + reference_step_s())
     note = plot_loops({k: variants[k] for k in ("closed loop", "open loop")}, args.plot) if args.plot else ""
     main = variants["closed loop"]["summary"]
     result = {key: main[key] for key in SUMMARY_KEYS}
@@ -344,7 +390,7 @@ def bench_impedance(args: argparse.Namespace) -> int:
                   commanded_stiffness_dp=args.stiffness, damping=args.damping, plant_effects=effects,
                   variants={name: {**v["summary"], "runs": [{k: r[k] for k in r if k != "_result"} for r in v["runs"]]}
                             for name, v in variants.items()},
-                  plot=note)
+                  plot=note, cycle_us=cycle_s * 1e6, reference_step_us=ref_s * 1e6, cycle_ref_steps=cycle_s / ref_s)
     if args.json:
         print(jsonout.dumps(result))
         return 0
@@ -368,6 +414,8 @@ def bench_impedance(args: argparse.Namespace) -> int:
                               f"{s['hysteresis_j']:.3f}" for s in run["sines"]))
     print(f"hysteresis open loop / closed loop (worst commanded stiffness): "
           f"{result['hysteresis_ratio_open_to_closed']:.1f}x")
+    print(f"wall time per simulated cycle (lockstep runs and their analysis): {cycle_s * 1e6:.1f} us = "
+          f"{cycle_s / ref_s:.2f} ref steps of {ref_s * 1e6:.1f} us")
     if note:
         print(note)
     return 0

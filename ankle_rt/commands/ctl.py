@@ -12,8 +12,9 @@ import sys
 from pathlib import Path
 
 from ankle_rt.client import AnkleClient, DaemonUnreachable, socket_path_of
+from ankle_rt.command_limits import GAIN_FIELDS
 from ankle_rt.references import angle_params
-from ankle_rt.service.protocol import GAIN_FIELDS, PROFILE_NAMES, CommandError
+from ankle_rt.service.protocol import PROFILE_NAMES, CommandError
 
 EXIT_REFUSED = 1
 EXIT_UNREACHABLE = 3

@@ -6,7 +6,8 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-from pathlib import Path
+
+from ankle_rt.commands.outputs import output_problem
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -66,20 +67,6 @@ def _format(diag, closed) -> str:
     return "\n".join(lines)
 
 
-def _output_problem(path: str, inputs: tuple[str | None, ...]) -> str | None:
-    """Why ``path`` cannot take an output file (checked before the long diagnosis), or None: it must
-    be a regular file or not exist yet, in an existing directory, and none of the files read."""
-    out = Path(path)
-    if out.exists() or out.is_symlink():
-        if not out.is_file():
-            return "exists and is not a regular file"
-        if any(p and Path(p).exists() and os.path.samefile(out, p) for p in inputs):
-            return "is one of the input files (it would be overwritten); choose another path"
-    elif not out.parent.is_dir():
-        return f"no such directory: {out.parent}"
-    return None
-
-
 def run(args: argparse.Namespace) -> int:
     from ankle_rt import jsonout
 
@@ -107,7 +94,7 @@ def run(args: argparse.Namespace) -> int:
     from ankle_rt.progress import Progress
 
     if args.write_model:
-        problem = _output_problem(args.write_model, (args.data, args.validation, args.config))
+        problem = output_problem(args.write_model, (args.data, args.validation, args.config))
         if problem:
             print(f"ankle-rt diagnose: --write-model {args.write_model}: {problem}", file=sys.stderr)
             return 2

@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import argparse
-import os
 import sys
+
+from ankle_rt.commands.outputs import output_problem
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -89,12 +90,9 @@ def export_cmd(args: argparse.Namespace) -> int:
     from ankle_rt.log.reader import LogFormatError, read_parts
 
     for out in (args.csv, args.mcap):      # the export replaces its output: never a run log it reads
-        if out and os.path.isdir(out):
-            print(f"ankle-rt log export: {out} is a directory; give a file name", file=sys.stderr)
-            return 2
-        if out and any(os.path.exists(out) and os.path.exists(p) and os.path.samefile(out, p) for p in args.path):
-            print(f"ankle-rt log export: {out} is one of the logs being exported; choose another output",
-                  file=sys.stderr)
+        problem = out and output_problem(out, args.path, "logs being exported")
+        if problem:
+            print(f"ankle-rt log export: {out} {problem}", file=sys.stderr)
             return 2
     try:
         log, notes = read_parts(args.path)

@@ -7,7 +7,8 @@ A controller is one step of the fixed-rate cycle::
 **Inputs**, every cycle: the :class:`~ankle_rt.estimation.Estimate` ``est`` (SI, motor side at the
 gearbox output: ``t`` s; ``motor_pos`` rad, ``motor_vel`` rad/s (2,); ``ankle_pos`` rad,
 ``ankle_vel`` rad/s [DP, IE]; ``sg_torque`` N m [DP, IE], tared; ``joint_pos`` rad [DP, IE] or NaN
-without joint encoders) and the ankle reference ``context.ref`` (rad [DP, IE]; the loop refreshes
+without joint encoders; the same values as plain floats: ``est.mp1``, ``est.dp``, ``est.sg_dp``, ...,
+cheaper to read) and the ankle reference ``context.ref`` (rad [DP, IE]; the loop refreshes
 this array in place before each ``update``: keep the reference to the array, not its values).
 
 **Output**: the two motor torques, N m at the gearbox output, written into ``out_torque[0:2]``.
@@ -27,11 +28,12 @@ from __future__ import annotations
 
 import abc
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
 
 from ankle_rt.control.friction import FrictionFeedForward
+from ankle_rt.elementwise import Value, stack
 from ankle_rt.estimation import Estimate
 from ankle_rt.kinematics import Kinematics
 
@@ -86,3 +88,58 @@ class Controller(abc.ABC):
     @abc.abstractmethod
     def update(self, est: Estimate, out_torque: np.ndarray) -> None:
         """Write the motor torques (N m, gearbox output) into ``out_torque[0:2]``. No allocation."""
+
+
+class BatchableController(abc.ABC):
+    """A controller written once, element-wise (:mod:`ankle_rt.elementwise`), that the daemon runs on
+    floats and the batched daemon cycle (:mod:`ankle_rt.sweep.cycle`) runs on arrays over a batch of
+    devices with no code of its own for it. A subclass provides:
+
+    - ``law(est, ref_dp, ref_ie) -> (torque_1, torque_2)``: the motor torques (N m, gearbox output)
+      of one cycle from the :class:`~ankle_rt.estimation.Estimate`'s plain values (``est.dp``,
+      ``est.mv1``, ``est.sg_dp``, ...) and the ankle reference (rad); it advances the controller's
+      own state (filters, integrators, soft start) by one cycle. Element-wise: plain arithmetic,
+      ``abs``, comparisons and :mod:`ankle_rt.elementwise` (``select`` instead of ``if`` on a value,
+      ``clip``, ``exp``, ...); a plain ``if`` only on a flag that :func:`~ankle_rt.elementwise.stack`
+      keeps a bool (the same on every device).
+    - ``start(est, where=True)``: activation (soft start, state reset), for a batch only where
+      ``where`` (bool per device) holds.
+    - ``ref``: the ankle reference array (rad [DP, IE]) the daemon refreshes in place every cycle.
+    - optionally ``shared``: names of descriptive attributes taken from the first device on
+      :meth:`stack` (the reference array, limits); ``columns``: names of list attributes holding
+      numbers (a matrix's entries), each stacked into arrays; and :meth:`batch_key`.
+
+    :meth:`stack` turns one object per device into one object whose numbers are arrays over the
+    batch (sub-objects with their own ``stack``, such as the friction feed-forward or the torque
+    loop, stacked by it). The daemon calls the :class:`~ankle_rt.control.CycleController` methods
+    defined here: :meth:`reset` and :meth:`update`.
+    """
+
+    shared: tuple[str, ...] = ("ref",)
+    columns: tuple[str, ...] = ()
+
+    @abc.abstractmethod
+    def law(self, est: Estimate, ref_dp: Value, ref_ie: Value) -> tuple[Value, Value]:
+        """Motor torques (N m) of this cycle. Element-wise; no allocation for floats."""
+
+    @abc.abstractmethod
+    def start(self, est: Estimate, where: bool | np.ndarray = True) -> None:
+        """On activation (for a batch: where ``where`` holds)."""
+
+    @classmethod
+    def stack(cls, controllers: Sequence["BatchableController"]) -> "BatchableController":
+        """One controller standing for ``controllers`` (one per device of a batch, same class and
+        :meth:`batch_key`); ValueError for a non-numeric attribute that differs."""
+        return stack(controllers, shared=cls.shared, columns=cls.columns)
+
+    def batch_key(self) -> tuple[tuple[str, Any], ...]:
+        """(config key, value) pairs that must be equal for controllers to run in one batch (their
+        structure, e.g. whether a loop is closed); the batch names the first key that differs."""
+        return ()
+
+    def reset(self, est: Estimate) -> None:
+        self.start(est)
+
+    def update(self, est: Estimate, out_torque: np.ndarray) -> None:
+        ref = self.ref
+        out_torque[0], out_torque[1] = self.law(est, ref.item(0), ref.item(1))

@@ -73,7 +73,9 @@ class FrictionFeedForward:
     def stack(cls, feed_forwards: Sequence["FrictionFeedForward"]) -> "FrictionFeedForward":
         """One feed-forward standing for ``feed_forwards`` (one per device of a batch, the batched
         daemon cycle): every term an array over the batch, a switched-off one all zero (so that
-        :meth:`torque` gives 0 for it, as it does for one device)."""
+        :meth:`torque` gives 0 for it, as it does for one device); all switched off: one switched off."""
+        if not any(f.enabled for f in feed_forwards):
+            return feed_forwards[0]
         off = cls(0.0, 0.0, 1.0)
         return stack([f if f.enabled else off for f in feed_forwards])
 

@@ -8,11 +8,15 @@ over ``soft_start_s`` after each activation.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Mapping
+from typing import TYPE_CHECKING, Mapping, Sequence
 
+from ankle_rt.control.base import BatchableController
 from ankle_rt.control.friction import FrictionFeedForward
+from ankle_rt.elementwise import all_true, minimum, select, stack
 
 if TYPE_CHECKING:
+    import numpy as np
+
     from ankle_rt.estimation import Estimate
 
 
@@ -25,7 +29,10 @@ class GainError(ValueError):
 
 
 class GainRamp:
-    """Named non-negative gains with linear ramps to new targets, plus the soft-start scale."""
+    """Named non-negative gains with linear ramps to new targets, plus the soft-start scale.
+
+    The soft start is element-wise (:mod:`ankle_rt.elementwise`; a :meth:`stack` over a batch of
+    devices starts each where it is activated); gain ramps (run-time changes) are for one device."""
 
     def __init__(self, gains: Mapping[str, float], *, dt: float, ramp_s: float, soft_start_s: float):
         self.names = tuple(gains)
@@ -35,7 +42,13 @@ class GainRamp:
         self.cycles_per_ramp = max(1, round(ramp_s / dt))
         self.soft_step = 1.0 if soft_start_s <= 0.0 else min(1.0, dt / soft_start_s)
         self.scale = 1.0
+        self.soft_starting = False   # some device's scale is still below 1
         self.ramping = False
+
+    @classmethod
+    def stack(cls, ramps: Sequence["GainRamp"]) -> "GainRamp":
+        """One gain set standing for ``ramps`` (one per device of a batch): numbers as arrays."""
+        return stack(ramps, columns=("values", "targets", "steps"))
 
     def set_targets(self, **gains: float) -> None:
         """Ramp the named gains to new values. Raises GainError naming an unknown or bad gain."""
@@ -50,15 +63,17 @@ class GainRamp:
             self.steps[i] = (self.targets[i] - self.values[i]) / self.cycles_per_ramp
         self.ramping = True
 
-    def start(self) -> None:
-        """Begin the soft start: the output scale restarts from zero."""
-        self.scale = 0.0 if self.soft_step < 1.0 else 1.0
+    def start(self, where: bool | np.ndarray = True) -> None:
+        """Begin the soft start (for a batch: where ``where`` holds): the output scale restarts from
+        zero and reaches 1 by steps of ``soft_step`` from the next :meth:`advance` on."""
+        self.scale = select(where, 0.0, self.scale)
+        self.soft_starting = True
 
     def advance(self) -> None:
         """One cycle of ramping (call once per update)."""
-        if self.scale < 1.0:
-            scale = self.scale + self.soft_step
-            self.scale = scale if scale < 1.0 else 1.0
+        if self.soft_starting:
+            scale = self.scale = minimum(self.scale + self.soft_step, 1.0)
+            self.soft_starting = not all_true(scale >= 1.0)
         if not self.ramping:
             return
         values, targets, steps = self.values, self.targets, self.steps
@@ -80,17 +95,17 @@ class GainRamp:
         return dict(zip(self.names, self.values))
 
 
-class RampedGainController:
+class RampedGainController(BatchableController):
     """What the config's controllers share: gains that ramp (bumpless changes, soft start on each
-    activation) and an optional friction feed-forward (off when none is given)."""
+    activation) and an optional friction feed-forward (off when none is given). Batchable."""
 
     def __init__(self, gains: Mapping[str, float], *, dt: float, ramp_s: float, soft_start_s: float,
                  friction: FrictionFeedForward | None):
         self.gains = GainRamp(gains, dt=dt, ramp_s=ramp_s, soft_start_s=soft_start_s)
         self.friction = friction or FrictionFeedForward(0.0, 0.0, 1.0, enabled=False)
 
-    def reset(self, est: "Estimate") -> None:
-        self.gains.start()
+    def start(self, est: "Estimate", where: "bool | np.ndarray" = True) -> None:
+        self.gains.start(where)
 
     def set_gains(self, **gains: float) -> None:
         """Ramp to new gains (names as at construction) without a jump in the command."""

@@ -21,6 +21,7 @@ import numpy as np
 from ankle_rt.control.friction import FrictionFeedForward
 from ankle_rt.control.gains import GainError, RampedGainController
 from ankle_rt.control.torque_loop import ImpedanceLimits, JointTorqueLoop, TorqueLoopGains, torque_feedback
+from ankle_rt.elementwise import Value
 from ankle_rt.estimation import Estimate
 from ankle_rt.kinematics import Kinematics
 
@@ -79,27 +80,29 @@ class ImpedanceController(RampedGainController):
             self._check(self.limits, targets)
         super().set_gains(**gains)
 
-    def reset(self, est: Estimate) -> None:
-        super().reset(est)
-        if self.torque_loop is not None:
-            self.torque_loop.reset_state(est.sg_torque.item(0), est.sg_torque.item(1))
+    shared = ("ref", "limits")
+    columns = ("RiT",)
 
-    def update(self, est: Estimate, out_torque: np.ndarray) -> None:
+    def batch_key(self) -> tuple[tuple[str, bool], ...]:
+        return (("controller.impedance.torque_feedback", self.torque_loop is not None),)
+
+    def start(self, est: Estimate, where: bool | np.ndarray = True) -> None:
+        super().start(est, where)
+        if self.torque_loop is not None:
+            self.torque_loop.reset_state(est.sg_dp, est.sg_ie, where)
+
+    def law(self, est: Estimate, ref_dp: Value, ref_ie: Value) -> tuple[Value, Value]:
         g = self.gains
         g.advance()
         k0, k1, b0, b1 = g.values
         s = g.scale
-        ref, pos, vel = self.ref, est.ankle_pos, est.ankle_vel
-        t0 = k0 * (ref.item(0) - pos.item(0)) - b0 * vel.item(0)
-        t1 = k1 * (ref.item(1) - pos.item(1)) - b1 * vel.item(1)
-        sg = est.sg_torque
-        j0, j1 = sg.item(0), sg.item(1)
+        t0 = k0 * (ref_dp - est.dp) - b0 * est.dp_vel
+        t1 = k1 * (ref_ie - est.ie) - b1 * est.ie_vel
+        j0, j1 = est.sg_dp, est.sg_ie
         loop = self.torque_loop
         if loop is not None:
             t0, t1 = loop.update(t0, t1, j0, j1, s >= 1.0)
         RiT = self.RiT
         ff = self.friction
-        out_torque[0] = s * (RiT[0] * t0 + RiT[1] * t1
-                             + ff.torque(est.motor_vel.item(0), RiT[0] * j0 + RiT[1] * j1))
-        out_torque[1] = s * (RiT[2] * t0 + RiT[3] * t1
-                             + ff.torque(est.motor_vel.item(1), RiT[2] * j0 + RiT[3] * j1))
+        return (s * (RiT[0] * t0 + RiT[1] * t1 + ff.torque(est.mv1, RiT[0] * j0 + RiT[1] * j1)),
+                s * (RiT[2] * t0 + RiT[3] * t1 + ff.torque(est.mv2, RiT[2] * j0 + RiT[3] * j1)))

@@ -11,11 +11,14 @@ import numpy as np
 
 from ankle_rt.control.friction import FrictionFeedForward
 from ankle_rt.control.gains import RampedGainController
+from ankle_rt.elementwise import Value
 from ankle_rt.estimation import Estimate
 from ankle_rt.kinematics import Kinematics
 
 
 class MotorPD(RampedGainController):
+    columns = ("R",)
+
     def __init__(self, kin: Kinematics, ref: np.ndarray, *, kp: float, kd: float, dt: float,
                  ramp_s: float = 0.0, soft_start_s: float = 0.0, friction: FrictionFeedForward | None = None):
         """``ref``: rad [DP, IE], read every update. ``kp`` N m/rad, ``kd`` N m s/rad, per motor."""
@@ -23,15 +26,13 @@ class MotorPD(RampedGainController):
         self.R = kin.R.ravel().tolist()
         self.ref = ref
 
-    def update(self, est: Estimate, out_torque: np.ndarray) -> None:
+    def law(self, est: Estimate, ref_dp: Value, ref_ie: Value) -> tuple[Value, Value]:
         g = self.gains
         g.advance()
         kp, kd = g.values
         s = g.scale
         R = self.R
-        ref, pos, vel = self.ref, est.motor_pos, est.motor_vel
-        r0, r1 = ref.item(0), ref.item(1)
-        v1, v2 = vel.item(0), vel.item(1)
+        v1, v2 = est.mv1, est.mv2
         ff = self.friction
-        out_torque[0] = s * (kp * (R[0] * r0 + R[1] * r1 - pos.item(0)) - kd * v1 + ff.torque(v1))
-        out_torque[1] = s * (kp * (R[2] * r0 + R[3] * r1 - pos.item(1)) - kd * v2 + ff.torque(v2))
+        return (s * (kp * (R[0] * ref_dp + R[1] * ref_ie - est.mp1) - kd * v1 + ff.torque(v1)),
+                s * (kp * (R[2] * ref_dp + R[3] * ref_ie - est.mp2) - kd * v2 + ff.torque(v2)))

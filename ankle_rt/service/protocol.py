@@ -27,6 +27,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping, Union
 
+from ankle_rt.command_limits import DEFAULT_MAX_GAINS, GAIN_FIELDS, gain_maxima, gain_problem, reference_problem
 from ankle_rt.jsonout import finite_or_none
 
 MAX_LINE_BYTES = 4096
@@ -61,12 +62,6 @@ class CommandLimits:
     def from_config(cls, cfg: Mapping[str, Any]) -> "CommandLimits":
         return cls(reference_limit_rad=math.radians(cfg["limits"]["ankle_range_deg"]),
                    max_gains=gain_maxima(cfg["controller"]["gain_limits"]))
-
-
-def gain_maxima(gain_limits: Mapping[str, float]) -> dict[str, float]:
-    """The largest value of each GAIN_FIELDS name, from a config's ``controller.gain_limits``
-    (``stiffness`` and ``damping`` bound both axes)."""
-    return {name: float(gain_limits[name.split("_")[0]]) for name in GAIN_FIELDS}
 
 
 class Pending:
@@ -110,20 +105,6 @@ class SetReference:
     dp: float
     ie: float
     ramp: float | None = None
-
-
-GAIN_FIELDS: dict[str, str] = {
-    "kp": "N m/rad, motor-side PD position gain",
-    "kd": "N m s/rad, motor-side PD velocity gain",
-    "stiffness_dp": "N m/rad, ankle impedance stiffness in DP",
-    "stiffness_ie": "N m/rad, ankle impedance stiffness in IE",
-    "damping_dp": "N m s/rad, ankle impedance damping in DP",
-    "damping_ie": "N m s/rad, ankle impedance damping in IE",
-}
-
-DEFAULT_MAX_GAINS = {"kp": 500.0, "kd": 10.0, "stiffness_dp": 200.0, "stiffness_ie": 200.0, "damping_dp": 5.0,
-                     "damping_ie": 5.0}
-"""= the defaults of controller.gain_limits (tested), for limits made without a config."""
 
 
 @dataclass(frozen=True)
@@ -206,9 +187,9 @@ def _check_keys(obj: Mapping[str, Any], allowed: tuple[str, ...], required: tupl
 
 def _angle(obj: Mapping[str, Any], key: str, limits: CommandLimits) -> float:
     value = _number(obj, key)
-    if abs(value) > limits.reference_limit_rad:
-        raise CommandError(key, f"{value:.4g} rad is outside the ankle range "
-                                f"+/-{limits.reference_limit_rad:.4g} rad ({math.degrees(limits.reference_limit_rad):.3g} deg)")
+    problem = reference_problem(value, limits.reference_limit_rad)
+    if problem:
+        raise CommandError(key, problem)
     return value
 
 
@@ -229,11 +210,9 @@ def _set_gains(obj: Mapping[str, Any], limits: CommandLimits) -> SetGains:
     for name in names:
         if name in obj:
             value = _number(obj, name)
-            if value < 0.0:
-                raise CommandError(name, f"must be >= 0 ({GAIN_FIELDS[name]}), got {value:g}")
-            if value > limits.max_gains[name]:
-                raise CommandError(name, f"must be <= {limits.max_gains[name]:g} (controller.gain_limits; "
-                                         f"{GAIN_FIELDS[name]}), got {value:g}")
+            problem = gain_problem(name, value, limits.max_gains)
+            if problem:
+                raise CommandError(name, problem)
             values[name] = value
     if not values:
         raise CommandError("cmd", f"set_gains needs at least one of: {', '.join(names)}")

@@ -415,21 +415,12 @@ def _preflight(cfg: Config, run_id: int, sample: int, scenario: str, values: dic
     inside the joint-torque loop's limits, the friction model), checked before any run starts. The
     error names the key and the run's sampled values (a sampled plant parameter can move the impedance
     limits, which the daemon derives from the config's actuator)."""
-    from ankle_rt.control import build_controller
-    from ankle_rt.kinematics import Kinematics
-    from ankle_rt.params import TransmissionParams
-    from ankle_rt.references import reference_from_config
-    from ankle_rt.sweep.cycle import batch_key
     from ankle_rt.backend import batch_plant_class
+    from ankle_rt.sweep.cycle import batch_key
 
     try:
         batch_plant_class(cfg["backend"], cfg.source).check_config(cfg)
-        for i, d in enumerate(cfg["sim"]["disturbances"]):
-            if d["stop"] <= d["start"]:
-                raise ConfigError("stop must be after start", cfg.source, f"sim.disturbances.{i}.stop")
-        ref = reference_from_config(cfg)
-        batch_key(cfg)
-        build_controller(cfg, Kinematics.from_params(TransmissionParams(**cfg["transmission"])), ref.ref)
+        batch_key(cfg)      # builds the reference and the controller as the batch will
     except ConfigError as exc:
         hint = next((p.key for p in study.parameters if exc.key and p.key.startswith(exc.key.rsplit(".", 1)[0])), None)
         sampled = "".join(f", {k}={v:g}" if isinstance(v, float) else f", {k}={v}" for k, v in values.items())

@@ -24,7 +24,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from ankle_rt.backend import Backend, SensorFrame
+from ankle_rt.backend import Backend, ForwardingBackend, SensorFrame
 from ankle_rt.config import Config
 
 AXES = ("dp", "ie")
@@ -81,7 +81,7 @@ def torque_at(segs: Sequence[Segment], t: float) -> tuple[float, float]:
     return out[0], out[1]
 
 
-class TorqueProgramBackend(Backend):
+class TorqueProgramBackend(ForwardingBackend):
     """Wraps the simulated backend and sets its plant's ankle disturbance before each tick from
     ``torque(t, x)``: t the tick's mid-point (so the held torque has no half-tick lag), x the plant
     state [theta (2), theta_m (2), rates (4)] (an environment may depend on it)."""
@@ -89,28 +89,15 @@ class TorqueProgramBackend(Backend):
     name = "sim+torque-programme"
 
     def __init__(self, inner: Backend, torque: Callable[[float, np.ndarray], tuple[float, float]]):
-        super().__init__(inner.cfg, inner.clock)
-        self.inner = inner
+        super().__init__(inner)
         self.torque = torque
         self.plant = inner.plant
         self.half_dt = 0.5 * self.plant.dt
-
-    def activate(self) -> None:
-        self.inner.activate()
-
-    def deactivate(self) -> None:
-        self.inner.deactivate()
-
-    def write(self, current_1: float, current_2: float) -> None:
-        self.inner.write(current_1, current_2)
 
     def read(self, frame: SensorFrame) -> None:
         plant = self.plant
         plant.extra_disturbance[0], plant.extra_disturbance[1] = self.torque(plant.t + self.half_dt, plant.model.x)
         self.inner.read(frame)
-
-    def close(self) -> None:
-        self.inner.close()
 
 
 @dataclass
