@@ -19,10 +19,11 @@ at runtime; plotting lives in :mod:`ankle_rt.commands.analyze`.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import math
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Any, Callable, Mapping
 
 import numpy as np
 
@@ -511,3 +512,63 @@ def torque_loop_margins(p: PlantParams, c: ImpedanceLoop, *, load_coefficient: f
                     rho = spectral_radius(closed_loop_matrix(pp, c, foot=foot, load_slope=slope))
                     cases.append(MarginCase(kf, vf, slope, foot, gain_margin_db(pp, c, foot=foot, load_slope=slope), rho))
     return cases
+
+
+LOAD_FRICTION_RANGE = 0.12    # the load-dependent cable friction coefficient the margin always covers
+SENSITIVITY_STEP = 1.1        # a gain is "limiting" when growing it by this factor costs the most margin
+
+
+def _with_gains(cfg_like: Mapping[str, Any], gains: Mapping[str, float]) -> dict:
+    """A copy of ``cfg_like`` with ``gains`` (keys of ``controller.impedance`` or ``controller.torque_loop``)
+    in place; ValueError naming a key that is neither."""
+    c = copy.deepcopy(dict(cfg_like))
+    ctl = c["controller"]
+    for key, value in gains.items():
+        section = next((s for s in ("impedance", "torque_loop") if key in ctl[s]), None)
+        if section is None:
+            raise ValueError(f"gain_set_margin_db: {key!r} is neither a controller.impedance nor a "
+                             f"controller.torque_loop key")
+        ctl[section][key] = float(value)
+    return c
+
+
+def _load_coefficient(cfg: Mapping[str, Any]) -> float:
+    effects = cfg.get("sim", {}).get("effects", [])
+    return max([LOAD_FRICTION_RANGE] + [float(e["coefficient"]) for e in effects
+                                        if e.get("type") == "load_dependent_friction"])
+
+
+def gain_set_margin_db(cfg_like: Mapping[str, Any], gains: Mapping[str, float]) -> tuple[float, str]:
+    """The smallest gain margin (dB) of the closed impedance loop with ``gains`` (any keys of
+    ``controller.impedance`` / ``controller.torque_loop``; the rest from ``cfg_like``) over cable
+    stiffness +-30 %, viscous friction x0.5-x2, load-dependent friction sliding with or against the load
+    (the config's coefficient, at least 0.12) and foot free or held, and what limits it: the gain whose
+    10 % increase costs the most margin in the worst case, with that case, e.g.
+    ``"kp_dp (cable x1.3, viscous x0.5, load +0.12, foot grounded)"``. -inf: unstable at these gains."""
+    cfg = _with_gains(cfg_like, gains)
+    p = PlantParams.from_config(cfg)
+    loop = ImpedanceLoop.from_config(cfg, closed=True)
+    mu = _load_coefficient(cfg)
+    worst = min(torque_loop_margins(p, loop, load_coefficient=mu), key=lambda m: (m.gain_margin_db, -m.spectral_radius))
+    pw = with_transmission(p, cable_stiffness=p.transmission.cable_stiffness * worst.stiffness_factor)
+    pw = dataclasses.replace(pw, actuator=dataclasses.replace(pw.actuator, damping=pw.actuator.damping * worst.viscous_factor))
+    case = (f"cable x{worst.stiffness_factor:g}, viscous x{worst.viscous_factor:g}, load {worst.load_slope:+g}, "
+            f"foot {worst.foot}")
+    ctl = cfg["controller"]
+    names = [k for s in ("impedance", "torque_loop") for k, v in ctl[s].items()
+             if isinstance(v, (int, float)) and not isinstance(v, bool) and v > 0.0 and not k.startswith("max_")]
+    # stable: the margin a 10 % larger gain loses; unstable: how much it grows the spectral radius
+    stable = math.isfinite(worst.gain_margin_db)
+    cost = {}
+    for name in names:
+        bumped = ImpedanceLoop.from_config(_with_gains(cfg, {name: _gain(ctl, name) * SENSITIVITY_STEP}), closed=True)
+        if stable:
+            cost[name] = worst.gain_margin_db - gain_margin_db(pw, bumped, foot=worst.foot, load_slope=worst.load_slope)
+        else:
+            cost[name] = spectral_radius(closed_loop_matrix(pw, bumped, foot=worst.foot, load_slope=worst.load_slope))
+    limiting = max(cost, key=lambda k: cost[k]) if cost else "gain set"
+    return worst.gain_margin_db, f"{limiting} ({case})"
+
+
+def _gain(ctl: Mapping[str, Any], name: str) -> float:
+    return float(ctl["impedance"][name] if name in ctl["impedance"] else ctl["torque_loop"][name])
