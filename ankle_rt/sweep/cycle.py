@@ -120,6 +120,7 @@ class BatchRun:
         self.ff = FrictionFeedForward.stack([c.friction for c in ctls])
         closed = self.impedance and ctls[0].torque_loop is not None
         self.torque_loop = JointTorqueLoop.stack([c.torque_loop for c in ctls]) if closed else None
+        self.joint_encoders = np.array([self.impedance and c.joint_encoders for c in ctls])
         self.law_matrix = _column(ctls, lambda c: c.RiT if self.impedance else c.R).T   # (4, plants)
         self.inv_kt = 1.0 / np.array([c["actuator"]["torque_constant"] for c in cfgs])
 
@@ -194,6 +195,7 @@ class BatchRun:
         shared_ref = ref_tables.shape[2] == 1
         waiting = True       # some plant still waits for its activation
         ff, ff_any, loop = self.ff, self.ff_any, self.torque_loop
+        lead0, lead1 = loop.lag_s if loop is not None else (0.0, 0.0)
         x = plant.model.x
         for k in range(T):
             if k:
@@ -267,10 +269,11 @@ class BatchRun:
             if self.impedance:
                 w0 = Ri[0] * v1 + Ri[1] * v2
                 w1 = Ri[2] * v1 + Ri[3] * v2
-                u0 = g[0] * (r0 - a0) - g[2] * w0
-                u1 = g[1] * (r1 - a1) - g[3] * w1
+                b0, b1 = np.where(self.joint_encoders, j0, a0), np.where(self.joint_encoders, j1, a1)
+                u0 = g[0] * (r0 - b0) - (g[2] + g[0] * lead0) * w0
+                u1 = g[1] * (r1 - b1) - (g[3] + g[1] * lead1) * w1
                 if loop is not None:
-                    u0, u1 = loop.update(u0, u1, e0, e1, scale >= 1.0)
+                    u0, u1 = loop.update(u0, u1, e0, e1, w0, w1, scale >= 1.0)
                 if ff_any:          # each motor's friction sees the cable torque it feels, R^-T tau_sg
                     ff1 = ff.torque(v1, M[0] * e0 + M[1] * e1)
                     ff2 = ff.torque(v2, M[2] * e0 + M[3] * e1)
