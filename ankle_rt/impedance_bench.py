@@ -155,11 +155,15 @@ class ImpedanceResult:
         return self._dynamic("damping_error_pct")
 
     def apparent_inertia_kg_m2(self) -> float:
-        """The largest (K - Re Z) / w^2 at the highest sine frequency: the inertia the wearer moves."""
+        """The largest (K - Re Z) / w^2 over the axes at the highest sine frequency and the smallest
+        amplitude (the linear figure: a larger push also meets the correction clamp): the inertia
+        the wearer moves."""
         if not self.sines:
             return math.nan
         f1 = max(s["freq_hz"] for s in self.sines)
-        return max(s["apparent_inertia_kg_m2"] for s in self.sines if s["freq_hz"] == f1)
+        at = [s for s in self.sines if s["freq_hz"] == f1]
+        return max(s["apparent_inertia_kg_m2"] for s in at
+                   if s["amplitude_nm"] == min(t["amplitude_nm"] for t in at if t["axis"] == s["axis"]))
 
     def passive(self) -> bool:
         """No sine cycle gives net energy back to the foot (every loop area >= 0)."""

@@ -234,8 +234,9 @@ def test_the_stable_set_of_impedances_is_stable_at_its_boundary(base):
     for k in ((5.0, 2.0), lim.max_stiffness):
         c = dataclasses.replace(loop, stiffness=k, damping=(lim.min_damping(0, k[0]), lim.min_damping(1, k[1])))
         assert min(m.gain_margin_db for m in torque_loop_margins(p, c)) >= 6.0, k
-    # and the damping floor is needed: without damping the integral destabilises the free foot
-    c = dataclasses.replace(loop, stiffness=(50.0, 25.0), damping=(0.0, 0.0))
+    # and the damping floor is needed: without damping (nor the law's lead on the torque-rate gain's
+    # lag, which is damping too) the integral destabilises the free foot
+    c = dataclasses.replace(loop, stiffness=(50.0, 25.0), damping=(0.0, 0.0), torque_rate_gain=(0.0, 0.0))
     assert min(m.gain_margin_db for m in torque_loop_margins(p, c, feet=("free",))) < 0.0
 
 
@@ -251,9 +252,9 @@ def test_impedances_outside_the_stable_set_are_refused(base):
     with pytest.raises(GainError, match="stiffness_ie 200 N m/rad is above 110"):
         ctl.set_gains(stiffness_ie=200.0)
     with pytest.raises(GainError) as exc:
-        ctl.set_gains(stiffness_dp=400.0)               # needs more damping than the 0.5 it has
+        ctl.set_gains(stiffness_dp=5.0, damping_dp=0.1)   # a soft spring: the integral needs damping
     assert exc.value.gain == "damping_dp"
-    ctl.set_gains(stiffness_dp=400.0, damping_dp=0.8)
+    ctl.set_gains(stiffness_dp=400.0)       # stiff: the law's lead (K kd / (1 + kp)) is damping enough
     assert ctl.gains.targets[0] == 400.0
 
 
@@ -267,10 +268,13 @@ def test_bench_impedance_json(capsys, tmp_path):
     png = tmp_path / "loops.png"
     assert main(["bench", "impedance", "--quick", "--stiffness", "50", "--json", "--plot", str(png)]) == 0
     out = json.loads(capsys.readouterr().out)
-    for key in ("stiffness_error_max_pct", "damping_error_max_pct", "hysteresis_j_per_cycle", "stability_margin_db"):
+    for key in ("stiffness_error_max_pct", "dynamic_stiffness_error_max_pct", "damping_error_max_pct",
+                "torque_step_overshoot_pct", "apparent_inertia_kg_m2", "hysteresis_j_per_cycle", "stability_margin_db"):
         assert isinstance(out[key], float), key
-    assert out["torque_feedback"] is True and out["faults"] == ["NONE"]
-    assert out["stiffness_error_max_pct"] <= 10.0 and out["stability_margin_db"] >= 6.0
+    assert out["torque_feedback"] is True and out["faults"] == ["NONE"] and out["passive"] is True
+    # pulses from +-1 N m: Stribeck stiction leaves the smallest ones 10-15 % off (docs/daemon.md)
+    assert out["stiffness_error_max_pct"] <= 15.0 and out["stability_margin_db"] >= 6.0
+    assert 0.0 < out["apparent_inertia_kg_m2"] < 1.0
     assert out["hysteresis_ratio_open_to_closed"] >= 5.0
     assert out["variants"]["open loop"]["stiffness_error_max_pct"] > 100.0
     assert png.exists() or "matplotlib is not installed" in out["plot"]

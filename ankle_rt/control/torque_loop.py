@@ -258,6 +258,7 @@ class ImpedanceLimits:
 
     - the integral: c (1 + kp) >= 2 J ki, c = D / 2 + (1 + kp) B (the Routh condition, factor 2);
     - the rendered damping ratio (B + D / (2 (1 + kp))) / (2 sqrt(K J / (1 + kp))) >= MIN_DAMPING_RATIO;
+    - B counts the law's lead K kd / (1 + kp) (:attr:`JointTorqueLoop.lag_s`) on top of the commanded;
     - K <= MAX_STIFFNESS_FRACTION x the cable stiffness at the ankle (0.3 DP, 0.5 IE).
     """
 
@@ -266,6 +267,7 @@ class ImpedanceLimits:
     max_stiffness: tuple[float, float]    # N m/rad
     kp: tuple[float, float]
     ki: tuple[float, float]
+    lag: tuple[float, float] = (0.0, 0.0)    # s, kd / (1 + kp): the law adds K lag of damping
 
     @classmethod
     def from_config(cls, cfg: "Config") -> "ImpedanceLimits":
@@ -280,14 +282,15 @@ class ImpedanceLimits:
         return cls(inertia=inertia, viscous=(0.0, 0.0) if dob else act.viscous,
                    max_stiffness=(MAX_STIFFNESS_FRACTION[0] * float(kin.K[0, 0]),
                                   MAX_STIFFNESS_FRACTION[1] * float(kin.K[1, 1])),
-                   kp=(tl["kp_dp"], tl["kp_ie"]), ki=(tl["ki_dp"], tl["ki_ie"]))
+                   kp=(tl["kp_dp"], tl["kp_ie"]), ki=(tl["ki_dp"], tl["ki_ie"]),
+                   lag=(tl["torque_rate_dp"] / (1.0 + tl["kp_dp"]), tl["torque_rate_ie"] / (1.0 + tl["kp_ie"])))
 
     def min_damping(self, axis: int, stiffness: float) -> float:
         """N m s/rad: the least commanded damping for ``stiffness`` N m/rad on ``axis`` (0 DP, 1 IE)."""
         g, J, d = 1.0 + self.kp[axis], self.inertia[axis], self.viscous[axis] / (2.0 * (1.0 + self.kp[axis]))
         integral = 2.0 * J * self.ki[axis] / g ** 2
         ratio = 2.0 * MIN_DAMPING_RATIO * math.sqrt(stiffness * J / g)
-        return max(0.0, max(integral, ratio) - d)
+        return max(0.0, max(integral, ratio) - d - stiffness * self.lag[axis])
 
     def check(self, gains: Mapping[str, float]) -> tuple[str, str] | None:
         """(gain name, reason) for the first impedance gain outside the stable set, None if all fit."""
