@@ -96,6 +96,17 @@ def test_batched_identified_friction_feed_forward_matches_the_daemon(sim_cfg, fe
     assert _compare(cfgs) == [0, 0, 0]
 
 
+def test_batched_observer_and_angle_sources_match_the_daemon(sim_cfg):
+    """The disturbance observer with its energy tank (a small tank that runs dry on one plant), and
+    the law's angle from the joint encoders on some plants, through the cables on another."""
+    sim_cfg["controller"]["type"] = "impedance"
+    sim_cfg["controller"]["torque_loop"].update(dob_hz=10.0, ki_dp=0.0, ki_ie=0.0)
+    cfgs = [sim_cfg.deep_copy() for _ in range(3)]
+    cfgs[1]["controller"]["impedance"]["angle_source"] = "estimated"
+    cfgs[2]["controller"]["torque_loop"].update(dob_inertia_dp=0.9, tank_j=0.001, tank_friction_credit=0.2)
+    assert _compare(cfgs) == [0, 0, 0]
+
+
 def test_a_batch_it_cannot_run_as_the_daemon_does_is_refused_naming_the_key(sim_cfg, monkeypatch):
     sim_cfg["controller"]["type"] = "impedance"
     open_loop = sim_cfg.deep_copy()
