@@ -269,8 +269,15 @@ def test_bench_impedance_json(capsys, tmp_path):
     assert main(["bench", "impedance", "--quick", "--stiffness", "50", "--json", "--plot", str(png)]) == 0
     out = json.loads(capsys.readouterr().out)
     for key in ("stiffness_error_max_pct", "dynamic_stiffness_error_max_pct", "damping_error_max_pct",
-                "torque_step_overshoot_pct", "apparent_inertia_kg_m2", "hysteresis_j_per_cycle", "stability_margin_db"):
+                "torque_step_overshoot_pct", "torque_step_ideal_overshoot_pct", "torque_step_excess_pct",
+                "apparent_inertia_kg_m2", "hysteresis_j_per_cycle", "stability_margin_db"):
         assert isinstance(out[key], float), key
+    # an ideal spring K on the soft ground g (K 50, g 300; IE 25, 150) overshoots by K / g: its floor
+    assert out["torque_step_ideal_overshoot_pct"] == pytest.approx(100.0 * 50.0 / 300.0)
+    steps = out["variants"]["closed loop"]["runs"][0]["steps"]
+    for s in steps:     # the excess is the peak beyond step_nm: consistent with the overshoot over the final
+        peak = (1.0 + s["overshoot_dp_pct"] / 100.0) * abs(s["final_dp_nm"])
+        assert s["excess_dp_pct"] == pytest.approx(100.0 * max(0.0, peak / 6.0 - 1.0), abs=1e-6)
     assert out["torque_feedback"] is True and out["faults"] == ["NONE"] and out["passive"] is True
     # pulses from +-1 N m: Stribeck stiction leaves the smallest ones 10-15 % off (docs/daemon.md)
     assert out["stiffness_error_max_pct"] <= 15.0 and out["stability_margin_db"] >= 6.0

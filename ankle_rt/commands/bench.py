@@ -194,10 +194,12 @@ or against the load, foot free or held. The plant: the config's effects plus --l
 --stribeck (defaults: load-dependent 0.12, Stribeck 0.15 N m at 0.1 rad/s)."""
 
 SUMMARY_KEYS = ("stiffness_error_max_pct", "dynamic_stiffness_error_max_pct", "damping_error_max_pct",
-                "torque_step_overshoot_pct", "apparent_inertia_kg_m2", "passive", "hysteresis_j_per_cycle",
+                "torque_step_overshoot_pct", "torque_step_ideal_overshoot_pct", "torque_step_excess_pct",
+                "apparent_inertia_kg_m2", "passive", "hysteresis_j_per_cycle",
                 "stability_margin_db", "torque_tracking_rms_nm")
 WORST = {"stiffness_error_max_pct": max, "dynamic_stiffness_error_max_pct": max, "damping_error_max_pct": max,
-         "torque_step_overshoot_pct": max, "apparent_inertia_kg_m2": max, "passive": all,
+         "torque_step_overshoot_pct": max, "torque_step_ideal_overshoot_pct": max, "torque_step_excess_pct": max,
+         "apparent_inertia_kg_m2": max, "passive": all,
          "hysteresis_j_per_cycle": max, "torque_tracking_rms_nm": max}
 
 
@@ -373,9 +375,10 @@ def bench_impedance(args: argparse.Namespace) -> int:
             print("   sines (axis N m Hz: K_dyn, B, hysteresis J): "
                   + "; ".join(f"{s['axis']} {s['amplitude_nm']:g} {s['freq_hz']:g}: {s['dynamic_stiffness']:.0f}, "
                               f"{s['damping']:.2f}, {s['hysteresis_j']:.3f}" for s in run["sines"]))
-            print("   torque steps (ground: overshoot DP / IE %): "
-                  + "; ".join(f"{s['ground']}: {s['overshoot_dp_pct']:.0f} / {s['overshoot_ie_pct']:.0f}"
-                              for s in run["steps"]))
+            print("   torque steps (ground: overshoot DP / IE %, an ideal renderer's, peak beyond the ideal peak): "
+                  + "; ".join(f"{s['ground']}: {s['overshoot_dp_pct']:.0f} / {s['overshoot_ie_pct']:.0f}, "
+                              f"{s['ideal_overshoot_dp_pct']:.0f} / {s['ideal_overshoot_ie_pct']:.0f}, "
+                              f"{s['excess_dp_pct']:.0f} / {s['excess_ie_pct']:.0f}" for s in run["steps"]))
     print(f"hysteresis open loop / closed loop (worst commanded stiffness): "
           f"{result['hysteresis_ratio_open_to_closed']:.1f}x")
     if note:
