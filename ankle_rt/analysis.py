@@ -19,10 +19,11 @@ at runtime; plotting lives in :mod:`ankle_rt.commands.analyze`.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import math
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Any, Callable, Mapping
 
 import numpy as np
 
@@ -338,6 +339,9 @@ class ImpedanceLoop:
     ki: tuple[float, float] = (0.0, 0.0)    # 1/s
     torque_rate_gain: tuple[float, float] = (0.0, 0.0)   # s, on the filtered measured torque's rate
     cutoff_hz: float = 30.0
+    dob_hz: float = 0.0                     # disturbance observer's low-pass (0: no observer)
+    dob_inertia: tuple[float, float] = (0.0, 0.0)   # kg m^2, the observer's nominal (ankle-side) inertia
+    joint_encoders: bool = False            # the impedance law's angle: joint encoders (else through the cables)
     velocity_cutoff_hz: float = 100.0       # estimation.velocity_cutoff_hz
     dt: float = 1e-3
     delay_cycles: int = 1
@@ -345,19 +349,25 @@ class ImpedanceLoop:
     @classmethod
     def from_config(cls, cfg: dict, *, closed: bool, delay_cycles: int = 1) -> "ImpedanceLoop":
         """The config's impedance gains and (``closed``) torque-loop gains."""
+        from ankle_rt.control.torque_loop import ReflectedActuator, uses_joint_encoders
+
         c = cfg["controller"]
         imp, tl = c["impedance"], c["torque_loop"]
         pair = lambda sec, key: (float(sec[key + "_dp"]), float(sec[key + "_ie"])) if closed else (0.0, 0.0)  # noqa: E731
+        inertia = ReflectedActuator.from_config(cfg).inertia
+        frac = pair(tl, "dob_inertia")
         return cls(stiffness=(imp["stiffness_dp"], imp["stiffness_ie"]), damping=(imp["damping_dp"], imp["damping_ie"]),
                    kp=pair(tl, "kp"), ki=pair(tl, "ki"), torque_rate_gain=pair(tl, "torque_rate"),
-                   cutoff_hz=tl["cutoff_hz"], velocity_cutoff_hz=cfg["estimation"]["velocity_cutoff_hz"],
+                   cutoff_hz=tl["cutoff_hz"], dob_hz=float(tl["dob_hz"]) if closed else 0.0,
+                   dob_inertia=(frac[0] * inertia[0], frac[1] * inertia[1]), joint_encoders=uses_joint_encoders(cfg),
+                   velocity_cutoff_hz=cfg["estimation"]["velocity_cutoff_hz"],
                    dt=1.0 / c["rate_hz"], delay_cycles=delay_cycles)
 
 
 def _plant(p: PlantParams, *, foot: str, load_slope: float,
            ground: tuple[tuple[float, float], float] = ((GROUND_STIFFNESS, GROUND_STIFFNESS), 0.0),
            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(A, B_motor 8x2, C_y 4x8) of the continuous plant: outputs [theta_m (2), tau_j (2)].
+    """(A, B_motor 8x2, C_y 6x8) of the continuous plant: outputs [theta_m (2), tau_j (2), theta (2)].
     ``load_slope``: +-mu, load-dependent friction linearised while sliding. ``ground``: ((K_dp, K_ie)
     N m/rad, B N m s/rad) holding the foot when ``foot`` is "grounded"."""
     lm = LinearModel.from_params(p)
@@ -378,30 +388,43 @@ def _plant(p: PlantParams, *, foot: str, load_slope: float,
     A[4:8, 4:8] = -Mi @ Dq
     Bm = np.zeros((N_X, 2))
     Bm[4:8] = Mi[:, 2:4]
-    C = np.vstack([np.eye(N_X)[2:4], lm.joint_torque_rows(beta)])
+    C = np.vstack([np.eye(N_X)[2:4], lm.joint_torque_rows(beta), np.eye(N_X)[0:2]])
     return A, Bm, C
 
 
+N_W = 12     # controller states of the model: theta_m prev, v, tau filter, integrator, observer, u
+
+
 def _controller(lm_kin, K_cable: np.ndarray, c: ImpedanceLoop) -> tuple[np.ndarray, np.ndarray]:
-    """(W, U) over [w_{k-1} (8); y_k (4); r (2)]: the controller states w = [theta_m prev (2), v (2),
-    tau filter (2), integrator (2)] are w_k = W @ [...], the motor torques u_k = U @ [...]; y =
-    [theta_m, tau_j] measured, r a desired joint torque added to the impedance law's (reference 0)."""
-    e = np.eye(14)
-    th_prev, v_prev, f_prev, i_prev = e[0:2], e[2:4], e[4:6], e[6:8]
-    th, tau, r = e[8:10], e[10:12], e[12:14]
+    """(W, U) over [w_{k-1} (12); y_k (6); r (2)]: the controller states w = [theta_m prev (2), v (2),
+    tau filter (2), integrator (2), observer low-pass (2), ankle-side output u (2)] are w_k = W @ [...],
+    the motor torques U @ [...]; y = [theta_m, tau_j, theta] measured (theta: joint encoders), r a
+    desired joint torque added to the impedance law's (reference 0). The observer (dob_hz > 0):
+    d = LP(u_{k-1} - tau_j - J_n (w_k - w_{k-1}) / dt), w = R^-1 v, added to u (torque_loop.py)."""
+    e = np.eye(N_W + 8)
+    th_prev, v_prev, f_prev, i_prev, d_prev, u_prev = (e[2 * j:2 * j + 2] for j in range(6))
+    th, tau, joint, r = e[N_W:N_W + 2], e[N_W + 2:N_W + 4], e[N_W + 4:N_W + 6], e[N_W + 6:N_W + 8]
     a_v = 1.0 - math.exp(-2.0 * math.pi * c.velocity_cutoff_hz * c.dt)
     a_f = 1.0 - math.exp(-2.0 * math.pi * c.cutoff_hz * c.dt)
     v = (1.0 - a_v) * v_prev + (a_v / c.dt) * (th - th_prev)
     f = (1.0 - a_f) * f_prev + a_f * tau
     Ri = lm_kin.R_inv
-    ankle = Ri @ th - np.linalg.inv(K_cable) @ tau
+    ankle = joint if c.joint_encoders else Ri @ th - np.linalg.inv(K_cable) @ tau
     rate = Ri @ v
-    tau_des = -np.diag(c.stiffness) @ ankle - np.diag(c.damping) @ rate + r
+    lead = [c.stiffness[a] * c.torque_rate_gain[a] / (1.0 + c.kp[a]) for a in (0, 1)]   # JointTorqueLoop.lag_s
+    tau_des = -np.diag(c.stiffness) @ ankle - np.diag(np.add(c.damping, lead)) @ rate + r
     err = tau_des - f
     # an axis without integral gain has no integrator (held at zero, not a marginal mode at z = 1)
     integ = np.diag([1.0 if k > 0.0 else 0.0 for k in c.ki]) @ i_prev + np.diag(c.ki) @ err * c.dt
     u_ankle = tau_des + np.diag(c.kp) @ err + integ - np.diag(c.torque_rate_gain) @ (f - f_prev) / c.dt
-    return np.vstack([th, v, f, integ]), lm_kin.R_inv_T @ u_ankle
+    if c.dob_hz > 0.0:
+        a_d = 1.0 - math.exp(-2.0 * math.pi * c.dob_hz * c.dt)
+        accel = np.diag(c.dob_inertia) @ (rate - Ri @ v_prev) / c.dt
+        d = (1.0 - a_d) * d_prev + a_d * (u_prev - tau - accel)
+        u_ankle = u_ankle + d
+    else:
+        d = 0.0 * d_prev
+    return np.vstack([th, v, f, integ, d, u_ankle]), lm_kin.R_inv_T @ u_ankle
 
 
 def closed_loop(p: PlantParams, c: ImpedanceLoop, *, foot: str = "free", load_slope: float = 0.0,
@@ -417,11 +440,12 @@ def closed_loop(p: PlantParams, c: ImpedanceLoop, *, foot: str = "free", load_sl
     lm = LinearModel.from_params(p)
     W, U = _controller(lm.kin, lm.kin.K, c)
     U = gain * U
-    nx, nw, d = N_X, 8, c.delay_cycles
+    nx, nw, d = N_X, N_W, c.delay_cycles
     n = nx + nw + 2 * d
     # controller rows over z_k and r: [w_{k-1}, y_k = Cy x_k, r]
-    Wz, Wr = np.hstack([W[:, 8:12] @ Cy, W[:, 0:8]]), W[:, 12:14]
-    Uz, Ur = np.hstack([U[:, 8:12] @ Cy, U[:, 0:8]]), U[:, 12:14]
+    ny = Cy.shape[0]
+    Wz, Wr = np.hstack([W[:, nw:nw + ny] @ Cy, W[:, 0:nw]]), W[:, nw + ny:]
+    Uz, Ur = np.hstack([U[:, nw:nw + ny] @ Cy, U[:, 0:nw]]), U[:, nw + ny:]
     T, G = np.zeros((n, n)), np.zeros((n, 2))
     T[nx:nx + nw, :nx + nw], G[nx:nx + nw] = Wz, Wr
     if d == 0:
@@ -524,3 +548,63 @@ def torque_loop_margins(p: PlantParams, c: ImpedanceLoop, *, load_coefficient: f
                     T = loop_in_gain(pp, c, foot=foot, load_slope=slope)
                     cases.append(MarginCase(kf, vf, slope, foot, gain_margin_db(pp, c, loop=T), spectral_radius(T(1.0))))
     return cases
+
+
+LOAD_FRICTION_RANGE = 0.12    # the load-dependent cable friction coefficient the margin always covers
+SENSITIVITY_STEP = 1.1        # a gain is "limiting" when growing it by this factor costs the most margin
+
+
+def _with_gains(cfg_like: Mapping[str, Any], gains: Mapping[str, float]) -> dict:
+    """A copy of ``cfg_like`` with ``gains`` (keys of ``controller.impedance`` or ``controller.torque_loop``)
+    in place; ValueError naming a key that is neither."""
+    c = copy.deepcopy(dict(cfg_like))
+    ctl = c["controller"]
+    for key, value in gains.items():
+        section = next((s for s in ("impedance", "torque_loop") if key in ctl[s]), None)
+        if section is None:
+            raise ValueError(f"gain_set_margin_db: {key!r} is neither a controller.impedance nor a "
+                             f"controller.torque_loop key")
+        ctl[section][key] = float(value)
+    return c
+
+
+def _load_coefficient(cfg: Mapping[str, Any]) -> float:
+    effects = cfg.get("sim", {}).get("effects", [])
+    return max([LOAD_FRICTION_RANGE] + [float(e["coefficient"]) for e in effects
+                                        if e.get("type") == "load_dependent_friction"])
+
+
+def gain_set_margin_db(cfg_like: Mapping[str, Any], gains: Mapping[str, float]) -> tuple[float, str]:
+    """The smallest gain margin (dB) of the closed impedance loop with ``gains`` (any keys of
+    ``controller.impedance`` / ``controller.torque_loop``; the rest from ``cfg_like``) over cable
+    stiffness +-30 %, viscous friction x0.5-x2, load-dependent friction sliding with or against the load
+    (the config's coefficient, at least 0.12) and foot free or held, and what limits it: the gain whose
+    10 % increase costs the most margin in the worst case, with that case, e.g.
+    ``"kp_dp (cable x1.3, viscous x0.5, load +0.12, foot grounded)"``. -inf: unstable at these gains."""
+    cfg = _with_gains(cfg_like, gains)
+    p = PlantParams.from_config(cfg)
+    loop = ImpedanceLoop.from_config(cfg, closed=True)
+    mu = _load_coefficient(cfg)
+    worst = min(torque_loop_margins(p, loop, load_coefficient=mu), key=lambda m: (m.gain_margin_db, -m.spectral_radius))
+    pw = with_transmission(p, cable_stiffness=p.transmission.cable_stiffness * worst.stiffness_factor)
+    pw = dataclasses.replace(pw, actuator=dataclasses.replace(pw.actuator, damping=pw.actuator.damping * worst.viscous_factor))
+    case = (f"cable x{worst.stiffness_factor:g}, viscous x{worst.viscous_factor:g}, load {worst.load_slope:+g}, "
+            f"foot {worst.foot}")
+    ctl = cfg["controller"]
+    names = [k for s in ("impedance", "torque_loop") for k, v in ctl[s].items()
+             if isinstance(v, (int, float)) and not isinstance(v, bool) and v > 0.0 and not k.startswith("max_")]
+    # stable: the margin a 10 % larger gain loses; unstable: how much it grows the spectral radius
+    stable = math.isfinite(worst.gain_margin_db)
+    cost = {}
+    for name in names:
+        bumped = ImpedanceLoop.from_config(_with_gains(cfg, {name: _gain(ctl, name) * SENSITIVITY_STEP}), closed=True)
+        if stable:
+            cost[name] = worst.gain_margin_db - gain_margin_db(pw, bumped, foot=worst.foot, load_slope=worst.load_slope)
+        else:
+            cost[name] = spectral_radius(closed_loop_matrix(pw, bumped, foot=worst.foot, load_slope=worst.load_slope))
+    limiting = max(cost, key=lambda k: cost[k]) if cost else "gain set"
+    return worst.gain_margin_db, f"{limiting} ({case})"
+
+
+def _gain(ctl: Mapping[str, Any], name: str) -> float:
+    return float(ctl["impedance"][name] if name in ctl["impedance"] else ctl["torque_loop"][name])

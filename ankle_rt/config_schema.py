@@ -83,10 +83,16 @@ FRICTION_FF = Section({
 
 # The joint-torque loop's shipped gains (margins in docs/daemon.md, `ankle-rt bench impedance`).
 KP_DEFAULT, KI_DEFAULT, KD_DP_DEFAULT, KD_IE_DEFAULT = 6.0, 10.0, 0.03, 0.06
-CUTOFF_DEFAULT, MAX_CORRECTION_DEFAULT = 80.0, 20.0
+# DP max correction 30 N m: the reflected motor inertia of a 15 N m, 2 Hz push at K_dp 200 needs ~23 N m of
+# correction (20 clamped it: 9 N m/rad rendered); it is also what a wrong torque reading can add (docs/daemon.md)
+CUTOFF_DEFAULT, MAX_CORRECTION_DP_DEFAULT, MAX_CORRECTION_IE_DEFAULT = 80.0, 30.0, 20.0
 # Plausible ceilings of the torque loop's gains: far beyond what the loop's margins allow (docs/daemon.md),
 # so a typo or a non-finite value is refused while any tuning a study might try still loads.
 MAX_TORQUE_KP, MAX_TORQUE_KI, MAX_TORQUE_RATE, MAX_CORRECTION = 100.0, 1000.0, 1.0, 100.0
+# The disturbance observer and its energy tank (ankle_rt/control/torque_loop.py): shipped values and ceilings.
+DOB_HZ_DEFAULT, DOB_INERTIA_DEFAULT, MAX_OBSERVER_DEFAULT = 0.0, 1.0, 20.0
+TANK_J_DEFAULT, TANK_CREDIT_DEFAULT = 0.5, 0.8
+MAX_DOB_HZ, MAX_OBSERVER, MAX_TANK_J = 200.0, 100.0, 10.0
 
 IMPEDANCE = Section({
     "stiffness_dp": non_negative("N m/rad at the ankle", default=20.0, high=MAX_STIFFNESS),
@@ -96,6 +102,10 @@ IMPEDANCE = Section({
     "torque_feedback": Field(str, "joint-torque loop on the strain gauges (controller.torque_loop): auto = on when "
                                   "strain gauges are configured (simulator, or strain_gauges.matrix); off = open loop",
                              default="auto", choices=("auto", "on", "off")),
+    "angle_source": Field(str, "the ankle angle of the law: joint_encoders, estimated (through the cables: cannot see "
+                               "cable slack), auto = joint encoders when configured (simulator, or "
+                               "joint_encoders.counts_per_rev)", default="auto",
+                          choices=("auto", "joint_encoders", "estimated")),
 }, optional=True)
 
 GAIN_LIMITS = Section({
@@ -118,8 +128,25 @@ TORQUE_LOOP = Section({
     "cutoff_hz": Field(float, "Hz, first-order low-pass of the measured joint torque (below the 77-98 Hz cable modes)",
                        default=CUTOFF_DEFAULT, low=1.0, high=400.0),
     "max_correction_dp": positive("N m at the ankle the DP feedback may add (anti-windup; bounds a wrong reading)",
-                                  default=MAX_CORRECTION_DEFAULT, high=MAX_CORRECTION),
-    "max_correction_ie": positive("N m at the ankle the IE feedback may add", default=MAX_CORRECTION_DEFAULT, high=MAX_CORRECTION),
+                                  default=MAX_CORRECTION_DP_DEFAULT, high=MAX_CORRECTION),
+    "max_correction_ie": positive("N m at the ankle the IE feedback may add", default=MAX_CORRECTION_IE_DEFAULT,
+                                  high=MAX_CORRECTION),
+    "dob_hz": non_negative("Hz, low-pass of the disturbance observer cancelling motor-side friction and inertia; "
+                           "0 = no observer", default=DOB_HZ_DEFAULT, high=MAX_DOB_HZ),
+    "dob_inertia_dp": Field(float, "the observer's nominal DP inertia as a fraction of the reflected motor inertia "
+                                   "(1: cancels friction only; less: also inertia)", default=DOB_INERTIA_DEFAULT,
+                            low=0.05, high=2.0),
+    "dob_inertia_ie": Field(float, "the observer's nominal IE inertia, fraction of the reflected motor inertia",
+                            default=DOB_INERTIA_DEFAULT, low=0.05, high=2.0),
+    "max_observer_dp": non_negative("N m at the ankle the DP observer may add (bounds a wrong reading)",
+                                    default=MAX_OBSERVER_DEFAULT, high=MAX_OBSERVER),
+    "max_observer_ie": non_negative("N m at the ankle the IE observer may add", default=MAX_OBSERVER_DEFAULT,
+                                    high=MAX_OBSERVER),
+    "tank_j": non_negative("J, the energy tank that keeps the observer passive (its capacity)", default=TANK_J_DEFAULT,
+                           high=MAX_TANK_J),
+    "tank_friction_credit": Field(float, "share of the identified motor friction's dissipation (actuator.coulomb, "
+                                         "damping) the tank is credited with", default=TANK_CREDIT_DEFAULT,
+                                  low=0.0, high=1.0),
 }, optional=True, doc="joint-torque feedback of the impedance controller (docs/daemon.md)")
 
 CONTROLLER = Section({

@@ -172,3 +172,19 @@ def test_analyze_says_when_the_plot_directory_cannot_be_made(tmp_path, capsys):
     assert main(["analyze", "--plots", str(blocker / "plots")]) == 0
     text = capsys.readouterr().out
     assert "cannot create the plot directory" in text and "98.33 Hz" in text
+
+
+def test_gain_set_margin_db_names_the_limiting_gain():
+    """The shipped gains keep >= 6 dB over the robustness cases; a torque-loop gain set that oscillates
+    (kp 100, issue 19) is unstable and the gain named is that kp; an unknown key is refused by name."""
+    from ankle_rt.analysis import gain_set_margin_db
+    from ankle_rt.config import load_config
+    from ankle_rt.paths import default_config_path
+
+    cfg = load_config(default_config_path())
+    margin, _ = gain_set_margin_db(cfg, {})
+    assert margin >= 6.0
+    bad, why = gain_set_margin_db(cfg, {"kp_ie": 100.0})
+    assert bad == -math.inf and why.startswith("kp_ie (")
+    with pytest.raises(ValueError, match="nonsense"):
+        gain_set_margin_db(cfg, {"nonsense": 1.0})

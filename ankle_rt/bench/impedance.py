@@ -6,11 +6,16 @@ layer) with the reference held at 0 and external torques on the foot, one ankle 
 
 - static pulses of several sizes and both signs, ``pulse_s`` each with ``rest_s`` between: rendered
   (secant) stiffness = applied torque / true ankle angle averaged over the pulse's last 50 ms;
-- sinusoidal torques at each frequency for ``sine_cycles`` cycles; the last ``analysed_cycles``
-  give the first-harmonic impedance Z = T / Theta: dynamic stiffness Re Z, damping Im Z / w, and the
-  hysteresis: energy dissipated per cycle (the torque-angle loop's area, J) beyond what the
+- sinusoidal torques of each amplitude at each frequency for ``sine_cycles`` cycles; the last
+  ``analysed_cycles`` give the first-harmonic impedance Z = T / Theta: dynamic stiffness Re Z, damping
+  Im Z / w, the apparent inertia (K - Re Z) / w^2 (at the highest frequency, where it dominates), and
+  the hysteresis: energy dissipated per cycle (the torque-angle loop's area, J) beyond what the
   commanded damping dissipates (pi B w theta_amp^2), and the joint-torque tracking error
-  (desired minus strain-gauge torque, RMS).
+  (desired minus strain-gauge torque, RMS). The ankle is passive when every cycle's loop area is
+  >= 0 (the external torque puts energy in, the ankle never gives net energy back to the foot);
+- (a separate run per ground) the torque step: the foot held at 0 by a ground spring (rigid or soft),
+  the reference stepped so the impedance law asks ``step_nm`` [DP, IE] at once; overshoot of the
+  strain-gauge torque over its final value.
 
 The torques enter through the simulated plant's ``extra_disturbance`` (the sim backend only);
 the true ankle angle is the simulator's (a bench's joint encoders). Numpy only.
@@ -30,21 +35,28 @@ from ankle_rt.config import Config
 AXES = ("dp", "ie")
 SETTLE_S = 1.0            # activation (tare 0.1 s, soft start 0.2 s) and rest before the first pulse
 END_WINDOW_S = 0.05       # the pulse's end: angle averaged over this window
+DYNAMIC_MAX_HZ = 2.0      # dynamic stiffness and damping are judged on the sines up to this frequency
+# the torque step's grounds: ((K_dp, K_ie) N m/rad, B N m s/rad) holding the foot at 0. "rigid" is as
+# stiff as the explicit (held over a tick) ground stays stable on the 4 g m^2 foot (3000 is not)
+GROUNDS = {"rigid": ((1000.0, 500.0), 1.0), "soft": ((300.0, 150.0), 1.0)}
+FINAL_WINDOW_S = 0.2      # the step's final value: mean over the run's last this long
 
 
 @dataclass(frozen=True)
 class Experiment:
     """The torque programme, per axis (N m, s, Hz)."""
 
-    pulses_nm: tuple[tuple[float, ...], tuple[float, ...]] = ((3.0, -3.0, 6.0, -6.0, 12.0, -12.0),
-                                                              (1.5, -1.5, 3.0, -3.0, 6.0, -6.0))   # [DP, IE]
+    pulses_nm: tuple[tuple[float, ...], tuple[float, ...]] = ((1.0, -1.0, 3.0, -3.0, 6.0, -6.0, 12.0, -12.0),
+                                                              (1.0, -1.0, 3.0, -3.0, 6.0, -6.0))   # [DP, IE]
     pulse_s: float = 1.5
     rest_s: float = 1.0
     sine_hz: tuple[float, ...] = (0.5, 1.0, 2.0, 5.0)
-    sine_nm: tuple[float, float] = (6.0, 3.0)     # amplitude [DP, IE]
+    sine_nm: tuple[tuple[float, ...], tuple[float, ...]] = ((6.0, 15.0), (3.0, 7.5))   # amplitudes [DP, IE]
     sine_cycles: int = 4
     analysed_cycles: int = 2
     axes: tuple[str, ...] = AXES
+    step_nm: tuple[float, float] = (6.0, 3.0)     # torque step [DP, IE]; (0, 0): no step runs
+    step_s: float = 0.8                           # the step run lasts this long after the step
 
 
 @dataclass
@@ -65,10 +77,11 @@ def schedule(exp: Experiment) -> tuple[list[Segment], float]:
         for size in exp.pulses_nm[axis]:
             segs.append(Segment(axis, t, t + exp.pulse_s, "pulse", size))
             t += exp.pulse_s + exp.rest_s
-        for f in exp.sine_hz:
-            dur = exp.sine_cycles / f
-            segs.append(Segment(axis, t, t + dur, "sine", exp.sine_nm[axis], f))
-            t += dur + exp.rest_s
+        for amp in exp.sine_nm[axis]:
+            for f in exp.sine_hz:
+                dur = exp.sine_cycles / f
+                segs.append(Segment(axis, t, t + dur, "sine", amp, f))
+                t += dur + exp.rest_s
     return segs, t
 
 
@@ -107,17 +120,52 @@ class ImpedanceResult:
     commanded: dict[str, float]
     pulses: list[dict[str, Any]] = field(default_factory=list)
     sines: list[dict[str, Any]] = field(default_factory=list)
+    steps: list[dict[str, Any]] = field(default_factory=list)
     fault: str = "NONE"
     final_offset_rad: float = math.nan   # max |ankle angle| over the last 0.1 s (back at the equilibrium?)
     loops: list[dict[str, np.ndarray]] = field(default_factory=list)   # torque-angle loops for the plot
 
-    def stiffness_error_max_pct(self, min_torque: float = 3.0) -> float:
+    def stiffness_error_max_pct(self, min_torque: float = 1.0) -> float:
         errs = [abs(p["error_pct"]) for p in self.pulses if abs(p["torque_nm"]) >= min_torque]
         return max(errs) if errs else math.nan
 
-    def damping_error_max_pct(self) -> float:
-        errs = [abs(s["damping_error_pct"]) for s in self.sines if not math.isnan(s["damping_error_pct"])]
+    def _dynamic(self, key: str) -> float:
+        errs = [abs(s[key]) for s in self.sines if s["freq_hz"] <= DYNAMIC_MAX_HZ and not math.isnan(s[key])]
         return max(errs, default=math.nan)
+
+    def dynamic_stiffness_error_max_pct(self) -> float:
+        """Worst |Re Z / K - 1| over the sines up to DYNAMIC_MAX_HZ, all amplitudes, %."""
+        return self._dynamic("dynamic_stiffness_error_pct")
+
+    def damping_error_max_pct(self) -> float:
+        """Worst |B rendered / B commanded - 1| over the sines up to DYNAMIC_MAX_HZ, %."""
+        return self._dynamic("damping_error_pct")
+
+    def apparent_inertia_kg_m2(self) -> float:
+        """The largest (K - Re Z) / w^2 over the axes at the highest sine frequency and the smallest
+        amplitude (the linear figure: a larger push also meets the correction clamp): the inertia
+        the wearer moves."""
+        if not self.sines:
+            return math.nan
+        f1 = max(s["freq_hz"] for s in self.sines)
+        at = [s for s in self.sines if s["freq_hz"] == f1]
+        return max(s["apparent_inertia_kg_m2"] for s in at
+                   if s["amplitude_nm"] == min(t["amplitude_nm"] for t in at if t["axis"] == s["axis"]))
+
+    def passive(self) -> bool:
+        """No sine cycle gives net energy back to the foot (every loop area >= 0)."""
+        return all(s["loop_energy_j"] >= 0.0 for s in self.sines)
+
+    def torque_step_overshoot_pct(self) -> float:
+        return max((s["overshoot_pct"] for s in self.steps), default=math.nan)
+
+    def torque_step_ideal_overshoot_pct(self) -> float:
+        """What an ideal renderer of the commanded impedance would show (:func:`run_torque_step`)."""
+        return max((s["ideal_overshoot_pct"] for s in self.steps), default=math.nan)
+
+    def torque_step_excess_pct(self) -> float:
+        """The measured peak beyond the ideal renderer's (:func:`run_torque_step`), %."""
+        return max((s["excess_pct"] for s in self.steps), default=math.nan)
 
     def hysteresis_j_per_cycle(self) -> float:
         """Worst excess dissipation per cycle at the lowest sine frequency (quasi-static hysteresis)."""
@@ -131,8 +179,15 @@ class ImpedanceResult:
 
     def to_json(self) -> dict[str, Any]:
         return {"commanded": self.commanded, "fault": self.fault, "pulses": self.pulses, "sines": self.sines,
+                "steps": self.steps,
                 "stiffness_error_max_pct": self.stiffness_error_max_pct(),
+                "dynamic_stiffness_error_max_pct": self.dynamic_stiffness_error_max_pct(),
                 "damping_error_max_pct": self.damping_error_max_pct(),
+                "torque_step_overshoot_pct": self.torque_step_overshoot_pct(),
+                "torque_step_ideal_overshoot_pct": self.torque_step_ideal_overshoot_pct(),
+                "torque_step_excess_pct": self.torque_step_excess_pct(),
+                "apparent_inertia_kg_m2": self.apparent_inertia_kg_m2(),
+                "passive": self.passive(),
                 "hysteresis_j_per_cycle": self.hysteresis_j_per_cycle(),
                 "torque_tracking_rms_nm": self.torque_tracking_rms_nm()}
 
@@ -211,13 +266,64 @@ def run_impedance(cfg: Config, exp: Experiment, *, plant_cfg: Config | None = No
         commanded_loss = math.pi * B[s.axis] * w * amp ** 2
         err = desired[s.axis][sel] - measured[s.axis][sel]
         res.sines.append({"axis": name, "freq_hz": s.freq, "amplitude_nm": s.size, "angle_amplitude_rad": amp,
-                          "dynamic_stiffness": float(Z.real), "damping": float(Z.imag / w),
+                          "dynamic_stiffness": float(Z.real),
+                          "dynamic_stiffness_error_pct": 100.0 * (Z.real / K[s.axis] - 1.0),
+                          "apparent_inertia_kg_m2": float((K[s.axis] - Z.real) / w ** 2),
+                          "damping": float(Z.imag / w),
                           "damping_error_pct": 100.0 * (Z.imag / w / B[s.axis] - 1.0) if B[s.axis] > 0 else math.nan,
                           "loop_energy_j": area, "hysteresis_j": area - commanded_loss,
                           "torque_error_rms_nm": float(np.sqrt(np.mean(err ** 2)))})
         if keep_loops:
-            res.loops.append({"axis": name, "freq_hz": s.freq, "angle": th.copy(), "torque": tau})
+            res.loops.append({"axis": name, "freq_hz": s.freq, "amplitude_nm": s.size, "angle": th.copy(),
+                              "torque": tau})
+    if any(exp.step_nm):
+        res.steps = [run_torque_step(cfg, exp, ground, plant_cfg=plant_cfg) for ground in GROUNDS]
     return res
+
+
+def run_torque_step(cfg: Config, exp: Experiment, ground: str, *, plant_cfg: Config | None = None) -> dict[str, Any]:
+    """The torque step on ``ground`` (a key of GROUNDS): the reference steps at SETTLE_S by step_nm / K per
+    axis while the ground holds the foot; overshoot of the strain-gauge torque over its final value
+    (worst axis, %) and the final torques (N m).
+
+    The commanded impedance itself overshoots by this measure: an ideal renderer (no actuator
+    dynamics) of the spring K pushes the foot with K ref = step_nm the instant the reference steps
+    (the foot has not moved yet) and with step_nm g / (K + g) once the foot has settled into the
+    ground g, an overshoot of 100 K / g % (``ideal_overshoot_pct``: 67 % for K 200 on the soft
+    ground). ``excess_pct``: the measured peak beyond that ideal peak step_nm, in % of it: what the
+    actuator adds (the apparent inertia ringing on the ground)."""
+    from ankle_rt.backend import open_backend
+    from ankle_rt.clock import SimClock
+    from ankle_rt.daemon import run_lockstep
+
+    (k0, k1), b = GROUNDS[ground]
+    imp = cfg["controller"]["impedance"]
+    c = cfg.deep_copy()
+    c["reference"]["profile"] = "step"
+    c["reference"]["step"] = {"dp": exp.step_nm[0] / imp["stiffness_dp"], "ie": exp.step_nm[1] / imp["stiffness_ie"],
+                              "start_s": SETTLE_S}
+    inner = open_backend(c if plant_cfg is None else plant_cfg, SimClock())
+    backend = TorqueProgramBackend(inner, lambda t, x: (-k0 * x[0] - b * x[4], -k1 * x[1] - b * x[5]))
+    try:
+        run = run_lockstep(c, SETTLE_S + exp.step_s, backend=backend)
+    finally:
+        backend.close()
+    t = run["t"]
+    after, final = t >= SETTLE_S, t >= SETTLE_S + exp.step_s - FINAL_WINDOW_S
+    out: dict[str, Any] = {"ground": ground, "fault": run.summary["fault"]}
+    worst = worst_ideal = worst_excess = 0.0
+    for axis, name in enumerate(AXES):
+        tau = run[f"sg_torque_{name}"]
+        end = float(np.mean(tau[final]))
+        peak = float(np.max(tau[after] * math.copysign(1.0, end)))
+        over = 100.0 * max(0.0, peak / abs(end) - 1.0) if end != 0.0 else math.inf
+        ideal = 100.0 * imp[f"stiffness_{name}"] / (k0, k1)[axis]
+        excess = 100.0 * max(0.0, peak / abs(exp.step_nm[axis]) - 1.0) if exp.step_nm[axis] else 0.0
+        out[f"final_{name}_nm"], out[f"overshoot_{name}_pct"] = end, over
+        out[f"ideal_overshoot_{name}_pct"], out[f"excess_{name}_pct"] = ideal, excess
+        worst, worst_ideal, worst_excess = max(worst, over), max(worst_ideal, ideal), max(worst_excess, excess)
+    out["overshoot_pct"], out["ideal_overshoot_pct"], out["excess_pct"] = worst, worst_ideal, worst_excess
+    return out
 
 
 def _harmonic(x: np.ndarray, t: np.ndarray, w: float) -> complex:

@@ -221,16 +221,24 @@ def bench_batch(args: argparse.Namespace) -> int:
 # -- ankle-rt bench impedance -----------------------------------------------------------------------
 IMPEDANCE_DOC = """Rendered ankle impedance on the simulator (lockstep, simulated clock): the configured impedance
 controller (joint-torque feedback when strain gauges are configured) against open loop, for each
-commanded DP stiffness (IE: half unless --stiffness-ie). Per axis: static torque pulses of several
-sizes and both signs (secant stiffness at the pulse end), sinusoidal torques at 0.5-5 Hz (dynamic
-stiffness Re Z, damping Im Z / w, hysteresis = energy dissipated per cycle beyond the commanded
-damping's), and the stability margin of the sampled loop from the linear model (ZOH + one cycle of
+commanded DP stiffness (IE: half unless --stiffness-ie). Per axis: static torque pulses of +-1 to
++-12 N m (secant stiffness at the pulse end), sinusoidal torques of 6 and 15 N m DP (3 and 7.5 IE) at
+0.5-5 Hz (dynamic stiffness Re Z and damping Im Z / w judged up to 2 Hz, apparent inertia from 5 Hz,
+hysteresis = energy dissipated per cycle beyond the commanded damping's, passive = no cycle returns
+net energy to the foot), a 6 N m DP / 3 N m IE torque step with the foot on rigid and on soft ground
+(overshoot of the strain-gauge torque), and the stability margin of the sampled loop from the linear model (ZOH + one cycle of
 delay) over cable stiffness +/-30 %, viscous friction x0.5-x2, load-dependent friction sliding with
 or against the load, foot free or held. The plant: the config's effects plus --load-friction and
 --stribeck (defaults: load-dependent 0.12, Stribeck 0.15 N m at 0.1 rad/s)."""
 
-SUMMARY_KEYS = ("stiffness_error_max_pct", "damping_error_max_pct", "hysteresis_j_per_cycle", "stability_margin_db",
-                "torque_tracking_rms_nm")
+SUMMARY_KEYS = ("stiffness_error_max_pct", "dynamic_stiffness_error_max_pct", "damping_error_max_pct",
+                "torque_step_overshoot_pct", "torque_step_ideal_overshoot_pct", "torque_step_excess_pct",
+                "apparent_inertia_kg_m2", "passive", "hysteresis_j_per_cycle",
+                "stability_margin_db", "torque_tracking_rms_nm")
+WORST = {"stiffness_error_max_pct": max, "dynamic_stiffness_error_max_pct": max, "damping_error_max_pct": max,
+         "torque_step_overshoot_pct": max, "torque_step_ideal_overshoot_pct": max, "torque_step_excess_pct": max,
+         "apparent_inertia_kg_m2": max, "passive": all,
+         "hysteresis_j_per_cycle": max, "torque_tracking_rms_nm": max}
 
 
 def _number(low: float, strict: bool):
@@ -302,15 +310,10 @@ def impedance_variant(cfg, stiffness: list[float], stiffness_ie: float | None, d
         margins.append(worst.gain_margin_db)
         runs.append({**res.to_json(), "stability_margin_db": worst.gain_margin_db, "worst_margin_case": worst.to_json(),
                      "_result": res})
-    summary = {
-        "torque_feedback": closed, "friction_ff": friction_ff or "off",
-        "stiffness_error_max_pct": max(r["stiffness_error_max_pct"] for r in runs),
-        "damping_error_max_pct": max(r["damping_error_max_pct"] for r in runs),
-        "hysteresis_j_per_cycle": max(r["hysteresis_j_per_cycle"] for r in runs),
-        "stability_margin_db": min(margins),
-        "torque_tracking_rms_nm": max(r["torque_tracking_rms_nm"] for r in runs),
-        "faults": sorted({r["fault"] for r in runs}),
-    }
+    summary = {"torque_feedback": closed, "friction_ff": friction_ff or "off",
+               **{key: worst(r[key] for r in runs) for key, worst in WORST.items()},
+               "stability_margin_db": min(margins),
+               "faults": sorted({r["fault"] for r in runs} | {s["fault"] for r in runs for s in r["steps"]})}
     return {"summary": summary, "runs": runs}
 
 
@@ -325,22 +328,27 @@ def plot_loops(variants: dict[str, dict], png: str) -> str:
     import numpy as np
 
     first = next(iter(variants.values()))["runs"][0]["_result"]
-    keys = [(lp["axis"], lp["freq_hz"]) for lp in first.loops]
-    fig, axes = plt.subplots(2, max(1, len(keys) // 2), figsize=(4 * max(1, len(keys) // 2), 7), squeeze=False)
-    for n, (axis, f) in enumerate(keys):
+    keys = [(lp["axis"], lp["freq_hz"], lp["amplitude_nm"]) for lp in first.loops]
+    cols = max(1, len({f for _, f, _ in keys}))
+    rows = max(1, -(-len(keys) // cols))
+    fig, axes = plt.subplots(rows, cols, figsize=(4 * cols, 3.5 * rows), squeeze=False)
+    for ax in axes.flat[len(keys):]:
+        ax.set_visible(False)
+    for n, key in enumerate(keys):
+        axis, f, amp = key
         ax = axes.flat[n]
         for i, (name, v) in enumerate(variants.items()):
             res = v["runs"][0]["_result"]
-            lp = next(lp for lp in res.loops if lp["axis"] == axis and lp["freq_hz"] == f)
+            lp = next(lp for lp in res.loops if (lp["axis"], lp["freq_hz"], lp["amplitude_nm"]) == key)
             ax.plot(np.degrees(lp["angle"]), lp["torque"], f"C{i}", lw=0.8, label=name)
-        k = first.commanded[f"stiffness_{axis}"]
+        k = first.commanded[f"stiffness_{axis}"]     # this panel's axis: the IE panels show K_ie
         lim = np.array(ax.get_xlim())
-        ax.plot(lim, k * np.radians(lim), "k--", lw=0.8, label=f"commanded K = {k:g}")
-        ax.set_title(f"{axis.upper()} {f:g} Hz")
+        ax.plot(lim, k * np.radians(lim), "k--", lw=0.8, label=f"commanded K_{axis} = {k:g}")
+        ax.set_title(f"{axis.upper()} {amp:g} N m {f:g} Hz")
         ax.set_xlabel("ankle angle (deg)")
         ax.set_ylabel("external torque (N m)")
         ax.grid(True, lw=0.3)
-    axes.flat[0].legend(fontsize=7)
+        ax.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(png, dpi=110)
     plt.close(fig)
@@ -360,8 +368,8 @@ def bench_impedance(args: argparse.Namespace) -> int:
         raise SystemExit("ankle-rt bench impedance: --stribeck: the velocity VS must be > 0")
     cfg = load_config(Path(args.config) if args.config else default_config_path())
     effects = plant_effects(args.load_friction, tuple(args.stribeck))
-    exp = Experiment(pulses_nm=((3.0, -3.0, 12.0, -12.0), (3.0, -3.0)), sine_hz=(0.5, 5.0), sine_cycles=3,
-                     analysed_cycles=1) if args.quick else Experiment()
+    exp = Experiment(pulses_nm=((1.0, -1.0, 12.0, -12.0), (1.0, -1.0)), sine_hz=(0.5, 5.0), sine_nm=((6.0,), (3.0,)),
+                     sine_cycles=3, analysed_cycles=1) if args.quick else Experiment()
     ff = None if args.friction_ff == "off" else args.friction_ff
     plan = {"closed loop": ("auto", ff), "open loop": ("off", ff)}
     if args.friction_study:
@@ -397,21 +405,26 @@ def bench_impedance(args: argparse.Namespace) -> int:
     print(f"plant: nominal + {', '.join(e['type'] for e in effects) or 'no extra effects'}; "
           f"commanded K_dp {', '.join(f'{k:g}' for k in args.stiffness)} N m/rad, damping {args.damping[0]:g} / "
           f"{args.damping[1]:g} N m s/rad")
-    print(f"{'variant':32s} {'K err max %':>11s} {'B err max %':>11s} {'hyst J/cyc':>10s} {'margin dB':>9s} "
-          f"{'torque err rms':>14s}  faults")
+    print(f"{'variant':32s} {'K err %':>7s} {'Kdyn err %':>10s} {'B err %':>7s} {'step os %':>9s} {'J kg m2':>7s} "
+          f"{'passive':>7s} {'hyst J':>6s} {'margin dB':>9s} {'tau err':>7s}  faults")
     for name, v in variants.items():
         s = v["summary"]
-        print(f"{name:32s} {s['stiffness_error_max_pct']:11.1f} {s['damping_error_max_pct']:11.0f} "
-              f"{s['hysteresis_j_per_cycle']:10.3f} {s['stability_margin_db']:9.1f} {s['torque_tracking_rms_nm']:14.2f}  "
-              f"{','.join(s['faults'])}")
+        print(f"{name:32s} {s['stiffness_error_max_pct']:7.1f} {s['dynamic_stiffness_error_max_pct']:10.1f} "
+              f"{s['damping_error_max_pct']:7.0f} {s['torque_step_overshoot_pct']:9.1f} {s['apparent_inertia_kg_m2']:7.3f} "
+              f"{str(s['passive']):>7s} {s['hysteresis_j_per_cycle']:6.3f} {s['stability_margin_db']:9.1f} "
+              f"{s['torque_tracking_rms_nm']:7.2f}  {','.join(s['faults'])}")
     for name in ("closed loop", "open loop"):
         for run in variants[name]["runs"]:
             c = run["commanded"]
             print(f"{name}, K {c['stiffness_dp']:g} / {c['stiffness_ie']:g}: rendered K per pulse "
                   + "; ".join(f"{p['axis']} {p['torque_nm']:+g}: {p['stiffness']:.0f}" for p in run["pulses"]))
-            print("   sines (axis Hz: K_dyn, B, hysteresis J): "
-                  + "; ".join(f"{s['axis']} {s['freq_hz']:g}: {s['dynamic_stiffness']:.0f}, {s['damping']:.2f}, "
-                              f"{s['hysteresis_j']:.3f}" for s in run["sines"]))
+            print("   sines (axis N m Hz: K_dyn, B, hysteresis J): "
+                  + "; ".join(f"{s['axis']} {s['amplitude_nm']:g} {s['freq_hz']:g}: {s['dynamic_stiffness']:.0f}, "
+                              f"{s['damping']:.2f}, {s['hysteresis_j']:.3f}" for s in run["sines"]))
+            print("   torque steps (ground: overshoot DP / IE %, an ideal renderer's, peak beyond the ideal peak): "
+                  + "; ".join(f"{s['ground']}: {s['overshoot_dp_pct']:.0f} / {s['overshoot_ie_pct']:.0f}, "
+                              f"{s['ideal_overshoot_dp_pct']:.0f} / {s['ideal_overshoot_ie_pct']:.0f}, "
+                              f"{s['excess_dp_pct']:.0f} / {s['excess_ie_pct']:.0f}" for s in run["steps"]))
     print(f"hysteresis open loop / closed loop (worst commanded stiffness): "
           f"{result['hysteresis_ratio_open_to_closed']:.1f}x")
     print(f"wall time per simulated cycle (lockstep runs and their analysis): {cycle_s * 1e6:.1f} us = "

@@ -1,9 +1,10 @@
 """Ankle impedance control: a stiffness, damping and equilibrium angle per ankle axis.
 
-``tau_ankle = Ks (theta_0 - theta) - Bs dtheta`` uses the *estimated* ankle angles
-``theta = R^-1 theta_m - K^-1 tau_j`` (so the cables' series compliance is measured, not added to the
-commanded compliance) and the rigid-cable ankle rate ``R^-1 dtheta_m``. The equilibrium ``theta_0``
-is the loop's ankle reference.
+``tau_ankle = Ks (theta_0 - theta) - Bs dtheta`` uses the joint encoders' angles where the device has
+them (``controller.impedance.angle_source``; cable slack and backlash hide from anything else), else
+the *estimated* ankle angles ``theta = R^-1 theta_m - K^-1 tau_j`` (so the cables' series compliance
+is measured, not added to the commanded compliance), and the rigid-cable ankle rate ``R^-1
+dtheta_m``. The equilibrium ``theta_0`` is the loop's ankle reference.
 
 With a :class:`~ankle_rt.control.torque_loop.JointTorqueLoop` (the default when strain gauges are
 configured) ``tau_ankle`` is the *desired joint torque*: the loop drives the strain-gauge torque to
@@ -20,8 +21,9 @@ import numpy as np
 
 from ankle_rt.control.friction import FrictionFeedForward
 from ankle_rt.control.gains import GainError, RampedGainController
-from ankle_rt.control.torque_loop import ImpedanceLimits, JointTorqueLoop, TorqueLoopGains, torque_feedback
-from ankle_rt.elementwise import Value
+from ankle_rt.control.torque_loop import (ImpedanceLimits, JointTorqueLoop, ReflectedActuator, TorqueLoopGains,
+                                         torque_feedback, uses_joint_encoders)
+from ankle_rt.elementwise import Value, select
 from ankle_rt.estimation import Estimate
 from ankle_rt.kinematics import Kinematics
 
@@ -32,9 +34,11 @@ if TYPE_CHECKING:
 class ImpedanceController(RampedGainController):
     def __init__(self, kin: Kinematics, ref: np.ndarray, gains: Mapping[str, float], *, dt: float,
                  ramp_s: float = 0.0, soft_start_s: float = 0.0, friction: FrictionFeedForward | None = None,
-                 torque_loop: JointTorqueLoop | None = None, limits: ImpedanceLimits | None = None):
+                 torque_loop: JointTorqueLoop | None = None, limits: ImpedanceLimits | None = None,
+                 joint_encoders: bool = False):
         """``gains``: stiffness_dp/ie (N m/rad), damping_dp/ie (N m s/rad). ``ref``: rad [DP, IE].
         ``torque_loop``: closes the joint-torque loop on the strain gauges; None: open loop.
+        ``joint_encoders``: the stiffness acts on the joint encoders' angles (else the estimated ones).
         ``limits``: gains outside them are refused (GainError), here and in :meth:`set_gains`."""
         if limits is not None:
             self._check(limits, gains)
@@ -44,6 +48,8 @@ class ImpedanceController(RampedGainController):
         self.ref = ref
         self.torque_loop = torque_loop
         self.limits = limits
+        self.joint_encoders = joint_encoders
+        self.lead0, self.lead1 = torque_loop.lag_s if torque_loop is not None else (0.0, 0.0)
 
     @classmethod
     def from_config(cls, cfg: "Config", kin: Kinematics, ref: np.ndarray,
@@ -56,13 +62,17 @@ class ImpedanceController(RampedGainController):
         c = cfg["controller"]
         dt = 1.0 / c["rate_hz"]
         loop = limits = None
+        joint = uses_joint_encoders(cfg)
+        if joint and cfg["backend"] != "sim" and cfg["joint_encoders"]["counts_per_rev"] is None:
+            raise ConfigError("angle_source joint_encoders needs joint encoders (joint_encoders.counts_per_rev)",
+                              getattr(cfg, "source", None), "controller.impedance.angle_source")
         if torque_feedback(cfg):
-            loop = JointTorqueLoop(TorqueLoopGains.from_config(c["torque_loop"]), dt)
+            loop = JointTorqueLoop(TorqueLoopGains.from_config(c["torque_loop"]), dt, ReflectedActuator.from_config(cfg))
             limits = ImpedanceLimits.from_config(cfg)
             friction = friction.without_viscous() if friction is not None else None
         try:
             return cls(kin, ref, c["impedance"], dt=dt, ramp_s=c["gain_ramp_s"], soft_start_s=c["soft_start_s"],
-                       friction=friction, torque_loop=loop, limits=limits)
+                       friction=friction, torque_loop=loop, limits=limits, joint_encoders=joint)
         except GainError as exc:
             raise ConfigError(str(exc), getattr(cfg, "source", None), f"controller.impedance.{exc.gain}") from None
 
@@ -96,12 +106,14 @@ class ImpedanceController(RampedGainController):
         g.advance()
         k0, k1, b0, b1 = g.values
         s = g.scale
-        t0 = k0 * (ref_dp - est.dp) - b0 * est.dp_vel
-        t1 = k1 * (ref_ie - est.ie) - b1 * est.ie_vel
+        # the loop's lag on the spring torque (lag_s) is led by K lag_s of damping (JointTorqueLoop.lag_s)
+        joint = self.joint_encoders
+        t0 = k0 * (ref_dp - select(joint, est.joint_dp, est.dp)) - (b0 + k0 * self.lead0) * est.dp_vel
+        t1 = k1 * (ref_ie - select(joint, est.joint_ie, est.ie)) - (b1 + k1 * self.lead1) * est.ie_vel
         j0, j1 = est.sg_dp, est.sg_ie
         loop = self.torque_loop
         if loop is not None:
-            t0, t1 = loop.update(t0, t1, j0, j1, s >= 1.0)
+            t0, t1 = loop.update(t0, t1, j0, j1, est.dp_vel, est.ie_vel, s >= 1.0)
         RiT = self.RiT
         ff = self.friction
         return (s * (RiT[0] * t0 + RiT[1] * t1 + ff.torque(est.mv1, RiT[0] * j0 + RiT[1] * j1)),

@@ -21,6 +21,24 @@ deliver, so per ankle axis this loop drives the measured torque to the desired o
   negative damping (the loop would not be passive).
 - The measured torque is low-passed (first order at ``cutoff_hz``) so the loop rolls off well below
   the 77-98 Hz cable modes, whose damping ratio (~0.02) it must not eat.
+- The integral is held while the correction is clamped and pushing the same way (conditional
+  integration): a large, fast push no longer winds it up (the old loop rendered 9 N m/rad for a
+  15 N m 2 Hz sine at K 200).
+
+In motion the loop alone leaves J / (1 + kp), D / (1 + kp) and friction / (1 + kp) of the motor side
+in what the wearer feels (the torque error is what accelerates the reflected motor inertia). A
+**disturbance observer** (``dob_hz`` > 0) on the ankle-side motor coordinate q = R^-1 theta_m adds
+
+    d = LP_dob(u_{k-1} - tau_sg - J_n (w_k - w_{k-1}) / dt)        w = R^-1 motor_vel
+
+to ``u``: whatever the motor side does that a pure inertia J_n would not (friction, viscous, the
+inertia beyond J_n = ``dob_inertia`` x R^T J R) is cancelled below ``dob_hz``, so the loop sees an
+inertia J_n and the wearer J_n / (1 + kp). ``d`` is clamped to ``max_observer_nm`` (a wrong torque
+reading moves it by at most that), and an **energy tank** keeps it passive: the tank is filled with
+``tank_friction_credit`` x the energy the identified motor friction dissipates (Fc |w| + D w^2) and
+drained by what the observer puts in (d w); empty, the observer may only brake (d w <= 0). So the
+observer never gives the wearer more energy than the physical friction it cancels takes out, plus
+the tank's ``tank_j``.
 
 Stability margins across cable stiffness +/- 30 % and the friction range come from the linear model:
 :func:`ankle_rt.analysis.torque_loop_margins`. Everything per cycle is plain floats (no allocation)
@@ -56,13 +74,43 @@ class TorqueLoopGains:
     torque_rate: tuple[float, float]         # s, kd on the rate of the filtered measured torque
     cutoff_hz: float                         # first-order low-pass of the measured joint torque
     max_correction_nm: tuple[float, float]   # |kp e + ki int e - kd rate| at most this (anti-windup, fault bound)
+    dob_hz: float = 0.0                      # disturbance observer's low-pass; 0: no observer
+    dob_inertia: tuple[float, float] = (1.0, 1.0)    # J_n as a fraction of the reflected motor inertia
+    max_observer_nm: tuple[float, float] = (0.0, 0.0)   # |d| at most this
+    tank_j: float = 0.0                      # J, the energy tank's capacity
+    tank_friction_credit: float = 0.0        # share of the identified friction's dissipation the tank gets
 
     @classmethod
     def from_config(cls, c: Mapping[str, Any]) -> "TorqueLoopGains":
         """From ``controller.torque_loop``."""
         pair = lambda key: (float(c[key + "_dp"]), float(c[key + "_ie"]))  # noqa: E731
         return cls(kp=pair("kp"), ki=pair("ki"), torque_rate=pair("torque_rate"),
-                   cutoff_hz=float(c["cutoff_hz"]), max_correction_nm=pair("max_correction"))
+                   cutoff_hz=float(c["cutoff_hz"]), max_correction_nm=pair("max_correction"),
+                   dob_hz=float(c["dob_hz"]), dob_inertia=pair("dob_inertia"), max_observer_nm=pair("max_observer"),
+                   tank_j=float(c["tank_j"]), tank_friction_credit=float(c["tank_friction_credit"]))
+
+
+@dataclass(frozen=True)
+class ReflectedActuator:
+    """The motor side seen at the ankle, per axis [DP, IE]: the diagonal of R^T J R, R^T D R and the
+    Coulomb friction kc (|R| column norm): what the observer's nominal inertia and the tank's credit
+    are built from."""
+
+    inertia: tuple[float, float]     # kg m^2
+    viscous: tuple[float, float]     # N m s/rad
+    coulomb: tuple[float, float]     # N m
+
+    @classmethod
+    def from_config(cls, cfg: Mapping[str, Any]) -> "ReflectedActuator":
+        from ankle_rt.kinematics import Kinematics
+        from ankle_rt.params import TransmissionParams
+
+        kin = Kinematics.from_params(TransmissionParams(**cfg["transmission"]))
+        col = [float(kin.R[0, a] ** 2 + kin.R[1, a] ** 2) for a in (0, 1)]
+        a = cfg["actuator"]
+        return cls(inertia=(a["inertia"] * col[0], a["inertia"] * col[1]),
+                   viscous=(a["damping"] * col[0], a["damping"] * col[1]),
+                   coulomb=(a["coulomb"] * math.sqrt(col[0]), a["coulomb"] * math.sqrt(col[1])))
 
 
 class JointTorqueLoop:
@@ -72,15 +120,39 @@ class JointTorqueLoop:
     batch of devices (:meth:`stack`, the batched daemon cycle) they are arrays over the batch and the
     same :meth:`update` runs once for all of them."""
 
-    def __init__(self, gains: TorqueLoopGains, dt: float):
+    def __init__(self, gains: TorqueLoopGains, dt: float, actuator: ReflectedActuator | None = None):
+        """``actuator``: needed with the observer (``gains.dob_hz`` > 0)."""
         self.gains = gains
+        self.dt = dt
         self.kp0, self.kp1 = gains.kp
         self.kidt0, self.kidt1 = gains.ki[0] * dt, gains.ki[1] * dt
         self.kdr0, self.kdr1 = gains.torque_rate[0] / dt, gains.torque_rate[1] / dt
         self.lim0, self.lim1 = gains.max_correction_nm
         self.alpha = 1.0 - math.exp(-2.0 * math.pi * gains.cutoff_hz * dt)
+        on = gains.dob_hz > 0.0
+        if on and actuator is None:
+            raise ValueError("JointTorqueLoop: the disturbance observer needs the reflected actuator")
+        self.observer = on        # a bool: equal over a stacked batch (stack refuses a mix)
+        self.ad = 1.0 - math.exp(-2.0 * math.pi * gains.dob_hz * dt) if on else 0.0
+        jn = [gains.dob_inertia[a] * actuator.inertia[a] / dt if on else 0.0 for a in (0, 1)]
+        self.jn0, self.jn1 = jn
+        self.dlim0, self.dlim1 = gains.max_observer_nm if on else (0.0, 0.0)
+        self.tank_max = gains.tank_j
+        credit = gains.tank_friction_credit * dt
+        self.cc0, self.cc1 = (credit * actuator.coulomb[0], credit * actuator.coulomb[1]) if on else (0.0, 0.0)
+        self.cv0, self.cv1 = (credit * actuator.viscous[0], credit * actuator.viscous[1]) if on else (0.0, 0.0)
         self.f0 = self.f1 = self.i0 = self.i1 = 0.0
+        self.d0 = self.d1 = self.u0 = self.u1 = self.w0 = self.w1 = 0.0
+        self.e0 = self.e1 = 0.0
         self.reset_state(0.0, 0.0)
+
+    @property
+    def lag_s(self) -> tuple[Value, Value]:
+        """s [DP, IE]: the loop follows a desired torque as tau_des / (1 + s kd / (1 + kp)) (the rate
+        term acts on the measured torque), a lag that turns a commanded stiffness K into K kd / (1 + kp)
+        of negative damping (-0.86 N m s/rad at K_ie 100: the IE ankle gave energy back at 2 Hz). The
+        impedance law leads it by that much damping."""
+        return self.kdr0 * self.dt / (1.0 + self.kp0), self.kdr1 * self.dt / (1.0 + self.kp1)
 
     @classmethod
     def stack(cls, loops: Sequence["JointTorqueLoop"]) -> "JointTorqueLoop":
@@ -95,24 +167,74 @@ class JointTorqueLoop:
         self.f1 = select(where, tau_ie, self.f1)
         self.i0 = select(where, 0.0, self.i0)
         self.i1 = select(where, 0.0, self.i1)
+        self.d0 = select(where, 0.0, self.d0)
+        self.d1 = select(where, 0.0, self.d1)
+        self.u0 = select(where, tau_dp, self.u0)     # at rest the motors hold the cable torque
+        self.u1 = select(where, tau_ie, self.u1)
+        self.e0 = select(where, self.tank_max, self.e0)
+        self.e1 = select(where, self.tank_max, self.e1)
 
-    def update(self, tau_dp: Value, tau_ie: Value, sg_dp: Value, sg_ie: Value,
+    def update(self, tau_dp: Value, tau_ie: Value, sg_dp: Value, sg_ie: Value, w_dp: Value, w_ie: Value,
                integrate: bool | np.ndarray) -> tuple[Value, Value]:
-        """Desired joint torques and tared strain-gauge torques (N m, [DP, IE]) in, the ankle-side
-        motor torques (N m, [DP, IE]) out. ``integrate`` False holds the integrator (soft start)."""
+        """Desired joint torques and tared strain-gauge torques (N m, [DP, IE]) and the ankle-side
+        motor rates R^-1 motor_vel (rad/s) in, the ankle-side motor torques (N m, [DP, IE]) out.
+        ``integrate`` False holds the integrator and keeps the observer out (soft start)."""
         a = self.alpha
         p0, p1 = self.f0, self.f1
         f0 = p0 + a * (sg_dp - p0)
         f1 = p1 + a * (sg_ie - p1)
         self.f0, self.f1 = f0, f1
         e0, e1 = tau_dp - f0, tau_ie - f1
-        lim0, lim1 = self.lim0, self.lim1
-        i0 = select(integrate, clip(self.i0 + self.kidt0 * e0, -lim0, lim0), self.i0)
-        i1 = select(integrate, clip(self.i1 + self.kidt1 * e1, -lim1, lim1), self.i1)
+        c0, i0 = self._correction(e0, self.kp0 * e0 - self.kdr0 * (f0 - p0), self.i0 + self.kidt0 * e0, self.i0,
+                                  self.lim0, integrate)
+        c1, i1 = self._correction(e1, self.kp1 * e1 - self.kdr1 * (f1 - p1), self.i1 + self.kidt1 * e1, self.i1,
+                                  self.lim1, integrate)
         self.i0, self.i1 = i0, i1
-        c0 = clip(self.kp0 * e0 + i0 - self.kdr0 * (f0 - p0), -lim0, lim0)
-        c1 = clip(self.kp1 * e1 + i1 - self.kdr1 * (f1 - p1), -lim1, lim1)
-        return tau_dp + c0, tau_ie + c1
+        u0 = tau_dp + c0 + self._observe(0, sg_dp, w_dp, integrate)
+        u1 = tau_ie + c1 + self._observe(1, sg_ie, w_ie, integrate)
+        self.u0, self.u1 = u0, u1
+        return u0, u1
+
+    @staticmethod
+    def _correction(e: Value, pd: Value, i_new: Value, i_old: Value, lim: Value,
+                    integrate: bool | np.ndarray) -> tuple[Value, Value]:
+        """The clamped correction and the integrator: it grows only while the correction is not
+        clamped in the direction of the error (conditional integration)."""
+        i_new = clip(i_new, -lim, lim)
+        raw = pd + i_new
+        wind = ((raw > lim) & (e > 0.0)) | ((raw < -lim) & (e < 0.0))
+        i = select(integrate, select(wind, i_old, i_new), i_old)
+        return clip(pd + i, -lim, lim), i
+
+    def _observe(self, axis: int, sg: Value, w: Value, integrate: bool | np.ndarray) -> Value:
+        """The observer's torque on ``axis`` (0 DP, 1 IE), tank-guarded; 0 without an observer."""
+        if not self.observer:
+            return 0.0
+        if axis == 0:
+            d, u, w_prev, jn, lim, tank, cc, cv = self.d0, self.u0, self.w0, self.jn0, self.dlim0, self.e0, self.cc0, self.cv0
+        else:
+            d, u, w_prev, jn, lim, tank, cc, cv = self.d1, self.u1, self.w1, self.jn1, self.dlim1, self.e1, self.cc1, self.cv1
+        d = d + self.ad * (u - sg - jn * (w - w_prev) - d)
+        out = select(integrate, clip(d, -lim, lim), 0.0)
+        # the tank: credit from the friction the observer cancels, debit what it puts in
+        power = out * w
+        out = select((tank > 0.0) | (power <= 0.0), out, 0.0)
+        tank = clip(tank + cc * abs(w) + cv * w * w - self.dt * out * w, 0.0, self.tank_max)
+        if axis == 0:
+            self.d0, self.w0, self.e0 = d, w, tank
+        else:
+            self.d1, self.w1, self.e1 = d, w, tank
+        return out
+
+
+def uses_joint_encoders(cfg: Mapping[str, Any]) -> bool:
+    """Whether the impedance law takes the ankle angle from joint encoders: ``controller.impedance.
+    angle_source`` joint_encoders/estimated, or auto = when joint encoders are configured (the
+    simulator's always are: the true joint angle; on hardware ``joint_encoders.counts_per_rev``)."""
+    mode = cfg["controller"]["impedance"]["angle_source"]
+    if mode != "auto":
+        return mode == "joint_encoders"
+    return cfg["backend"] == "sim" or cfg["joint_encoders"]["counts_per_rev"] is not None
 
 
 def torque_feedback(cfg: "Config") -> bool:
@@ -136,6 +258,7 @@ class ImpedanceLimits:
 
     - the integral: c (1 + kp) >= 2 J ki, c = D / 2 + (1 + kp) B (the Routh condition, factor 2);
     - the rendered damping ratio (B + D / (2 (1 + kp))) / (2 sqrt(K J / (1 + kp))) >= MIN_DAMPING_RATIO;
+    - B counts the law's lead K kd / (1 + kp) (:attr:`JointTorqueLoop.lag_s`) on top of the commanded;
     - K <= MAX_STIFFNESS_FRACTION x the cable stiffness at the ankle (0.3 DP, 0.5 IE).
     """
 
@@ -144,6 +267,7 @@ class ImpedanceLimits:
     max_stiffness: tuple[float, float]    # N m/rad
     kp: tuple[float, float]
     ki: tuple[float, float]
+    lag: tuple[float, float] = (0.0, 0.0)    # s, kd / (1 + kp): the law adds K lag of damping
 
     @classmethod
     def from_config(cls, cfg: "Config") -> "ImpedanceLimits":
@@ -151,20 +275,22 @@ class ImpedanceLimits:
         from ankle_rt.params import TransmissionParams
 
         kin = Kinematics.from_params(TransmissionParams(**cfg["transmission"]))
-        col = [float(kin.R[0, a] ** 2 + kin.R[1, a] ** 2) for a in (0, 1)]
-        a, tl = cfg["actuator"], cfg["controller"]["torque_loop"]
-        return cls(inertia=(a["inertia"] * col[0], a["inertia"] * col[1]),
-                   viscous=(a["damping"] * col[0], a["damping"] * col[1]),
+        act, tl = ReflectedActuator.from_config(cfg), cfg["controller"]["torque_loop"]
+        # with the observer the loop sees its nominal inertia and no viscous friction (it cancels it)
+        dob = tl["dob_hz"] > 0.0
+        inertia = tuple(act.inertia[a] * (tl[f"dob_inertia_{n}"] if dob else 1.0) for a, n in enumerate(("dp", "ie")))
+        return cls(inertia=inertia, viscous=(0.0, 0.0) if dob else act.viscous,
                    max_stiffness=(MAX_STIFFNESS_FRACTION[0] * float(kin.K[0, 0]),
                                   MAX_STIFFNESS_FRACTION[1] * float(kin.K[1, 1])),
-                   kp=(tl["kp_dp"], tl["kp_ie"]), ki=(tl["ki_dp"], tl["ki_ie"]))
+                   kp=(tl["kp_dp"], tl["kp_ie"]), ki=(tl["ki_dp"], tl["ki_ie"]),
+                   lag=(tl["torque_rate_dp"] / (1.0 + tl["kp_dp"]), tl["torque_rate_ie"] / (1.0 + tl["kp_ie"])))
 
     def min_damping(self, axis: int, stiffness: float) -> float:
         """N m s/rad: the least commanded damping for ``stiffness`` N m/rad on ``axis`` (0 DP, 1 IE)."""
         g, J, d = 1.0 + self.kp[axis], self.inertia[axis], self.viscous[axis] / (2.0 * (1.0 + self.kp[axis]))
         integral = 2.0 * J * self.ki[axis] / g ** 2
         ratio = 2.0 * MIN_DAMPING_RATIO * math.sqrt(stiffness * J / g)
-        return max(0.0, max(integral, ratio) - d)
+        return max(0.0, max(integral, ratio) - d - stiffness * self.lag[axis])
 
     def check(self, gains: Mapping[str, float]) -> tuple[str, str] | None:
         """(gain name, reason) for the first impedance gain outside the stable set, None if all fit."""
