@@ -102,6 +102,9 @@ class Daemon:
         self.reference.update(est.t)
         torque = self.torque
         state = safety.state
+        if state == FAULT and safety.fault_time != safety.fault_time:
+            # tripped between cycles (missed deadlines): stamped with the first record that shows it
+            safety.fault_time = est.t
         if state != ACTIVE:
             torque[0] = torque[1] = 0.0
             safety.current[0] = safety.current[1] = 0.0
@@ -141,18 +144,22 @@ class Daemon:
         if self.safety.state == ACTIVE and service.command_channel_lost(now):
             self._fault(Fault.COMMAND_LOST)
 
-    def _fault(self, code: int) -> None:
-        """Within this cycle: set values to zero, amplifiers off, reason recorded."""
+    def _fault(self, code: int, t: float | None = None) -> None:
+        """Within this cycle: set values to zero, amplifiers off, reason recorded (at ``t``, default
+        this cycle's sample time; NaN: the next cycle's)."""
         backend = self.backend
         backend.write(0.0, 0.0)
         backend.deactivate()
         self.safety.current[0] = self.safety.current[1] = 0.0
-        self.safety.trip(code, self.est.t)
+        self.safety.trip(code, self.est.t if t is None else t)
         if self.service is not None:
             self.service.status(f"FAULT: {Fault(code).description}")
 
     def _missed_deadlines(self) -> None:
-        self._fault(Fault.MISSED_DEADLINES)
+        """The loop's overrun limit, seen after a cycle ended: the fault's time is that of the next
+        cycle's sample, the first record that carries it (one fault, one time in the log, the summary
+        and ``ctl status``)."""
+        self._fault(Fault.MISSED_DEADLINES, math.nan)
 
     # -- state changes (commands) ----------------------------------------------------------------
     def activate(self) -> None:
@@ -340,8 +347,8 @@ class Daemon:
                 self.deactivate()
             else:
                 self.backend.deactivate()
-        if self.loop.stop_requested:
-            self.cycle(self.clock.now_ns())
+        if self.loop.stop_requested or (self.safety.state == State.FAULT and math.isnan(self.safety.fault_time)):
+            self.cycle(self.clock.now_ns())   # the safe state (or a fault tripped after the last cycle) on record
 
     def close(self) -> None:
         """Safe state, then release what this daemon opened (backend, log)."""
@@ -362,19 +369,24 @@ class Daemon:
         self.recorder = LogWriter(path, self.log_metadata(), log["ring_records"], log["flush_interval_s"],
                                   Rotation.from_config(log, retention_pattern))
 
+    @property
+    def simulated_plant(self) -> bool:
+        """True when the plant is simulated in this process (the sim backend, or a transport's lockstep
+        emulator): nothing physical moves."""
+        backend = self.cfg["backend"]
+        return backend == "sim" or self.cfg.get(backend, {}).get("emulator") == "lockstep"
+
     def log_metadata(self) -> dict[str, Any]:
         """The run log header's metadata. ``controller_config`` is the config's controller section the
         run started with (type, gains, ramps; what ``validate --from`` replays), null when an
         experiment plugged its own controller in. ``sim_disturbances``: the ankle torques the simulated
         plant applied (``sim.disturbances``, replayed by ``validate --from``), null on real hardware."""
-        backend = self.cfg["backend"]
-        simulated = backend == "sim" or self.cfg.get(backend, {}).get("emulator") == "lockstep"
         return log_metadata(config=getattr(self.cfg, "source", "<memory>"), backend=self.cfg["backend"],
                             clock="simulated" if self.clock.simulated else "monotonic",
                             rate_hz=self.cfg["controller"]["rate_hz"], torque_constant=self.kt,
                             controller=type(self.controller).__name__,
                             controller_config=self.cfg["controller"] if self.own_controller else None,
-                            sim_disturbances=self.cfg["sim"]["disturbances"] if simulated else None,
+                            sim_disturbances=self.cfg["sim"]["disturbances"] if self.simulated_plant else None,
                             states={s.name: int(s) for s in State}, faults={f.name: int(f) for f in Fault})
 
 

@@ -1,0 +1,90 @@
+"""The first-day stumbles of issue 22, each pinned: one fault time, the missed-deadlines hint of a
+simulated real-time run, and the CLI details a new user meets first."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from ankle_rt.clock import SimClock
+from ankle_rt.commands import run as run_cmd
+from ankle_rt.log.summary import summarize
+from ankle_rt.safety import Fault, State
+from tests.daemon_helpers import lockstep_daemon, run_cycles
+
+
+class WallLikeClock(SimClock):
+    """A simulated clock that the daemon takes for the real one (a real-time run, deterministically)."""
+
+    simulated = False
+
+
+def stall_at(daemon, t_s: float, stall_ns: int) -> None:
+    """Make the controller's cycle at sample time ``t_s`` take ``stall_ns`` (a busy machine)."""
+    update = daemon.controller.update
+
+    def slow(est, out):
+        update(est, out)
+        if abs(est.t - t_s) < 1e-9:
+            daemon.clock.advance(stall_ns)
+    daemon.controller.update = slow
+
+
+def test_a_missed_deadline_fault_has_one_time_in_safety_log_and_summary(sim_cfg):
+    daemon = lockstep_daemon(sim_cfg)
+    run_cycles(daemon, 400)
+    stall_at(daemon, 0.45, 80_000_000)          # one 80 ms stall > loop.max_stall_s
+    run_cycles(daemon, 200)
+    rec = daemon.recorder.records
+    assert daemon.safety.fault == Fault.MISSED_DEADLINES
+    first = int(np.flatnonzero(rec["fault"] != Fault.NONE)[0])
+    assert rec["t"][first] > 0.45 + 0.05        # the first record carrying it comes after the stall
+    assert daemon.safety.fault_time == rec["t"][first]
+    assert summarize(rec)["fault"]["t"] == daemon.safety.fault_time
+    assert daemon.status()["fault_time_s"] == daemon.safety.fault_time
+    daemon.close()
+
+
+def test_a_missed_deadline_fault_in_the_run_s_last_cycle_is_still_recorded_with_its_time(sim_cfg):
+    daemon = lockstep_daemon(sim_cfg)
+    update = daemon.controller.update
+
+    def slow_at_the_end(est, out):
+        update(est, out)
+        if est.t >= 0.39:
+            daemon.clock.advance(80_000_000)    # the stall runs past the end of the run
+    daemon.controller.update = slow_at_the_end
+    daemon.run(0.4)
+    rec = daemon.recorder.records
+    assert daemon.safety.state == State.FAULT and daemon.safety.fault == Fault.MISSED_DEADLINES
+    assert rec["fault"][-1] == Fault.MISSED_DEADLINES and rec["fault"][-2] == Fault.NONE
+    assert daemon.safety.fault_time == rec["t"][-1]
+    daemon.close()
+
+
+def test_a_simulated_real_time_run_that_misses_deadlines_says_what_to_do(sim_cfg, capsys):
+    daemon = lockstep_daemon(sim_cfg, backend=None)
+    daemon.clock = WallLikeClock()
+    daemon.safety.trip(Fault.MISSED_DEADLINES, 2.5)
+    assert run_cmd._exit_code(daemon) == 1
+    err = capsys.readouterr().err
+    assert "ended in FAULT at t = 2.500 s: MISSED_DEADLINES" in err
+    for what in ("--fast", "loop.realtime.priority", "loop.max_consecutive_overruns", "loop.max_stall_s"):
+        assert what in err
+    daemon.close()
+
+
+@pytest.mark.parametrize("case", ["lockstep", "other fault", "hardware"])
+def test_the_hint_is_only_for_a_simulated_real_time_run_that_missed_deadlines(sim_cfg, capsys, case):
+    daemon = lockstep_daemon(sim_cfg)
+    if case != "lockstep":
+        daemon.clock = WallLikeClock()
+    if case == "hardware":
+        daemon.cfg = daemon.cfg.deep_copy()
+        daemon.cfg["backend"] = "serial"
+    daemon.safety.trip(Fault.ANKLE_RANGE if case == "other fault" else Fault.MISSED_DEADLINES, 1.0)
+    assert run_cmd._exit_code(daemon) == 1
+    assert "hint:" not in capsys.readouterr().err
+    daemon.close()
