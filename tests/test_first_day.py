@@ -88,3 +88,12 @@ def test_the_hint_is_only_for_a_simulated_real_time_run_that_missed_deadlines(si
     assert run_cmd._exit_code(daemon) == 1
     assert "hint:" not in capsys.readouterr().err
     daemon.close()
+
+
+def test_bench_impedance_plot_takes_an_optional_path():
+    from ankle_rt.cli import build_parser
+
+    parse = build_parser().parse_args
+    assert parse(["bench", "impedance", "--plot"]).plot == "impedance-bench.png"   # as docs/daemon.md writes it
+    assert parse(["bench", "impedance", "--plot", "loops.png"]).plot == "loops.png"
+    assert parse(["bench", "impedance"]).plot is None

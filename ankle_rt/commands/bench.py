@@ -226,8 +226,9 @@ def register_impedance(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--friction-study", action="store_true",
                    help="also run both controllers with each friction feed-forward (what the identified model buys)")
     p.add_argument("--quick", action="store_true", help="fewer pulses and sines (a smoke run)")
-    p.add_argument("--plot", metavar="PNG", default="impedance-bench.png",
-                   help="torque-angle loops against the commanded line (default impedance-bench.png; needs matplotlib)")
+    p.add_argument("--plot", metavar="PNG", nargs="?", const="impedance-bench.png",
+                   help="save the torque-angle loops against the commanded line (PNG default impedance-bench.png; "
+                        "needs matplotlib)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(handler=bench_impedance)
 
