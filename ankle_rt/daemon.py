@@ -282,7 +282,11 @@ class Daemon:
             elif isinstance(command, proto.StartProfile) and command.name == "csv":
                 return self._start_csv(dict(command.params))
             elif isinstance(command, proto.StartProfile):
-                profile = make_profile(command.name, command.params)
+                params = dict(command.params)
+                if command.name == "hold":   # "hold here": an axis not given stays where the ankle is
+                    params.setdefault("dp", self.est.ankle_pos.item(0))
+                    params.setdefault("ie", self.est.ankle_pos.item(1))
+                profile = make_profile(command.name, params)
                 self._check_reach(profile)
                 self._command_reference(profile)
             else:

@@ -97,3 +97,21 @@ def test_bench_impedance_plot_takes_an_optional_path():
     assert parse(["bench", "impedance", "--plot"]).plot == "impedance-bench.png"   # as docs/daemon.md writes it
     assert parse(["bench", "impedance", "--plot", "loops.png"]).plot == "loops.png"
     assert parse(["bench", "impedance"]).plot is None
+
+
+def test_profile_hold_without_angles_holds_the_ankle_where_it_is(sim_cfg):
+    from ankle_rt.service import protocol as proto
+
+    daemon = lockstep_daemon(sim_cfg)
+    run_cycles(daemon, 1500)                     # the section 7 step: DP at 10 deg, IE at 5 deg
+    here = daemon.est.ankle_pos.copy()
+    assert math.degrees(here[0]) > 9.0
+    daemon.handle(proto.parse_command(b'{"cmd": "start_profile", "name": "hold"}'))
+    run_cycles(daemon, 300)
+    rec = daemon.recorder.records[-300:]
+    assert np.max(np.abs(rec["ref_dp"] - here[0])) < math.radians(0.1)
+    assert np.max(np.abs(rec["ankle_dp"] - here[0])) < math.radians(0.5)
+    daemon.handle(proto.parse_command(b'{"cmd": "start_profile", "name": "hold", "params": {"dp": 0.0}}'))
+    run_cycles(daemon, 300)                      # an axis given moves; the other stays
+    assert abs(daemon.reference.ref[0]) < 1e-9 and abs(daemon.reference.ref[1] - here[1]) < math.radians(0.1)
+    daemon.close()
