@@ -3,16 +3,20 @@ simulated real-time run, and the CLI details a new user meets first."""
 
 from __future__ import annotations
 
+import importlib.util
+import json
 import math
 
 import numpy as np
 import pytest
 
+from ankle_rt.cli import main
 from ankle_rt.clock import SimClock
+from ankle_rt.daemon import run_lockstep
 from ankle_rt.commands import run as run_cmd
 from ankle_rt.log.summary import summarize
 from ankle_rt.safety import Fault, State
-from tests.daemon_helpers import lockstep_daemon, run_cycles
+from tests.daemon_helpers import InjectingBackend, lockstep_daemon, run_cycles
 
 
 class WallLikeClock(SimClock):
@@ -115,3 +119,35 @@ def test_profile_hold_without_angles_holds_the_ankle_where_it_is(sim_cfg):
     run_cycles(daemon, 300)                      # an axis given moves; the other stays
     assert abs(daemon.reference.ref[0]) < 1e-9 and abs(daemon.reference.ref[1] - here[1]) < math.radians(0.1)
     daemon.close()
+
+
+class RepeatsTwoSamples(InjectingBackend):
+    """The simulator, except that cycles 300 and 500 read the previous sample again (a late wake-up)."""
+
+    def read(self, frame):
+        if self.cycle + 1 in (300, 500):
+            self.cycle += 1
+            return
+        super().read(frame)
+
+
+def test_csv_and_mcap_exports_hold_the_same_cycles_with_times_in_shortest_form(sim_cfg, tmp_path, capsys):
+    path = tmp_path / "run.arlog"
+    run_lockstep(sim_cfg, 0.8, backend=RepeatsTwoSamples(sim_cfg, SimClock()), log_path=path)
+    csv_out, mcap_out = tmp_path / "run.csv", tmp_path / "run.mcap"
+    args = ["log", "export", str(path), "--csv", str(csv_out)]
+    if importlib.util.find_spec("mcap") is not None:
+        args += ["--mcap", str(mcap_out)]
+    assert main(args) == 0
+    printed = capsys.readouterr().out
+    assert "wrote 798 rows" in printed
+    lines = csv_out.read_text(encoding="utf-8").splitlines()
+    times = [line.split(",")[0] for line in lines[1:]]
+    assert len(times) == 798 and times[:4] == ["0.0", "0.001", "0.002", "0.003"]
+    assert all(repr(float(text)) == text for text in times)       # exact and shortest
+    if "--mcap" in args:
+        assert "wrote 798 messages" in printed and printed.count("2 record(s) repeating") == 2
+        from mcap.reader import make_reader
+        with mcap_out.open("rb") as handle:
+            t_mcap = [json.loads(m.data)["t"] for _, _, m in make_reader(handle).iter_messages()]
+        assert t_mcap == [float(text) for text in times]
