@@ -151,3 +151,17 @@ def test_csv_and_mcap_exports_hold_the_same_cycles_with_times_in_shortest_form(s
         with mcap_out.open("rb") as handle:
             t_mcap = [json.loads(m.data)["t"] for _, _, m in make_reader(handle).iter_messages()]
         assert t_mcap == [float(text) for text in times]
+
+
+def test_ctl_status_prints_angles_in_degrees_and_tiny_values_as_zero():
+    from ankle_rt.commands.ctl import format_fields, status_for_people
+
+    status = {"state": "active", "ankle_deg": [10.0, -5.0], "reference_deg": [10.0, -5.0],
+              "motor_pos_rad": [math.pi, 0.5], "motor_vel_rad_s": [-3.44837e-84, -4.94066e-324], "current_a": [1.5, -0.25]}
+    lines = format_fields(status_for_people(status))
+    assert "motor_pos_deg: 180, 28.6479" in lines
+    assert "motor_vel_deg_s: 0, 0" in lines
+    assert "ankle_deg: 10, -5" in lines and "current_a: 1.5, -0.25" in lines
+    rad = format_fields(status_for_people(status, rad=True))
+    assert "motor_pos_rad: 3.14159, 0.5" in rad and "ankle_rad: 0.174533, -0.0872665" in rad
+    assert not any("_deg" in line for line in rad)
