@@ -6,6 +6,7 @@ from __future__ import annotations
 import importlib.util
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,6 +18,8 @@ from ankle_rt.commands import run as run_cmd
 from ankle_rt.log.summary import summarize
 from ankle_rt.safety import Fault, State
 from tests.daemon_helpers import InjectingBackend, lockstep_daemon, run_cycles
+
+ROOT = Path(__file__).resolve().parent.parent
 
 
 class WallLikeClock(SimClock):
@@ -165,3 +168,47 @@ def test_ctl_status_prints_angles_in_degrees_and_tiny_values_as_zero():
     rad = format_fields(status_for_people(status, rad=True))
     assert "motor_pos_rad: 3.14159, 0.5" in rad and "ankle_rad: 0.174533, -0.0872665" in rad
     assert not any("_deg" in line for line in rad)
+
+
+def test_presence_says_when_a_daemon_connects_and_when_it_has_gone():
+    import io
+
+    from hardware.emulators.presence import Presence
+
+    out, now = io.StringIO(), [100.0]
+    p = Presence("commands", gone_s=1.0, stream=out, clock=lambda: now[0])
+    for t, count in ((100.5, 0), (101.0, 1), (101.5, 40), (102.4, 40), (102.6, 40), (103.0, 41)):
+        p.update(count, t)
+    lines = out.getvalue().splitlines()
+    assert lines == ["emulator: daemon connected (commands arriving) at 1.0 s",
+                     "emulator: daemon gone (no commands for 1 s) at 2.6 s",
+                     "emulator: daemon connected (commands arriving) at 3.0 s"]
+    assert p.sessions == 2
+
+
+@pytest.mark.slow
+def test_a_standalone_serial_emulator_reports_its_daemon_and_ends_on_duration(tmp_path):
+    import os
+    import re
+    import subprocess
+    import sys
+
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    emu = subprocess.Popen([sys.executable, "-m", "ankle_rt.cli", "emulate", "--transport", "serial", "--port", "pty",
+                            "--duration", "8"], stdout=subprocess.PIPE, text=True, env=env)
+    try:
+        first = emu.stdout.readline()
+        assert "stops after 8 s" in first
+        pty = re.search(r"(/dev/pts/\d+)", first).group(1)
+        cfg = tmp_path / "d.yaml"
+        cfg.write_text(f"include: [{ROOT / 'config' / 'hw-serial.yaml'}]\nserial: {{port: {pty}}}\n"
+                       "safety: {auto_activate: true}\nservice: {enabled: false}\n")
+        subprocess.run([sys.executable, "-m", "ankle_rt.cli", "run", "--config", str(cfg), "--duration", "1",
+                        "--no-log"], env=env, capture_output=True, timeout=60)
+        rest, _ = emu.communicate(timeout=60)    # ends by itself once --duration has passed
+    finally:
+        if emu.poll() is None:
+            emu.kill()
+    assert emu.returncode == 0
+    assert "daemon connected (commands arriving)" in rest and "daemon gone (no commands for 1 s)" in rest
+    assert re.search(r"emulator: [1-9]\d* ticks", rest)
