@@ -212,3 +212,52 @@ def test_a_standalone_serial_emulator_reports_its_daemon_and_ends_on_duration(tm
     assert emu.returncode == 0
     assert "daemon connected (commands arriving)" in rest and "daemon gone (no commands for 1 s)" in rest
     assert re.search(r"emulator: [1-9]\d* ticks", rest)
+
+
+def test_progress_off_a_terminal_prints_a_plain_line_every_few_seconds():
+    import io
+
+    from ankle_rt.progress import LINE_S, Progress
+
+    now, piped = [100.0], io.StringIO()
+    with Progress("sweep", 10, stream=piped, clock=lambda: now[0]) as bar:
+        now[0] += LINE_S - 1.0
+        bar.update(2, "2/10 batches")
+        assert piped.getvalue() == ""                 # a short command prints nothing extra
+        now[0] += 1.0
+        bar.update(5, "5/10 batches")
+        now[0] += 1.0
+        bar.update(6)                                 # the next line only LINE_S later
+    assert piped.getvalue() == f"sweep:  50% 0:{LINE_S:02.0f} elapsed, ETA 0:{LINE_S:02.0f}  5/10 batches\n"
+    assert "\r" not in piped.getvalue()
+
+
+def test_progress_off_a_terminal_keeps_printing_through_a_long_step(monkeypatch):
+    import io
+    import time
+
+    from ankle_rt import progress
+
+    monkeypatch.setattr(progress, "LINE_S", 0.05)
+    piped = io.StringIO()
+    with progress.Progress("diagnose", 4, stream=piped) as bar:
+        bar.update(1, "fitting")                      # then no update for a while: one long step
+        guard = time.monotonic() + 30.0
+        while piped.getvalue().count("\n") < 2 and time.monotonic() < guard:
+            time.sleep(0.01)
+    lines = piped.getvalue().splitlines()
+    assert len(lines) >= 2 and all(line.startswith("diagnose:  25% ") and line.endswith("fitting") for line in lines)
+    assert not bar._ticker.is_alive()                 # closed with the command
+
+
+def test_progress_on_a_terminal_or_switched_off_starts_no_thread():
+    import io
+
+    from ankle_rt.progress import Progress
+
+    class TTY(io.StringIO):
+        def isatty(self):
+            return True
+
+    assert Progress("x", 1, stream=TTY())._ticker is None
+    assert Progress("x", 1, stream=io.StringIO(), enabled=False)._ticker is None

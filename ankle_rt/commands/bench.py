@@ -315,6 +315,7 @@ def bench_impedance(args: argparse.Namespace) -> int:
     from ankle_rt.config import load_config
     from ankle_rt.impedance_bench import Experiment
     from ankle_rt.paths import default_config_path
+    from ankle_rt.progress import Progress
 
     if args.stribeck[0] > 0.0 and args.stribeck[1] <= 0.0:
         raise SystemExit("ankle-rt bench impedance: --stribeck: the velocity VS must be > 0")
@@ -329,11 +330,13 @@ def bench_impedance(args: argparse.Namespace) -> int:
             plan[f"closed loop, {name} ff"] = ("auto", name)
             plan[f"open loop, {name} ff"] = ("off", name)
     variants = {}
-    for name, (feedback, f) in plan.items():
-        if not args.json:
-            print(f"{name} ...", flush=True)
-        variants[name] = impedance_variant(cfg, args.stiffness, args.stiffness_ie, tuple(args.damping), effects,
-                                           feedback=feedback, friction_ff=f, experiment=exp, keep_loops=True)
+    with Progress("bench impedance", len(plan)) as bar:
+        for k, (name, (feedback, f)) in enumerate(plan.items()):
+            if not args.json:
+                print(f"{name} ...", flush=True)
+            bar.update(k, name)
+            variants[name] = impedance_variant(cfg, args.stiffness, args.stiffness_ie, tuple(args.damping), effects,
+                                               feedback=feedback, friction_ff=f, experiment=exp, keep_loops=True)
     note = plot_loops({k: variants[k] for k in ("closed loop", "open loop")}, args.plot) if args.plot else ""
     main = variants["closed loop"]["summary"]
     result = {key: main[key] for key in SUMMARY_KEYS}
