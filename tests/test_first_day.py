@@ -261,3 +261,58 @@ def test_progress_on_a_terminal_or_switched_off_starts_no_thread():
 
     assert Progress("x", 1, stream=TTY())._ticker is None
     assert Progress("x", 1, stream=io.StringIO(), enabled=False)._ticker is None
+
+
+def test_a_run_plot_names_its_outcome_and_marks_activation_deactivation_and_fault(sim_cfg, tmp_path):
+    from ankle_rt.log.summary import plot_run, run_outcome, state_marks
+    from ankle_rt.service import protocol as proto
+
+    daemon = lockstep_daemon(sim_cfg)
+    run_cycles(daemon, 800)
+    daemon.handle(proto.parse_command(b'{"cmd": "deactivate"}'))
+    run_cycles(daemon, 100)
+    daemon.handle(proto.parse_command(b'{"cmd": "activate"}'))
+    run_cycles(daemon, 100)
+    daemon.loop.on_overrun_limit()               # as after a stall
+    run_cycles(daemon, 50)
+    rec = daemon.recorder.records
+    daemon.close()
+    marks = state_marks(rec)
+    assert len(marks["activate"]) == 2 and len(marks["deactivate"]) == 2 and len(marks["fault"]) == 1
+    assert marks["fault"][0] == daemon.safety.fault_time and marks["deactivate"][-1] == marks["fault"][0]
+    assert run_outcome(rec) == f"FAULT MISSED_DEADLINES at t = {daemon.safety.fault_time:.3f} s"
+    assert run_outcome(rec[:700]) == "ended ACTIVE"
+    pytest.importorskip("matplotlib")
+    import matplotlib.pyplot as plt
+
+    titles = []
+    real_savefig = plt.Figure.savefig
+
+    def keep_title(fig, *a, **kw):
+        titles.append(fig._suptitle.get_text())
+        labels = [line.get_label() for line in fig.axes[1].get_lines()]
+        titles.append(labels)
+        return real_savefig(fig, *a, **kw)
+    plt.Figure.savefig = keep_title
+    try:
+        png = tmp_path / "run.png"
+        assert plot_run(rec, 0.1, str(png), "sim.yaml: sim, controller pd") == f"plot: {png}"
+    finally:
+        plt.Figure.savefig = real_savefig
+    assert png.stat().st_size > 0
+    assert titles[0] == f"sim.yaml: sim, controller pd\n{run_outcome(rec)}"
+    assert {"activate", "deactivate", run_outcome(rec)} <= set(titles[1])
+
+
+def test_plot_axes_name_their_units():
+    from ankle_rt.identification.validation import _axis_label
+    from ankle_rt.sweep.report import axis_label
+    from ankle_rt.sweep.spec import load_study
+
+    study = load_study(ROOT / "config" / "sweeps" / "section7-robustness.yaml", runs=4)
+    labels = {p.key: axis_label(study, p.column) for p in study.parameters}
+    assert labels["sim.effects.0.delay"] == "sim.effects.0.delay (s)"
+    assert labels["transmission.cable_stiffness"] == "transmission.cable_stiffness (factor)"
+    assert _axis_label("current_cmd_1", False) == "current_cmd_1 (A)"
+    assert _axis_label("motor_pos_1", True) == "motor_pos_1 - start (rad)"
+    assert _axis_label("motor_speed_2", True) == "motor_speed_2 (rad/s)"

@@ -298,8 +298,8 @@ def plot_loops(variants: dict[str, dict], png: str) -> str:
             ax.plot(np.degrees(lp["angle"]), lp["torque"], f"C{i}", lw=0.8, label=name)
         k = first.commanded[f"stiffness_{axis}"]
         lim = np.array(ax.get_xlim())
-        ax.plot(lim, k * np.radians(lim), "k--", lw=0.8, label=f"commanded K = {k:g}")
-        ax.set_title(f"{axis.upper()} {f:g} Hz")
+        ax.plot(lim, k * np.radians(lim), "k--", lw=0.8, label="commanded K (this panel's)")
+        ax.set_title(f"{axis.upper()} {f:g} Hz, commanded K = {k:g} N m/rad", fontsize=9)
         ax.set_xlabel("ankle angle (deg)")
         ax.set_ylabel("external torque (N m)")
         ax.grid(True, lw=0.3)

@@ -136,7 +136,9 @@ def run(args: argparse.Namespace) -> int:
         print(f"WARNING: logging stopped: {daemon.recorder.error}", file=sys.stderr)
     plot_note = None
     if not args.no_plot and len(records):
-        plot_note = plot_run(records, daemon.kt, str(log_path.with_suffix(".png")))
+        plot_note = plot_run(records, daemon.kt, str(log_path.with_suffix(".png")),
+                             f"{config_path.name}: {cfg['backend']}, controller {cfg['controller']['type']}, reference "
+                             f"{cfg['reference']['profile']}, {mode}")
     if args.json:
         print(jsonout.dumps(summary, indent=2))
     else:
