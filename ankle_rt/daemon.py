@@ -15,7 +15,7 @@ import gc
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Mapping
 
 import numpy as np
 
@@ -83,9 +83,10 @@ class Daemon:
         self.gain_maxima = proto.gain_maxima(cfg["controller"]["gain_limits"])
         self.loader = BackgroundLoader()
         self.torque = np.zeros(2)
-        self.loop = FixedRateLoop(clock, self.period_ns, cfg["loop"]["max_consecutive_overruns"],
+        limits = self.overrun_limits
+        self.loop = FixedRateLoop(clock, self.period_ns, limits["max_consecutive_overruns"],
                                   on_overrun_limit=self._missed_deadlines,
-                                  max_stall_ns=round(cfg["loop"]["max_stall_s"] * 1e9))
+                                  max_stall_ns=round(limits["max_stall_s"] * 1e9))
         self.recorder = recorder
         self.log_fault = cfg["logging"]["fault_on_error"]
         self.service = service
@@ -379,6 +380,13 @@ class Daemon:
         emulator): nothing physical moves."""
         backend = self.cfg["backend"]
         return backend == "sim" or self.cfg.get(backend, {}).get("emulator") == "lockstep"
+
+    @property
+    def overrun_limits(self) -> Mapping[str, Any]:
+        """The config section whose ``max_stall_s`` and ``max_consecutive_overruns`` trip
+        MISSED_DEADLINES: ``sim`` for a simulated plant on the real clock (a busy host stalls the
+        simulation, not a device), ``loop`` otherwise (hardware always; lockstep has no stalls)."""
+        return self.cfg["sim"] if self.simulated_plant and not self.clock.simulated else self.cfg["loop"]
 
     def log_metadata(self) -> dict[str, Any]:
         """The run log header's metadata. ``controller_config`` is the config's controller section the

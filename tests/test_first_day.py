@@ -34,7 +34,7 @@ def stall_at(daemon, t_s: float, stall_ns: int) -> None:
 
     def slow(est, out):
         update(est, out)
-        if abs(est.t - t_s) < 1e-9:
+        if abs(est.t - t_s) < 0.5e-3:             # the one cycle nearest t_s
             daemon.clock.advance(stall_ns)
     daemon.controller.update = slow
 
@@ -78,8 +78,36 @@ def test_a_simulated_real_time_run_that_misses_deadlines_says_what_to_do(sim_cfg
     assert run_cmd._exit_code(daemon) == 1
     err = capsys.readouterr().err
     assert "ended in FAULT at t = 2.500 s: MISSED_DEADLINES" in err
-    for what in ("--fast", "loop.realtime.priority", "loop.max_consecutive_overruns", "loop.max_stall_s"):
+    for what in ("--fast", "loop.realtime.priority", "loop.max_consecutive_overruns", "loop.max_stall_s",
+                 "sim.max_stall_s / sim.max_consecutive_overruns (now 0.5 s / 50)"):
         assert what in err
+    daemon.close()
+
+
+def on_hardware(cfg):
+    """``cfg`` as a run on the prosthesis through the serial bridge (the plant is not simulated here)."""
+    hw = cfg.deep_copy()
+    hw["backend"] = "serial"
+    hw["serial"]["emulator"] = "none"
+    return hw
+
+
+@pytest.mark.parametrize("where", ["simulated plant, real time", "simulated plant, lockstep", "hardware, real time"])
+def test_a_busy_host_stalls_a_simulated_real_time_run_without_a_fault_but_never_the_hardware(sim_cfg, where):
+    cfg = on_hardware(sim_cfg) if where.startswith("hardware") else sim_cfg
+    clock = SimClock() if where.endswith("lockstep") else WallLikeClock()
+    daemon = lockstep_daemon(cfg, backend=InjectingBackend(sim_cfg, clock))
+    tolerant = where == "simulated plant, real time"
+    assert daemon.overrun_limits is (cfg["sim"] if tolerant else cfg["loop"])
+    run_cycles(daemon, 400)
+    stall_at(daemon, 0.45, 300_000_000)          # 0.3 s: above loop.max_stall_s, below sim.max_stall_s
+    run_cycles(daemon, 400)
+    assert daemon.safety.state == (State.ACTIVE if tolerant else State.FAULT)
+    assert daemon.loop.stats.overruns == 1
+    if tolerant:                                  # beyond sim.max_stall_s it still faults
+        stall_at(daemon, daemon.est.t + 0.1, 600_000_000)
+        run_cycles(daemon, 300)
+        assert daemon.safety.fault == Fault.MISSED_DEADLINES
     daemon.close()
 
 
@@ -89,8 +117,7 @@ def test_the_hint_is_only_for_a_simulated_real_time_run_that_missed_deadlines(si
     if case != "lockstep":
         daemon.clock = WallLikeClock()
     if case == "hardware":
-        daemon.cfg = daemon.cfg.deep_copy()
-        daemon.cfg["backend"] = "serial"
+        daemon.cfg = on_hardware(daemon.cfg)
     daemon.safety.trip(Fault.ANKLE_RANGE if case == "other fault" else Fault.MISSED_DEADLINES, 1.0)
     assert run_cmd._exit_code(daemon) == 1
     assert "hint:" not in capsys.readouterr().err

@@ -165,14 +165,16 @@ def _exit_code(daemon) -> int:
     print(f"ankle-rt run: ended in FAULT at t = {safety.fault_time:.3f} s: {fault.name} ({fault.description})",
           file=sys.stderr)
     if fault == Fault.MISSED_DEADLINES and daemon.simulated_plant and not daemon.clock.simulated:
-        print(MISSED_DEADLINES_HINT, file=sys.stderr)
+        sim = daemon.cfg["sim"]
+        print(MISSED_DEADLINES_HINT.format(stall_s=sim["max_stall_s"], overruns=sim["max_consecutive_overruns"]),
+              file=sys.stderr)
     return 1
 
 
-# What to do when a simulated run in real time faults because the machine was busy. The limits stay
-# as they are: the same keys guard the hardware (config/hw-*.yaml include config/sim.yaml).
+# What to do when a simulated run in real time faults because the machine was busy. The hardware's
+# limits (loop.*) are not involved: a run with a simulated plant uses sim.* (Daemon.overrun_limits).
 MISSED_DEADLINES_HINT = """hint: the loop stalled (a busy machine, not the simulated device). To run the simulation anyway:
   ankle-rt run --fast ...        the same loop in lockstep on a simulated clock (no deadlines to miss, same results)
   loop.realtime.priority: 50     SCHED_FIFO for the loop (needs CAP_SYS_NICE or LimitRTPRIO; docs/service.md)
-  loop.max_consecutive_overruns / loop.max_stall_s (5 / 0.05 s)  more tolerance, in a simulation config only
-                                 (docs/daemon.md, "Overrun policy"); never loosen them for the prosthesis"""
+  sim.max_stall_s / sim.max_consecutive_overruns (now {stall_s:g} s / {overruns})  more tolerance for a simulated
+                                 plant only; the prosthesis keeps loop.max_stall_s / loop.max_consecutive_overruns"""
