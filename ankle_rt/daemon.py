@@ -15,7 +15,7 @@ import gc
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable
+from typing import TYPE_CHECKING, Any, Callable, Mapping
 
 import numpy as np
 
@@ -85,9 +85,10 @@ class Daemon:
         self.gain_maxima = gain_maxima(cfg["controller"]["gain_limits"])
         self.loader = BackgroundLoader()
         self.torque = np.zeros(2)
-        self.loop = FixedRateLoop(clock, self.period_ns, cfg["loop"]["max_consecutive_overruns"],
+        limits = self.overrun_limits
+        self.loop = FixedRateLoop(clock, self.period_ns, limits["max_consecutive_overruns"],
                                   on_overrun_limit=self._missed_deadlines,
-                                  max_stall_ns=round(cfg["loop"]["max_stall_s"] * 1e9))
+                                  max_stall_ns=round(limits["max_stall_s"] * 1e9))
         self.recorder = recorder
         self.lsl: "LslPublisher | None" = None   # set by open_log when lsl.enabled
         self.log_fault = cfg["logging"]["fault_on_error"]
@@ -105,6 +106,9 @@ class Daemon:
         self.reference.update(est.t)
         torque = self.torque
         state = safety.state
+        if state == FAULT and safety.fault_time != safety.fault_time:
+            # tripped between cycles (missed deadlines): stamped with the first record that shows it
+            safety.fault_time = est.t
         if state != ACTIVE:
             torque[0] = torque[1] = 0.0
             safety.current[0] = safety.current[1] = 0.0
@@ -144,18 +148,22 @@ class Daemon:
         if self.safety.state == ACTIVE and service.command_channel_lost(now):
             self._fault(Fault.COMMAND_LOST)
 
-    def _fault(self, code: int) -> None:
-        """Within this cycle: set values to zero, amplifiers off, reason recorded."""
+    def _fault(self, code: int, t: float | None = None) -> None:
+        """Within this cycle: set values to zero, amplifiers off, reason recorded (at ``t``, default
+        this cycle's sample time; NaN: the next cycle's)."""
         backend = self.backend
         backend.write(0.0, 0.0)
         backend.deactivate()
         self.safety.current[0] = self.safety.current[1] = 0.0
-        self.safety.trip(code, self.est.t)
+        self.safety.trip(code, self.est.t if t is None else t)
         if self.service is not None:
             self.service.status(f"FAULT: {Fault(code).description}")
 
     def _missed_deadlines(self) -> None:
-        self._fault(Fault.MISSED_DEADLINES)
+        """The loop's overrun limit, seen after a cycle ended: the fault's time is that of the next
+        cycle's sample, the first record that carries it (one fault, one time in the log, the summary
+        and ``ctl status``)."""
+        self._fault(Fault.MISSED_DEADLINES, math.nan)
 
     # -- state changes (commands) ----------------------------------------------------------------
     def activate(self) -> None:
@@ -277,7 +285,11 @@ class Daemon:
             elif isinstance(command, proto.StartProfile) and command.name == "csv":
                 return self._start_csv(dict(command.params))
             elif isinstance(command, proto.StartProfile):
-                profile = make_profile(command.name, command.params)
+                params = dict(command.params)
+                if command.name == "hold":   # "hold here": an axis not given stays where the ankle is
+                    params.setdefault("dp", self.est.dp)
+                    params.setdefault("ie", self.est.ie)
+                profile = make_profile(command.name, params)
                 self._check_reach(profile)
                 self._command_reference(profile)
             elif isinstance(command, proto.ListControllers):
@@ -408,8 +420,8 @@ class Daemon:
                 self.deactivate()
             else:
                 self.backend.deactivate()
-        if self.loop.stop_requested:
-            self.cycle(self.clock.now_ns())
+        if self.loop.stop_requested or (self.safety.state == State.FAULT and math.isnan(self.safety.fault_time)):
+            self.cycle(self.clock.now_ns())   # the safe state (or a fault tripped after the last cycle) on record
 
     def close(self) -> None:
         """Safe state, then release what this daemon opened (backend, log)."""
@@ -447,19 +459,31 @@ class Daemon:
         except LslUnavailable as exc:
             raise ConfigError(str(exc), getattr(self.cfg, "source", None), "lsl.enabled") from None
 
+    @property
+    def simulated_plant(self) -> bool:
+        """True when the plant is simulated in this process (the sim backend, or a transport's lockstep
+        emulator): nothing physical moves."""
+        backend = self.cfg["backend"]
+        return backend == "sim" or self.cfg.get(backend, {}).get("emulator") == "lockstep"
+
+    @property
+    def overrun_limits(self) -> Mapping[str, Any]:
+        """The config section whose ``max_stall_s`` and ``max_consecutive_overruns`` trip
+        MISSED_DEADLINES: ``sim`` for a simulated plant on the real clock (a busy host stalls the
+        simulation, not a device), ``loop`` otherwise (hardware always; lockstep has no stalls)."""
+        return self.cfg["sim"] if self.simulated_plant and not self.clock.simulated else self.cfg["loop"]
+
     def log_metadata(self) -> dict[str, Any]:
         """The run log header's metadata. ``controller_config`` is the config's controller section the
         run started with (type, gains, ramps; what ``validate --from`` replays), null when an
         experiment plugged its own controller in. ``sim_disturbances``: the ankle torques the simulated
         plant applied (``sim.disturbances``, replayed by ``validate --from``), null on real hardware."""
-        backend = self.cfg["backend"]
-        simulated = backend == "sim" or self.cfg.get(backend, {}).get("emulator") == "lockstep"
         return log_metadata(config=getattr(self.cfg, "source", "<memory>"), backend=self.cfg["backend"],
                             clock="simulated" if self.clock.simulated else "monotonic",
                             rate_hz=self.cfg["controller"]["rate_hz"], torque_constant=self.kt,
                             controller=type(self.controller).__name__,
                             controller_config=self.cfg["controller"] if self.own_controller else None,
-                            sim_disturbances=self.cfg["sim"]["disturbances"] if simulated else None,
+                            sim_disturbances=self.cfg["sim"]["disturbances"] if self.simulated_plant else None,
                             states={s.name: int(s) for s in State}, faults={f.name: int(f) for f in Fault})
 
 

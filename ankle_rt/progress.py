@@ -1,19 +1,23 @@
-"""Progress of long commands: a bar with the elapsed time and an ETA on a terminal, nothing otherwise.
+"""Progress of long commands: a bar with the elapsed time and an ETA on a terminal, periodic lines otherwise.
 
-Written to stderr, so ``--json`` output and pipes stay clean; when stderr is not a TTY (CI, a log
-file, systemd's journal) it prints nothing at all. Redraws are limited to a few per second, so a
-tight loop can call :meth:`Progress.update` freely. Commands hand :meth:`Progress.callback` to the
-library functions that take a ``progress(done, total, what)`` hook.
+Written to stderr, so ``--json`` output and pipes stay clean. When stderr is not a TTY (CI, a log
+file, systemd's journal) it prints one plain line every LINE_S s instead of a bar (from a small
+thread, so a long step between two updates still shows), so a command that ends sooner prints
+nothing extra and a long one never looks hung. Redraws are limited to a few per
+second, so a tight loop can call :meth:`Progress.update` freely. Commands hand
+:meth:`Progress.callback` to the library functions that take a ``progress(done, total, what)`` hook.
 """
 
 from __future__ import annotations
 
 import sys
+import threading
 import time
 from typing import Callable, TextIO
 
 BAR_WIDTH = 24
 REDRAW_S = 0.2
+LINE_S = 5.0   # s between the plain progress lines written where stderr is not a terminal
 
 ProgressHook = Callable[[float, float, str], None]
 
@@ -28,8 +32,9 @@ def _clock_text(seconds: float) -> str:
 class Progress:
     """One progress bar for ``total`` units of work (any unit: runs, simulated s, stages).
 
-    ``stream``: where to draw (default stderr); ``enabled``: default ``stream.isatty()``;
-    ``clock``: a monotonic time source in s (tests pass their own).
+    ``stream``: where to draw (default stderr); ``enabled``: None (default) a bar on a terminal and
+    a line every LINE_S s elsewhere, True a bar, False nothing; ``clock``: a monotonic time source
+    in s (tests pass their own).
     """
 
     def __init__(self, label: str, total: float, *, stream: TextIO | None = None, enabled: bool | None = None,
@@ -37,57 +42,79 @@ class Progress:
         self.label = label
         self.total = float(total)
         self.stream = stream if stream is not None else sys.stderr
-        self.enabled = _isatty(self.stream) if enabled is None else enabled
+        self.bar = _isatty(self.stream) if enabled is None else enabled
+        self.lines = enabled is None and not self.bar
+        self.enabled = self.bar or self.lines
         self.clock = clock
         self.start = clock()
         self.done = 0.0
         self.what = ""
-        self._last_draw = -float("inf")
+        self._last_draw = -float("inf") if self.bar else self.start
         self._width = 0
+        self._lock = threading.Lock()
+        self._closed = threading.Event()
+        self._ticker = threading.Thread(target=self._tick_lines, name="progress", daemon=True) if self.lines else None
+        if self._ticker is not None:
+            self._ticker.start()
 
     def update(self, done: float, what: str = "") -> None:
         """``done`` units finished so far; ``what`` names the current step."""
         self.done = min(max(float(done), 0.0), self.total) if self.total > 0 else 0.0
         self.what = what or self.what
         now = self.clock()
-        if self.enabled and (now - self._last_draw >= REDRAW_S or self.done >= self.total):
+        if self.bar and (now - self._last_draw >= REDRAW_S or self.done >= self.total):
             self._last_draw = now
             self._draw(now)
+        elif self.lines:
+            self._line_if_due(now)
+
+    def _line_if_due(self, now: float) -> None:
+        with self._lock:
+            if self.lines and now - self._last_draw >= LINE_S:
+                self._last_draw = now
+                self._write(self.line(now, bar=False) + "\n")
+
+    def _tick_lines(self) -> None:
+        while not self._closed.wait(LINE_S / 5):
+            self._line_if_due(self.clock())
 
     def callback(self, done: float, total: float, what: str = "") -> None:
         """The ``progress(done, total, what)`` hook that library functions call."""
         self.total = float(total)
         self.update(done, what)
 
-    def line(self, now: float) -> str:
-        """The text of the bar at time ``now``."""
+    def line(self, now: float, bar: bool = True) -> str:
+        """The text of the bar (``bar`` False: of a plain line) at time ``now``."""
         frac = self.done / self.total if self.total > 0 else 0.0
         filled = round(frac * BAR_WIDTH)
         elapsed = now - self.start
         eta = _clock_text(elapsed * (1.0 - frac) / frac) if frac > 0 else "?"
-        text = (f"{self.label} [{'#' * filled}{'.' * (BAR_WIDTH - filled)}] {100 * frac:3.0f}% "
-                f"{_clock_text(elapsed)} elapsed, ETA {eta}")
+        drawn = f" [{'#' * filled}{'.' * (BAR_WIDTH - filled)}]" if bar else ":"
+        text = f"{self.label}{drawn} {100 * frac:3.0f}% {_clock_text(elapsed)} elapsed, ETA {eta}"
         return f"{text}  {self.what}" if self.what else text
 
     def _draw(self, now: float) -> None:
         text = self.line(now)
         pad = " " * max(0, self._width - len(text))
         self._width = len(text)
+        self._write(f"\r{text}{pad}")
+
+    def _write(self, text: str) -> None:
         try:
-            self.stream.write(f"\r{text}{pad}")
+            self.stream.write(text)
             self.stream.flush()
         except (OSError, ValueError):   # the terminal went away: progress is not worth a crash
-            self.enabled = False
+            self.bar = self.lines = self.enabled = False
 
     def close(self) -> None:
         """Clear the bar (the command's own output follows on a clean line)."""
-        if self.enabled and self._width:
-            try:
-                self.stream.write("\r" + " " * self._width + "\r")
-                self.stream.flush()
-            except (OSError, ValueError):
-                pass
-        self.enabled = False
+        if self.bar and self._width:
+            self._write("\r" + " " * self._width + "\r")
+        self._closed.set()
+        with self._lock:
+            self.bar = self.lines = self.enabled = False
+        if self._ticker is not None and self._ticker is not threading.current_thread():
+            self._ticker.join()
 
     def __enter__(self) -> "Progress":
         return self

@@ -45,7 +45,7 @@ class FakeTTY(io.StringIO):
         return True
 
 
-def test_progress_draws_a_bar_with_eta_on_a_tty_and_nothing_otherwise():
+def test_progress_draws_a_bar_with_eta_on_a_tty_and_nothing_at_first_otherwise():
     now = [100.0]
     tty = FakeTTY()
     with Progress("identify", 4, stream=tty, clock=lambda: now[0]) as bar:
@@ -60,7 +60,7 @@ def test_progress_draws_a_bar_with_eta_on_a_tty_and_nothing_otherwise():
     assert out.count("\r") >= 3 and "ETA 0:30  viscous" in out and " 50%" not in out and "100%" in out
     assert out.endswith("\r") and out.rstrip("\r").split("\r")[-1].strip() == ""   # cleared at the end
 
-    piped = io.StringIO()                # not a terminal: silent
+    piped = io.StringIO()                # not a terminal: nothing within progress.LINE_S (test_first_day.py)
     with Progress("identify", 4, stream=piped) as bar:
         bar.update(2)
     assert piped.getvalue() == ""

@@ -31,6 +31,7 @@ def _run(seed: int, plant: str, cause: str, cfg: bool = True):
     (104, "ankle", "cogging"), (105, "ankle", "delay"), (106, "ankle", "backlash"),
     (107, "ankle", "stiffness_nonlinear"), (108, "actuator", "stribeck"), (109, "actuator", "delay"),
 ])
+@pytest.mark.slow
 def test_hidden_effect_is_named_fitted_and_improves_validation(seed, plant, cause):
     case, diag = _run(seed, plant, cause)
     msg = f"{case.describe()} -> {diag.cause} {diag.parameters}"
@@ -41,6 +42,7 @@ def test_hidden_effect_is_named_fitted_and_improves_validation(seed, plant, caus
     assert diag.effect["type"] == cause
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed,plant", [(201, "ankle"), (202, "ankle"), (203, "actuator")])
 def test_no_false_alarm_on_effect_free_data(seed, plant):
     case, diag = _run(seed, plant, "none")
@@ -48,6 +50,7 @@ def test_no_false_alarm_on_effect_free_data(seed, plant):
     assert diag.effect is None and diag.gain == 1.0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed,plant,effect", [(301, "ankle", "kt_saturation"), (302, "ankle", "return_spring")])
 def test_out_of_vocabulary_effect_is_unknown_not_a_wrong_name(seed, plant, effect):
     case, diag = _run(seed, plant, effect)
@@ -66,6 +69,7 @@ def test_actuator_without_config_fits_from_data_alone():
     assert J == pytest.approx(case.truth_cfg["actuator"]["inertia"], rel=0.05)
 
 
+@pytest.mark.slow
 def test_cli_json_report_and_model_fragment(tmp_path, capsys):
     case = make_case(501, "ankle", "delay", ident_s=10.0, valid_s=5.0)
     print(case.describe())
@@ -113,6 +117,7 @@ def test_ankle_plant_needs_a_config(tmp_path, capsys):
     assert "--config" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_linear_axis_in_newtons_and_metres_without_config():
     """Single-actuator data in any consistent units: a linear axis (1 rad -> 1 cm), forces in N."""
     case = make_case(77, "actuator", "cogging", ident_s=10.0, valid_s=5.0)
@@ -135,6 +140,7 @@ def test_linear_axis_in_newtons_and_metres_without_config():
     assert diag.baseline["motor"]["inertia"]["value"][0] == pytest.approx(mass, rel=0.05)
 
 
+@pytest.mark.slow
 def test_without_joint_encoders_a_cable_effect_gets_no_wrong_name():
     case = make_case(11, "ankle", "backlash", ident_s=8.0, valid_s=4.0)
     print(case.describe())

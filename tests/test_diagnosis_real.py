@@ -20,6 +20,8 @@ from ankle_rt.diagnosis import diagnose
 from ankle_rt.interchange import Recording, write_csv
 from tests.diagnosis_cases import SIM_CONFIG, make_case, primary_error
 
+pytestmark = pytest.mark.slow   # 8-80 s per test on a busy 2-core VM: deselected by -m 'not slow'
+
 PARAM_TOLERANCE = 0.15
 PHYSICAL = {"stribeck", "asymmetric_friction", "load_dependent_friction", "cogging", "delay", "backlash",
             "stiffness_nonlinear", "torque_offset"}

@@ -7,10 +7,13 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 
 from ankle_rt.cli import main
 from ankle_rt.interchange import read_csv
 from tests.diagnosis_cases import README_RUN_YAML, SIM_CONFIG
+
+pytestmark = pytest.mark.slow   # the README walkthrough, ~60 s on a busy 2-core VM
 
 TRUTH_YAML = """\
 include: [run.yaml]
@@ -63,7 +66,6 @@ def test_readme_walkthrough(tmp_path, capsys, monkeypatch):
 def test_write_model_refuses_an_input_a_directory_or_a_missing_folder_before_diagnosing(tmp_path, capsys):
     import os
 
-    import pytest
     pytest.importorskip("scipy")
     data = tmp_path / "run.arlog"
     data.write_bytes(b"not read: the output is checked first")

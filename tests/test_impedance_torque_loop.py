@@ -258,6 +258,7 @@ def test_impedances_outside_the_stable_set_are_refused(base):
     assert ctl.gains.targets[0] == 400.0
 
 
+@pytest.mark.slow
 def test_bench_impedance_json(capsys, tmp_path):
     """`ankle-rt bench impedance --quick --json`: one object with the issue's keys; the torque loop
     meets the issue's figures on the smoke programme, open loop does not; the plot is written."""

@@ -111,6 +111,7 @@ def test_sampling_is_reproducible_and_recorded(tmp_path):
     assert [r.values for r in other.runs] != [r.values for r in a.runs]
 
 
+@pytest.mark.slow
 def test_local_and_dask_give_the_same_table_and_a_study_resumes(tmp_path):
     distributed = pytest.importorskip("distributed", reason="dask distributed is not installed (the sweep extra)")
     study = load_study(_spec(tmp_path))

@@ -272,8 +272,9 @@ def register_impedance(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--friction-study", action="store_true",
                    help="also run both controllers with each friction feed-forward (what the identified model buys)")
     p.add_argument("--quick", action="store_true", help="fewer pulses and sines (a smoke run)")
-    p.add_argument("--plot", metavar="PNG", default="impedance-bench.png",
-                   help="torque-angle loops against the commanded line (default impedance-bench.png; needs matplotlib)")
+    p.add_argument("--plot", metavar="PNG", nargs="?", const="impedance-bench.png",
+                   help="save the torque-angle loops against the commanded line (PNG default impedance-bench.png; "
+                        "needs matplotlib)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(handler=bench_impedance)
 
@@ -363,6 +364,7 @@ def bench_impedance(args: argparse.Namespace) -> int:
     from ankle_rt.config import load_config
     from ankle_rt.paths import default_config_path
     from ankle_rt.timing_reference import reference_step_s
+    from ankle_rt.progress import Progress
 
     if args.stribeck[0] > 0.0 and args.stribeck[1] <= 0.0:
         raise SystemExit("ankle-rt bench impedance: --stribeck: the velocity VS must be > 0")
@@ -379,11 +381,13 @@ def bench_impedance(args: argparse.Namespace) -> int:
     variants = {}
     ref_s = reference_step_s()
     t0 = time.perf_counter()
-    for name, (feedback, f) in plan.items():
-        if not args.json:
-            print(f"{name} ...", flush=True)
-        variants[name] = impedance_variant(cfg, args.stiffness, args.stiffness_ie, tuple(args.damping), effects,
-                                           feedback=feedback, friction_ff=f, experiment=exp, keep_loops=True)
+    with Progress("bench impedance", len(plan)) as bar:
+        for k, (name, (feedback, f)) in enumerate(plan.items()):
+            if not args.json:
+                print(f"{name} ...", flush=True)
+            bar.update(k, name)
+            variants[name] = impedance_variant(cfg, args.stiffness, args.stiffness_ie, tuple(args.damping), effects,
+                                               feedback=feedback, friction_ff=f, experiment=exp, keep_loops=True)
     # wall time per simulated cycle, the lockstep runs with their analysis (and the margin checks)
     cycle_s = (time.perf_counter() - t0) / (len(plan) * len(args.stiffness) * round(schedule(exp)[1] * cfg["controller"]["rate_hz"]))
     ref_s = 0.5 * (ref_s + reference_step_s())

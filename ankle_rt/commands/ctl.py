@@ -32,7 +32,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--timeout", type=float, default=5.0, help="s to wait for the reply (default 5)")
     parser.add_argument("--json", action="store_true", help="print the raw JSON reply")
     sub = parser.add_subparsers(dest="ctl_command", required=True, metavar="CMD")
-    sub.add_parser("status", help="state, estimates, references, loop statistics")
+    status = sub.add_parser("status", help="state, estimates, references, loop statistics",
+                            description="Print the daemon's status as key: value lines; angles in degrees "
+                                        "(motor positions in deg, velocities in deg/s) unless --rad is given.")
+    status.add_argument("--rad", action="store_true", help="angles in rad (velocities in rad/s), as on the wire")
     sub.add_parser("activate", help="enable the amplifiers (gains ramp in)")
     sub.add_parser("deactivate", help="zero the set values and disable the amplifiers")
     sub.add_parser("reset", help="acknowledge a fault (fault -> safe)")
@@ -149,9 +152,30 @@ def format_fields(data: dict, prefix: str = "") -> list[str]:
     return lines
 
 
+# Angle fields of a status reply: wire name -> (name in degrees, name in rad, factor from the wire to
+# degrees). The wire carries the ankle in degrees and the motors in rad.
+STATUS_ANGLES = {"ankle_deg": ("ankle_deg", "ankle_rad", 1.0),
+                 "reference_deg": ("reference_deg", "reference_rad", 1.0),
+                 "motor_pos_rad": ("motor_pos_deg", "motor_pos_rad", 180.0 / math.pi),
+                 "motor_vel_rad_s": ("motor_vel_deg_s", "motor_vel_rad_s", 180.0 / math.pi)}
+TINY = 1e-9   # |value| printed as 0: far below any sensor's resolution (a decayed filter's 1e-84 is noise)
+
+
+def status_for_people(status: dict, rad: bool = False) -> dict:
+    """The status reply with every angle in degrees (``rad``: in rad), the names saying which."""
+    out = {}
+    for key, value in status.items():
+        if key in STATUS_ANGLES and isinstance(value, list):
+            deg_name, rad_name, to_deg = STATUS_ANGLES[key]
+            scale = to_deg * (math.pi / 180.0 if rad else 1.0)
+            key, value = (rad_name if rad else deg_name), [v * scale if isinstance(v, float) else v for v in value]
+        out[key] = value
+    return out
+
+
 def _fmt(value: object) -> str:
     if isinstance(value, float):
-        return f"{value:.6g}"
+        return f"{0.0 if abs(value) < TINY else value:.6g}"
     if value is None:
         return "-"
     return str(value).lower() if isinstance(value, bool) else str(value)
@@ -234,6 +258,8 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(reply))
     elif reply.get("ok"):
         body = {k: v for k, v in reply.items() if k != "ok"}
+        if args.ctl_command == "status":
+            body = status_for_people(body, args.rad)
         print("\n".join(format_fields(body)) if body else "ok")
     else:
         print(f"ankle-rt ctl: refused: field '{reply.get('field')}': {reply.get('error')}{_degree_note(args, reply)}",

@@ -82,7 +82,7 @@ def info_cmd(args: argparse.Namespace) -> int:
 
 
 def export_cmd(args: argparse.Namespace) -> int:
-    from ankle_rt.log.export import MCAP_MISSING, csv_columns, write_csv, write_mcap
+    from ankle_rt.log.export import MCAP_MISSING, csv_columns, exported_records, write_csv, write_mcap
 
     if not (args.csv or args.mcap):
         print("ankle-rt log export: give --csv OUT and/or --mcap OUT", file=sys.stderr)
@@ -105,20 +105,20 @@ def export_cmd(args: argparse.Namespace) -> int:
         print(f"ankle-rt log: {log.source}: no intact records to export", file=sys.stderr)
         return 1
     try:
+        repeats = len(log) - len(exported_records(log.records))
+        merged = (f"; {repeats} record(s) repeating an earlier sample time merged into the later one"
+                  if repeats else "")
         if args.csv:
             cols = csv_columns(log.records)
             rows = write_csv(args.csv, cols)
-            repeats = len(log) - rows
-            print(f"wrote {rows} rows ({len(cols)} columns) to {args.csv}"
-                  + (f"; {repeats} record(s) repeating an earlier sample time merged into the later one"
-                     if repeats else ""))
+            print(f"wrote {rows} rows ({len(cols)} columns) to {args.csv}{merged}")
         if args.mcap:
             try:
                 done = write_mcap(args.mcap, log)
             except ImportError:
                 print(f"ankle-rt log: {MCAP_MISSING}", file=sys.stderr)
                 return 1
-            print(f"wrote {done['messages']} messages on /ankle_rt/cycle to {args.mcap}")
+            print(f"wrote {done['messages']} messages on /ankle_rt/cycle to {args.mcap}{merged}")
             if done["note"]:
                 print(f"note: {done['note']}", file=sys.stderr)
     except OSError as exc:

@@ -146,7 +146,9 @@ def run(args: argparse.Namespace) -> int:
         print(f"WARNING: logging stopped: {daemon.recorder.error}", file=sys.stderr)
     plot_note = None
     if not args.no_plot and len(records):
-        plot_note = plot_run(records, daemon.kt, str(log_path.with_suffix(".png")))
+        plot_note = plot_run(records, daemon.kt, str(log_path.with_suffix(".png")),
+                             f"{config_path.name}: {cfg['backend']}, controller {cfg['controller']['type']}, reference "
+                             f"{cfg['reference']['profile']}, {mode}")
     if args.json:
         print(jsonout.dumps(summary, indent=2))
     else:
@@ -172,4 +174,17 @@ def _exit_code(daemon) -> int:
     fault = Fault(safety.fault)
     print(f"ankle-rt run: ended in FAULT at t = {safety.fault_time:.3f} s: {fault.name} ({fault.description})",
           file=sys.stderr)
+    if fault == Fault.MISSED_DEADLINES and daemon.simulated_plant and not daemon.clock.simulated:
+        sim = daemon.cfg["sim"]
+        print(MISSED_DEADLINES_HINT.format(stall_s=sim["max_stall_s"], overruns=sim["max_consecutive_overruns"]),
+              file=sys.stderr)
     return 1
+
+
+# What to do when a simulated run in real time faults because the machine was busy. The hardware's
+# limits (loop.*) are not involved: a run with a simulated plant uses sim.* (Daemon.overrun_limits).
+MISSED_DEADLINES_HINT = """hint: the loop stalled (a busy machine, not the simulated device). To run the simulation anyway:
+  ankle-rt run --fast ...        the same loop in lockstep on a simulated clock (no deadlines to miss, same results)
+  loop.realtime.priority: 50     SCHED_FIFO for the loop (needs CAP_SYS_NICE or LimitRTPRIO; docs/service.md)
+  sim.max_stall_s / sim.max_consecutive_overruns (now {stall_s:g} s / {overruns})  more tolerance for a simulated
+                                 plant only; the prosthesis keeps loop.max_stall_s / loop.max_consecutive_overruns"""

@@ -34,7 +34,7 @@ from ankle_rt.config import Config, validate
 from ankle_rt.identification.inertia import TorqueStepExperiment
 from ankle_rt.identification.runner import actuator_config, recording_of, run_lockstep_recording, with_overrides
 from ankle_rt.identification.signals import IdentificationError, centred_velocity
-from ankle_rt.interchange import Recording, write_csv
+from ankle_rt.interchange import PLAUSIBLE_ABS, Recording, write_csv
 from ankle_rt.plotting import MISSING, pyplot
 
 SINE_FREQUENCIES_HZ = (0.5, 1.0, 2.0)
@@ -85,6 +85,15 @@ class Comparison:
         if self.flat:
             out.append(f"  not compared (measured range below its floor): {', '.join(self.flat)}")
         return out
+
+
+def _axis_label(name: str, relative: bool) -> str:
+    """A compared channel's axis: its name and SI unit (a motor position relative to its start says so)."""
+    if name.startswith("motor_speed_"):
+        return f"{name} (rad/s)"
+    unit = PLAUSIBLE_ABS[name][1] if name in PLAUSIBLE_ABS else ""
+    label = f"{name} - start" if relative and name.startswith("motor_pos_") else name
+    return f"{label} ({unit})" if unit else label
 
 
 def _channel(rec: Recording, name: str, relative: bool) -> np.ndarray | None:
@@ -299,7 +308,7 @@ def write_overlays(comparisons: list[Comparison], out_dir: Path) -> list[str]:
         for ax, ch in zip(axes[:, 0], c.channels):
             ax.plot(t, _channel(c.measured, ch.name, relative)[:n], "-", label="Exp")
             ax.plot(t, _channel(c.simulated, ch.name, relative)[:n], "--", label="Sim")
-            ax.set_ylabel(ch.name, fontsize=8)
+            ax.set_ylabel(_axis_label(ch.name, relative), fontsize=8)
             ax.set_title(f"NRMSE {100 * ch.nrmse:.2f} %", fontsize=8, loc="right")
         axes[0, 0].legend(fontsize=8)
         axes[0, 0].set_title(c.label, fontsize=9, loc="left")

@@ -28,6 +28,12 @@ def csv_name(name: str, plain: bool) -> str:
     return name if plain else f"{name} [{UNITS[name]}]"
 
 
+def exported_records(records: np.ndarray) -> np.ndarray:
+    """The records both exports write: one per sample time (:func:`increasing_time`), so the CSV's
+    rows and the MCAP's messages are the same cycles."""
+    return records[increasing_time(records)]
+
+
 def csv_columns(records: np.ndarray) -> dict[str, np.ndarray]:
     """Every field as a CSV column, in record order, one row per sample time (:func:`increasing_time`).
 
@@ -35,22 +41,29 @@ def csv_columns(records: np.ndarray) -> dict[str, np.ndarray]:
     ``validate`` read the file as it is; an optional one (joint encoders, references) goes under
     ``name [unit]`` instead when it holds a value that is not finite (the interchange format allows
     none), where the interchange reader ignores it. Every other field is ``name [unit]``."""
-    keep = increasing_time(records)
+    records = exported_records(records)
     out = {}
     for name, *_ in FIELDS:
-        col = records[name][keep]
+        col = records[name]
         plain = name in INTERCHANGE_FIELDS and not (name in OPTIONAL_FIELDS and not np.isfinite(col).all())
         out[csv_name(name, plain)] = col
     return out
 
 
+def shortest_text(values: np.ndarray) -> list[str]:
+    """Each number as the shortest decimal text that reads back to exactly the same value
+    (``0.003``, not ``0.0030000000000000001``): Python's float repr for float64, numpy's for float32."""
+    if values.dtype.kind == "f" and values.dtype.itemsize == 4:
+        return [str(v) for v in values]
+    return list(map(repr, values.tolist()))
+
+
 def write_csv(path: str | Path, columns: dict[str, np.ndarray]) -> int:
-    """Write ``columns`` (from :func:`csv_columns`) with full precision; returns the rows written.
-    The file appears complete or not at all (written beside it, then renamed)."""
+    """Write ``columns`` (from :func:`csv_columns`) exactly, each value as its shortest text
+    (:func:`shortest_text`); returns the rows written. The file appears complete or not at all
+    (written beside it, then renamed)."""
     path = Path(path)
     names = list(columns)
-    formats = ["%d" if columns[n].dtype.kind in "iu" else ("%.9g" if columns[n].dtype.itemsize == 4 else "%.17g")
-               for n in names]
     rows = len(columns[names[0]]) if names else 0
     tmp = path.with_name(f".{path.name}.part")
     try:
@@ -58,10 +71,8 @@ def write_csv(path: str | Path, columns: dict[str, np.ndarray]) -> int:
             handle.write(",".join(names) + "\n")
             for start in range(0, rows, CHUNK_ROWS):      # bounded memory for logs of hours
                 stop = min(rows, start + CHUNK_ROWS)
-                table = np.empty((stop - start, len(names)), dtype=object)
-                for k, n in enumerate(names):
-                    table[:, k] = columns[n][start:stop]
-                np.savetxt(handle, table, delimiter=",", fmt=formats)
+                cells = [shortest_text(columns[n][start:stop]) for n in names]
+                handle.writelines(",".join(row) + "\n" for row in zip(*cells))
         os.replace(tmp, path)
     finally:
         if tmp.exists():
@@ -102,15 +113,16 @@ def _json_columns(records: np.ndarray) -> dict[str, list]:
 
 
 def write_mcap(path: str | Path, log: RunLog) -> dict[str, Any]:
-    """Write every intact record of ``log`` as one JSON message on :data:`MCAP_TOPIC` (JSON schema,
-    so Foxglove and PlotJuggler plot every field); log time = the run's start (UTC) + the record's
-    ``loop_time``. Returns ``{"messages", "start_ns", "note"}``. Raises ImportError without ``mcap``."""
+    """Write every intact record of ``log`` (:func:`exported_records`, as the CSV) as one JSON message
+    on :data:`MCAP_TOPIC` (JSON schema, so Foxglove and PlotJuggler plot every field); log time = the
+    run's start (UTC) + the record's ``loop_time``. Returns ``{"messages", "start_ns", "note"}``.
+    Raises ImportError without ``mcap``."""
     from mcap.writer import CompressionType, Writer
 
     start = start_unix_ns(log.meta)
     note = "" if start is not None else "the header does not say when the run started: times count from 1970-01-01"
     start = start or 0
-    records = log.records
+    records = exported_records(log.records)
     loop_time = records["loop_time"].astype(float)
     rel = np.where(np.isfinite(loop_time) & (loop_time >= 0), loop_time, 0.0)
     times = start + np.round(rel * 1e9).astype(np.int64)

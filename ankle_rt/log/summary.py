@@ -139,22 +139,53 @@ def _or_dash(value: float, width: int, spec: str) -> str:
     return f"{'-':>{width}}" if math.isnan(value) else f"{value:{width}{spec}}"
 
 
-def plot_run(records: np.ndarray, torque_constant: float, out_png: str) -> str:
+def run_outcome(records: np.ndarray) -> str:
+    """How a run ended, in words: its first fault and when, else its final state."""
+    faults = np.flatnonzero(records["fault"] != Fault.NONE)
+    if faults.size:
+        i = int(faults[0])
+        return f"FAULT {Fault(int(records['fault'][i])).name} at t = {float(records['t'][i]):.3f} s"
+    return f"ended {State(int(records['state'][-1])).name}" if len(records) else "no records"
+
+
+def state_marks(records: np.ndarray) -> dict[str, np.ndarray]:
+    """Sample times (s) at which the run was activated, left ACTIVE (deactivated, stopped or
+    faulted), and its first fault."""
+    t, active = records["t"], records["state"] == State.ACTIVE
+    faults = np.flatnonzero(records["fault"] != Fault.NONE)
+    return {"activate": t[1:][active[1:] & ~active[:-1]], "deactivate": t[1:][~active[1:] & active[:-1]],
+            "fault": t[faults[:1]]}
+
+
+MARK_STYLE = {"activate": {"color": "tab:green", "ls": ":", "lw": 1.0},
+              "deactivate": {"color": "0.35", "ls": ":", "lw": 1.0},
+              "fault": {"color": "tab:red", "ls": "-", "lw": 1.5}}
+
+
+def plot_run(records: np.ndarray, torque_constant: float, out_png: str, what: str = "") -> str:
     """A figure like the paper's Figs 13-15: (a) ankle and motor angles with the references,
-    (b) motor torques. Returns a note; matplotlib is optional (the analysis extra)."""
+    (b) motor torques; titled with ``what`` ran and how it ended, with the activations,
+    deactivations and the first fault marked. Returns a note; matplotlib is optional (the analysis
+    extra)."""
     plt = pyplot()
     if plt is None:
         return f"plot skipped: {MISSING}"
     t = records["t"]
     has_joint = not np.isnan(records["ankle_dp"]).all()
     src = "ankle" if has_joint else "est_ankle"
-    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(8, 7), sharex=True)
+    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(8, 7.4), sharex=True)
     for axis, colour in (("dp", "C0"), ("ie", "C1")):
         ax1.plot(t, np.degrees(records[f"{src}_{axis}"]), colour, label=f"theta_{axis.upper()}")
         ax1.plot(t, np.degrees(records[f"ref_{axis}"]), colour, ls="--", lw=0.8, label=f"r_{axis.upper()}")
     for i, colour in ((1, "C2"), (2, "C3")):
         ax1.plot(t, np.degrees(records[f"motor_pos_{i}"]), colour, lw=0.8, label=f"theta_{i} (motor)")
         ax2.plot(t, torque_constant * records[f"current_cmd_{i}"], colour, lw=0.8, label=f"tau_{i}")
+    outcome = run_outcome(records)
+    for name, times in state_marks(records).items():
+        for k, x in enumerate(times):
+            for ax in (ax1, ax2):
+                ax.axvline(x, **MARK_STYLE[name], label=(outcome if name == "fault" else name) if k == 0 and ax is ax2
+                           else None)
     ax1.set_ylabel("angle (deg)")
     ax1.legend(ncol=3, fontsize=8)
     ax1.set_title("(a) ankle and motor positions")
@@ -162,6 +193,8 @@ def plot_run(records: np.ndarray, torque_constant: float, out_png: str) -> str:
     ax2.set_xlabel("t (s)")
     ax2.legend(fontsize=8)
     ax2.set_title("(b) motor torques (kt x set value)")
+    fig.suptitle(f"{what}\n{outcome}" if what else outcome, fontsize=10,
+                 color="tab:red" if outcome.startswith("FAULT") else "black")
     fig.tight_layout()
     fig.savefig(out_png, dpi=110)
     plt.close(fig)

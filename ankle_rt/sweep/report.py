@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 from collections import Counter
 from pathlib import Path
 from typing import Any, Sequence
@@ -104,6 +105,37 @@ def _fmt(v: Any) -> str:
     return f"{v:.4g}" if isinstance(v, float) else str(v)
 
 
+# Units a schema field's doc starts with (longest first), e.g. "N m s/rad, viscous friction D".
+_UNIT = re.compile(r"^(kg m\^2|N m s/rad|N m/rad|N m/A|N m|N/m|rad/s|rad|Hz|1/s|kg|m|s|A)(?=$|[ ,;])")
+
+
+def _field(study: Study, key: str) -> Any:
+    """The schema field of a sampled config key (an effect's parameter from its effect's schema)."""
+    parts = key.split(".")
+    if parts[:2] == ["sim", "effects"] and len(parts) == 4 and parts[2].isdigit():
+        from ankle_rt.backend import load_by_name
+
+        effects = (study.runs[0].config["sim"]["effects"] if study.runs else []) or []
+        index = int(parts[2])
+        kind = effects[index].get("type") if index < len(effects) else None
+        registry = load_by_name("sim_backend.effects.base:EFFECTS")
+        return registry[kind].PARAMS.fields.get(parts[3]) if kind in registry else None
+    from ankle_rt.config_schema import SCHEMA
+    from ankle_rt.schema import numeric_fields
+
+    return dict(numeric_fields(SCHEMA)).get(".".join("*" if q.isdigit() else q for q in parts))
+
+
+def axis_label(study: Study, column: str) -> str:
+    """A plot axis for a table column of a sampled parameter, with its unit (``delay (s)``), or
+    ``(factor)`` for a relative one."""
+    param = next((p for p in study.parameters if p.column == column), None)
+    if param is None or param.relative:
+        return column
+    match = _UNIT.match(getattr(_field(study, param.key), "doc", "") or "")
+    return f"{column} ({match.group(1)})" if match else column
+
+
 def plot(study: Study, rows: Sequence[dict[str, Any]], summary: dict[str, Any], directory: Path) -> list[Path]:
     """Histograms of the main metrics and the failure region over the two most influential
     parameters. Returns the files written (none without matplotlib)."""
@@ -138,8 +170,8 @@ def plot(study: Study, rows: Sequence[dict[str, Any]], summary: dict[str, Any], 
         ok = np.array([bool(r["passed"]) for r in rows])
         ax.scatter(x[ok], y[ok], s=10, c="tab:green", label="passed")
         ax.scatter(x[~ok], y[~ok], s=14, c="tab:red", marker="x", label="failed")
-        ax.set_xlabel(top[0])
-        ax.set_ylabel(top[1])
+        ax.set_xlabel(axis_label(study, top[0]))
+        ax.set_ylabel(axis_label(study, top[1]))
         ax.set_title("failure region over the two most influential parameters")
         ax.legend()
         fig.tight_layout()

@@ -23,6 +23,7 @@ an amplifier dropping ready, a frozen node (no heartbeat, no PDOs, no answers) a
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 from dataclasses import dataclass
@@ -37,6 +38,7 @@ from hardware.canopen_pdo import (COUNTER_1, COUNTER_2, DIGITAL_IN, DIGITAL_OUT,
                                   ANALOG_CODE_SHIFT, PdoLayout, analog_codec, compile_pdo, counter_bits)
 from hardware.escon import escon_amplifiers
 from hardware.emulators.fault_schedule import ScheduledFault, parse_schedule
+from hardware.emulators.presence import Presence, until_text
 from hardware.sensors import MotorEncoders, StrainGauges
 from sim_backend.plant import SimulatedPlant
 
@@ -115,7 +117,7 @@ class CanopenEmulator:
         self.faults = InjectedFaults()
         self.schedule: list[ScheduledFault] = []
         self.counts = {"sync": 0, "rpdo": 0, "rpdo_bad_length": 0, "tpdo_sent": 0, "tpdo_dropped": 0,
-                       "heartbeats": 0, "rpdo_timeouts": 0, "bad_frames": 0}
+                       "heartbeats": 0, "rpdo_timeouts": 0, "bad_frames": 0, "tx_dropped": 0}
         self.outputs = {SET_VALUE_1: self.amps[0].zero_code << ANALOG_CODE_SHIFT,
                         SET_VALUE_2: self.amps[1].zero_code << ANALOG_CODE_SHIFT, DIGITAL_OUT: 0}
         self._pending = dict(self.outputs)
@@ -263,7 +265,12 @@ class CanopenEmulator:
 
     # -- bus ---------------------------------------------------------------------------------------
     def _send(self, cob_id: int, data: bytes) -> None:
-        self.bus.send(can.Message(arbitration_id=cob_id, is_extended_id=False, data=data))
+        """Send without waiting: a frame the transmit queue cannot take (no other node acknowledges:
+        the daemon is gone) is counted and dropped, as the real node's controller would."""
+        try:
+            self.bus.send(can.Message(arbitration_id=cob_id, is_extended_id=False, data=data), timeout=0.0)
+        except can.CanOperationError:
+            self.counts["tx_dropped"] += 1
 
     def _now(self) -> float:
         """s: the monotonic clock standalone, the SYNC clock (plant time) in lockstep."""
@@ -333,13 +340,16 @@ class CanopenEmulator:
         self.bus.shutdown()
 
     def serve(self, duration_s: float | None = None, poll_s: float = 0.001) -> None:
-        """Standalone: block on the bus and serve until ``duration_s`` has passed (forever if None)."""
+        """Standalone: block on the bus and serve until ``duration_s`` has passed (forever if None);
+        says when a master starts and stops sending SYNCs."""
+        presence = Presence("SYNCs")
         end = None if duration_s is None else time.monotonic() + duration_s
-        while end is None or time.monotonic() < end:
+        while (now := time.monotonic()) < (end or math.inf):
             msg = self.bus.recv(poll_s)
             if msg is not None:
                 self._handle(msg)
             self._idle()
+            presence.update(self.counts["sync"], now)
 
 
 class LockstepBus(can.BusABC):
@@ -403,7 +413,8 @@ def run_standalone(cfg: Config, args: argparse.Namespace) -> int:
         return 1
     emulator = CanopenEmulator(cfg, bus, str(eds_path(cfg)), realtime=True)
     emulator.schedule = schedule
-    print(f"emulator: CANopen I/O node {emulator.node_id} on {interface}:{channel} (Ctrl-C stops)", flush=True)
+    print(f"emulator: CANopen I/O node {emulator.node_id} on {interface}:{channel} ({until_text(args.duration)})",
+          flush=True)
     try:
         emulator.serve(args.duration or None)
     except KeyboardInterrupt:
@@ -412,5 +423,6 @@ def run_standalone(cfg: Config, args: argparse.Namespace) -> int:
         emulator.close()
     c = emulator.counts
     print(f"emulator: {emulator.plant.ticks} ticks, {c['sync']} SYNC, {c['rpdo']} RPDO, {c['tpdo_sent']} TPDO sent, "
-          f"{c['tpdo_dropped']} dropped, {c['heartbeats']} heartbeats", flush=True)
+          f"{c['tpdo_dropped']} dropped, {c['heartbeats']} heartbeats, {c['tx_dropped']} frames not sent "
+          f"(nobody acknowledging)", flush=True)
     return 0

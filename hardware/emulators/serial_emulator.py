@@ -42,6 +42,7 @@ from ankle_rt.config import Config, ConfigError
 from hardware.emulators.bridge_core import BridgeInputs, PythonCore
 from hardware.escon import enable_outputs, escon_amplifiers
 from hardware.emulators.fault_schedule import ScheduledFault, parse_schedule
+from hardware.emulators.presence import Presence, until_text
 from hardware.sensors import JointEncoders, MotorEncoders, StrainGauges
 from hardware.serial_protocol import (HEADER, CRC, IN_JOINT_VALID, IN_READY_1, IN_READY_2, OUT_ENABLE_1,
                                       OUT_ENABLE_2, MsgType, StreamParser, set_value_modes)
@@ -433,7 +434,7 @@ def run_standalone(cfg: Config, args: argparse.Namespace) -> int:
         where = port_name
     os.set_blocking(fd, False)
     print(f"emulator: serial bridge on {where}, {'free-running' if free_run else 'lockstep'}, "
-          f"{emulator.core_name} core", flush=True)
+          f"{emulator.core_name} core ({until_text(args.duration)})", flush=True)
     signal.signal(signal.SIGTERM, _interrupt)
     try:
         _serve(emulator, fd, cfg, args.duration, free_run)
@@ -458,6 +459,7 @@ def _serve(emulator: BridgeEmulator, fd: int, cfg: Config, duration_s: float, fr
     end = now + duration_s if duration_s else math.inf
     next_tick = now + period_s
     last_command, seen = now, 0
+    presence = Presence("commands")
     while now < end:
         wait = max(0.0, next_tick - now) if free_run else 0.001
         if select.select([fd], [], [], wait)[0]:
@@ -475,6 +477,7 @@ def _serve(emulator: BridgeEmulator, fd: int, cfg: Config, duration_s: float, fr
             elif now - last_command > watchdog_s and emulator.outputs_enabled():
                 emulator.trip_watchdog()
         _send(fd, emulator.take_output(), emulator)
+        presence.update(emulator.commands, now)
 
 
 def _send(fd: int, data: bytes, emulator: BridgeEmulator) -> None:
