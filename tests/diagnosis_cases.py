@@ -371,12 +371,14 @@ def corrupt(rec: Recording, artefact: str, rng: np.random.Generator) -> Recordin
 def make_case(seed: int, plant: str = "ankle", cause: str | list[str] | None = None, ident_s: float = 12.0,
               valid_s: float = 6.0, p_none: float = 0.25, p_unknown: float = 0.1,
               strength: float | None = None, artefacts: tuple[str, ...] = (), motion: str = "multisine",
-              rotor_cogging: bool = False) -> Case:
+              rotor_cogging: bool = False, effects: list[dict] | None = None) -> Case:
     """Draw a case from ``seed``. ``cause``: an effect name, a list of them (several at once), "none" or
     an out-of-vocabulary one; else random (``p_none`` effect-free, ``p_unknown`` out of vocabulary, the
     rest uniform over the vocabulary). ``strength``: see :func:`draw_effect`. ``artefacts``: sensor and
     data faults (:data:`ARTEFACTS`); ``motion``: the reference's kind (:data:`MOTIONS`);
-    ``rotor_cogging``: cogging at the rotor's count through the gearbox (see :func:`draw_effect`)."""
+    ``rotor_cogging``: cogging at the rotor's count through the gearbox (see :func:`draw_effect`);
+    ``effects``: explicit sim.effects entries instead of drawn ones (``cause`` then gives the expected
+    words)."""
     rng = np.random.default_rng(seed)
     pool = ANKLE_EFFECTS if plant == "ankle" else MOTOR_EFFECTS
     if cause is None:
@@ -393,7 +395,8 @@ def make_case(seed: int, plant: str = "ankle", cause: str | list[str] | None = N
     truth = perturbed(nominal, rng)
     truth["sim"]["seed"] = int(seed)
     truth["sim"]["cables"] = plant == "ankle"
-    drawn = [draw_effect(c, rng, strength, truth, rotor_cogging, motion) for c in names]
+    drawn = ([(e, 1.0) for e in effects] if effects is not None
+             else [draw_effect(c, rng, strength, truth, rotor_cogging, motion) for c in names])
     effects = [e for e, _ in drawn]
     truth["sim"]["effects"] = effects
     limit = None

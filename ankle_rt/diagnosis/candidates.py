@@ -52,6 +52,12 @@ class Candidate:
         ``coef`` (covariance ``cov``) and the baseline's coefficients of the same extended fit."""
         raise NotImplementedError
 
+    def rejection(self, params: dict[str, tuple[float, float]]) -> str | None:
+        """Why fitted ``params`` cannot be a simulator effect (None: they can): a non-finite value, or
+        one outside the effect's physical range. A rejected candidate is dropped, never written."""
+        bad = [k for k, (v, _) in params.items() if not math.isfinite(v)]
+        return f"non-finite {', '.join(bad)}" if bad else None
+
 
 def _sd(cov: np.ndarray, i: int) -> float:
     return float(np.sqrt(max(cov[i, i], 0.0)))
@@ -98,18 +104,21 @@ class LoadDependentFriction(Candidate):
 
 
 class Cogging(Candidate):
-    """Torque ripple periodic in the motor angle: ``a sin(n theta) + b cos(n theta)``, n periods per
-    revolution (2 pi of the position unit), shared by the motors as the simulator effect is.
+    """Torque ripple periodic in the motor angle, with its own phase and amplitude per motor (two motors
+    never share a rotor position) and a second harmonic: ``a_i sin(n theta_i) + b_i cos(n theta_i) +
+    c_i sin(2 n theta_i) + d_i cos(2 n theta_i)`` per motor i, n periods per revolution (2 pi of the
+    position unit) shared by the motors.
 
     The count is found without a prior by the residual's spectrum in the angle domain: the residual is
     taken back through the filter (its adjoint: the zero-phase filter again) to the raw samples, binned
-    onto a uniform grid of the angle modulo 2 pi and Fourier-transformed, which gives its projection on
-    every integer count at once (per speed band, each band weighted by the taper the regressor gives
-    a ripple at that speed); each count's projection is normalised by the variance it would have were
-    the residual noise. The strongest peaks are screened by the share of the residual their own
-    filtered columns explain, and the best of them, with their neighbours, scored by the regression.
-    Rotor cogging through the gearbox (e.g. 6 periods per motor turn x 81 = 486)
-    is found where the motion is slow enough for the ripple to stay in the pass band."""
+    onto a uniform grid of each motor's angle modulo 2 pi and Fourier-transformed, which gives its
+    projection on every integer count at once (per speed band, each band weighted by the taper the
+    regressor gives a ripple at that speed); each count's projection is normalised by the variance it
+    would have were the residual noise, and the motors' powers are added (their phases differ). The
+    strongest peaks are screened by the share of the residual their own filtered columns explain, and the
+    best of them, with their neighbours, scored by the regression. Rotor cogging through the gearbox
+    (e.g. 6, 14 or 24 periods per motor turn x 81 = 486, 1134, 1944) is found where the motion is slow
+    enough for the ripple to stay in the pass band."""
 
     cause = "cogging"
     nonlinear = "periods_per_rev"
@@ -136,25 +145,28 @@ class Cogging(Candidate):
         n_min, n_max = self.count_range(ch)
         full = np.zeros((ch.n_samples, ch.m))
         full[ch.rows] = residual.reshape(ch.m, -1).T
-        back = ch.sm.smooth(full).ravel()                        # adjoint of "filter, keep rows"
+        back = ch.sm.smooth(full)                                # adjoint of "filter, keep rows"
         bins = 1 << int(math.ceil(math.log2(8 * n_max)))
-        idx = (np.floor(np.mod(ch.pos, 2.0 * np.pi) * (bins / (2.0 * np.pi))).astype(np.int64) % bins).ravel()
-        speed = np.abs(ch.vel).ravel()
+        idx = np.floor(np.mod(ch.pos, 2.0 * np.pi) * (bins / (2.0 * np.pi))).astype(np.int64) % bins
+        speed = np.abs(ch.vel)
         # speed bands, within which the taper of a count's ripple is nearly one number
         edges = np.unique(np.quantile(speed, np.linspace(0.0, 1.0, SPEED_BANDS + 1)))
         band = np.clip(np.searchsorted(edges, speed, side="right") - 1, 0, len(edges) - 2)
         counts = np.arange(n_max + 1, dtype=float)
-        spectrum = np.zeros(n_max + 1, dtype=complex)
-        variance = np.zeros(n_max + 1)
-        for b in range(len(edges) - 1):
-            sel = band == b
-            if not sel.any():
-                continue
-            v_b = float(np.sqrt(max(edges[b], 1e-12) * max(edges[b + 1], 1e-12)))
-            w = self.taper(ch, counts * v_b)
-            spectrum += w * np.fft.fft(np.bincount(idx[sel], weights=back[sel], minlength=bins))[: n_max + 1]
-            variance += 0.5 * w ** 2 * float(back[sel] @ back[sel])
-        power = np.abs(spectrum) ** 2 / np.maximum(variance, 1e-300)
+        power = np.zeros(n_max + 1)
+        for i in range(ch.m):
+            spectrum = np.zeros(n_max + 1, dtype=complex)
+            variance = np.zeros(n_max + 1)
+            for b in range(len(edges) - 1):
+                sel = band[:, i] == b
+                if not sel.any():
+                    continue
+                v_b = float(np.sqrt(max(edges[b], 1e-12) * max(edges[b + 1], 1e-12)))
+                w = self.taper(ch, counts * v_b)
+                r = back[sel, i]
+                spectrum += w * np.fft.fft(np.bincount(idx[sel, i], weights=r, minlength=bins))[: n_max + 1]
+                variance += 0.5 * w ** 2 * float(r @ r)
+            power += np.abs(spectrum) ** 2 / np.maximum(variance, 1e-300)
         power[:n_min] = 0.0
         peaks = np.flatnonzero((power[1:-1] > power[:-2]) & (power[1:-1] >= power[2:])) + 1
         screened = peaks[np.argsort(power[peaks])[::-1][:COGGING_SCREENED]]
@@ -182,18 +194,39 @@ class Cogging(Candidate):
         return 0.5 * (1.0 + np.cos(np.pi * x))
 
     def design(self, ch, nl):
-        ang = nl * ch.pos
-        w = self.taper(ch, nl * ch.vel)
-        both = ch.sm.smooth(np.hstack([w * np.sin(ang), w * np.cos(ang)]))[ch.rows]   # one filter pass for both
-        return Design(np.column_stack([both[:, :ch.m].T.ravel(), both[:, ch.m:].T.ravel()]))
+        waves = []
+        for h in (1.0, 2.0):
+            ang = h * nl * ch.pos
+            w = self.taper(ch, h * nl * ch.vel)
+            waves += [w * np.sin(ang), w * np.cos(ang)]
+        filtered = ch.sm.smooth(np.hstack(waves))                 # one filter pass for all
+        m = ch.m
+        return Design(np.hstack([ch.per_column(filtered[:, j * m:(j + 1) * m]) for j in range(len(waves))]))
 
     def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
-        s, c = float(coef[0]), float(coef[1])
-        amp = float(np.hypot(s, c))
-        g = np.array([s, c]) / max(amp, 1e-300)
-        amp_sd = float(np.sqrt(max(g @ cov[:2, :2] @ g, 0.0)))
-        return {"amplitude": (amp, amp_sd), "periods_per_rev": (nl, 0.0),
-                "phase": (float(np.arctan2(c, s)), amp_sd / max(amp, 1e-300))}
+        m = ch.m
+        out: dict[str, tuple[float, float]] = {"periods_per_rev": (nl, 0.0)}
+        harmonic = []
+        for i in range(m):
+            amp, amp_sd, ph = _sine(coef, cov, i, i + m)
+            suffix = "" if i == 0 else f"_{i + 1}"
+            out["amplitude" + suffix] = (amp, amp_sd)
+            out["phase" + suffix] = (ph, amp_sd / max(amp, 1e-300))
+            harmonic.append(_sine(coef, cov, i + 2 * m, i + 3 * m))
+        out["harmonic_amplitude"] = (float(np.mean([h[0] for h in harmonic])),
+                                     float(np.sqrt(np.mean([h[1] ** 2 for h in harmonic]))))
+        for i, (h, h_sd, q) in enumerate(harmonic):
+            out["harmonic_phase" + ("" if i == 0 else f"_{i + 1}")] = (q, h_sd / max(h, 1e-300))
+        return out
+
+
+def _sine(coef: np.ndarray, cov: np.ndarray, i_sin: int, i_cos: int) -> tuple[float, float, float]:
+    """(amplitude, its sd, phase) of ``s sin(x) + c cos(x)`` = A sin(x + phase) from coefficients i_sin, i_cos."""
+    s, c = float(coef[i_sin]), float(coef[i_cos])
+    amp = float(np.hypot(s, c))
+    g = np.array([s, c]) / max(amp, 1e-300)
+    sub = cov[np.ix_([i_sin, i_cos], [i_sin, i_cos])]
+    return amp, float(np.sqrt(max(g @ sub @ g, 0.0))), float(np.arctan2(c, s))
 
 
 class TorqueOffset(Candidate):
@@ -257,6 +290,11 @@ class HardeningStiffness(Candidate):
             return {"hardening_stretch": (float("inf"), float("inf"))}
         s = c ** -0.5
         return {"hardening_stretch": (s, 0.5 * s * sd / c)}
+
+    def rejection(self, params):
+        if not math.isfinite(params["hardening_stretch"][0]):
+            return "the fitted cubic term is zero or negative (a linear or softening cable, not a hardening one)"
+        return super().rejection(params)
 
 
 MOTOR_CANDIDATES: tuple[Candidate, ...] = (Stribeck(), AsymmetricFriction(), LoadDependentFriction(),

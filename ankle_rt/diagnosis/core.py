@@ -36,6 +36,9 @@ from ankle_rt.interchange import InterchangeError, Recording
 #: residual when a remainder is left unexplained; else the discrepancy is ``unknown`` without names
 MIN_EXPLAINED = 0.6
 HOLDOUT_FRACTION = 0.25
+#: a fitted nonlinear parameter on the edge of its grid (its optimum may lie beyond what the form can
+#: describe) must explain at least this share of the baseline residual to be named
+EDGE_MIN_SHARE = 0.01
 #: baseline columns per motor (J, D, kc) or ankle axis (K, K beta, offset)
 PER = 3
 
@@ -334,6 +337,40 @@ def _validated(res: ChannelResult, vch: Channel, specs: list[tuple[Candidate, fl
     return specs
 
 
+def _rejection(res: ChannelResult, cf: ChannelFit, i: int) -> str | None:
+    """Why the ``i``-th effect of a channel's joint fit cannot be named (None: it can): its fitted
+    parameters are non-finite or outside the effect's range, or its nonlinear parameter sits on the edge
+    of the grid while it explains almost nothing."""
+    cand, nl, nl_sd = cf.specs[i]
+    sl = cf.slices[i]
+    reason = cand.rejection(cand.parameters(cf.coef[sl], cf.cov[sl, sl], nl, nl_sd, res.channel,
+                                            cf.coef[:cf.n_base]))
+    if reason or cand.nonlinear is None or cand.integer:
+        return reason
+    grid = cand.grid(res.channel)
+    share = next(ts.share for ts in res.terms if ts.term.candidate is cand)
+    if (nl <= min(grid) or nl >= max(grid)) and share < EDGE_MIN_SHARE:
+        return (f"{cand.nonlinear} = {nl:.4g} lies on the edge of its grid and the effect explains only "
+                f"{100 * share:.2f} % of the residual: the form does not describe what it fits")
+    return None
+
+
+def _sound_fit(res: ChannelResult, chosen: list[tuple[Candidate, float]], notes: list[str]) -> ChannelFit:
+    """The joint fit of a channel's chosen effects without those whose fit cannot be a simulator effect
+    (each dropped with its reason in ``notes``; the rest re-fitted): nothing non-finite or out of range
+    is ever named or written into a config."""
+    sd_of = {ts.term.cause: sd for ts, sd in zip(res.terms, res.nl_sd)}
+    specs = [(c, v, sd_of[c.cause]) for c, v in chosen]
+    while True:
+        cf = joint_fit(res, specs)
+        reasons = [_rejection(res, cf, i) for i in range(len(specs))]
+        bad = next((i for i, r in enumerate(reasons) if r), None)
+        if bad is None:
+            return cf
+        notes.append(f"{res.name} channel: {specs[bad][0].cause} rejected: {reasons[bad]}")
+        del specs[bad]
+
+
 def _effect_entries(results: list[ChannelResult], fits: dict[str, ChannelFit], vchans: dict[str, Channel],
                     notes: list[str]) -> list[dict[str, Any]]:
     """The ``effects`` list: each named effect's parameters, confidence, shares and own validation gain."""
@@ -411,9 +448,7 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
     chosen, unexplained = _named_sets(results, notes, unusable)
     for res in results:
         chosen[res.name] = _validated(res, vchans[res.name], chosen[res.name], notes)
-    sd_of = {res.name: {ts.term.cause: sd for ts, sd in zip(res.terms, res.nl_sd)} for res in results}
-    fits = {res.name: joint_fit(res, [(c, v, sd_of[res.name][c.cause]) for c, v in chosen[res.name]])
-            for res in results}
+    fits = {res.name: _sound_fit(res, chosen[res.name], notes) for res in results}
     effects = _effect_entries(results, fits, vchans, notes)
     causes = [e["type"] for e in effects] + (["unknown"] if unexplained else [])
     if unusable and not causes:
