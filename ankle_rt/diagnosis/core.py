@@ -26,7 +26,7 @@ from ankle_rt.config import Config
 from ankle_rt.diagnosis.candidates import (CABLE_CANDIDATES, INPUT_GROUPS, MOTOR_CANDIDATES, Candidate, Channel,
                                            catch_all_cable, catch_all_motor, time_columns, without_groups)
 from ankle_rt.diagnosis.regression import fit, rss_only
-from ankle_rt.diagnosis.screening import Screening, screen, strain_gauge_drift
+from ankle_rt.diagnosis.screening import Screening, screen, strain_gauge_drift, strain_gauge_offset
 from ankle_rt.diagnosis.selection import (IC_THRESHOLD, MIN_REDUCTION, MIN_SIZE, MIN_SIZE_UNKNOWN,
                                           MIN_UNKNOWN_REDUCTION, AMBIGUOUS_IC, ChannelResult, select_channel)
 from ankle_rt.diagnosis.signals import CableChannel, Geometry, MotorChannel
@@ -302,6 +302,18 @@ def _add_drift_nuisance(ch: Channel) -> None:
         ch.nuisance = np.hstack([ch.nuisance, ch.per_column(np.ones((ch.n_samples, ch.m)))])
 
 
+def _remove_gauge_offsets(chans: dict[str, Channel], label: str, warnings: list[str]) -> None:
+    """Strain-gauge zero offsets found on the cable side (where the ankle encoders show what the cables
+    carry): warned about and taken out of the motor channel's cable torque, so they never read as a load
+    (``torque_offset``)."""
+    if "cable" not in chans or (off := strain_gauge_offset(chans["cable"])) is None:
+        return
+    warnings.append(f"{label} data: the strain gauges read a zero offset of {off[0]:+.3g} N m (DP), {off[1]:+.3g} "
+                    "N m (IE) that the cable stretch from the ankle encoders does not carry: a sensor offset, "
+                    "not a load; corrected before the motor side is fitted")
+    chans["motor"].remove_gauge_offset(off)
+
+
 def _named_sets(results: list[ChannelResult], notes: list[str],
                 unusable: bool) -> tuple[dict[str, list[tuple[Candidate, float]]], dict[str, Any]]:
     """Per channel the effects to name, and the channels with an unexplained remainder. A named set that
@@ -438,6 +450,9 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
         for ch in list(chans.values()) + list(vchans.values()):
             _add_drift_nuisance(ch)
         scr.skip.add("torque_offset")
+    else:
+        _remove_gauge_offsets(chans, "identification", warnings)
+        _remove_gauge_offsets(vchans, "validation", warnings)
     skip = scr.skip | vscr.skip
     motor_pool = tuple(c for c in MOTOR_CANDIDATES if c.cause not in skip)
     motor_catch_all = without_groups(catch_all_motor, INPUT_GROUPS) if scr.one_way or vscr.one_way else catch_all_motor

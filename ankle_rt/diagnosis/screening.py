@@ -229,3 +229,33 @@ def strain_gauge_drift(cable) -> list[float] | None:
     if float(np.max(span)) < DRIFT_SIZE * math.sqrt(full.rss / len(y)):
         return None
     return [float(s) for s in span]
+
+
+#: a strain-gauge zero offset is reported (and corrected) when it exceeds this (N m) ...
+GAUGE_OFFSET_NM = 0.05
+#: ... and this many of its standard deviations
+GAUGE_OFFSET_SD = 5.0
+
+
+def strain_gauge_offset(cable) -> np.ndarray | None:
+    """Zero offsets (N m per ankle axis [DP, IE]) of the strain gauges when significant, else None. A
+    joint torque reaches the gauges only through the cable stretch the ankle encoders measure, so a
+    constant the gauges read beyond the cable law (with the odd dead-zone and hardening shapes a cable
+    effect would add) is the gauges' own offset, not a load: a load stretches the cables."""
+    from ankle_rt.diagnosis.candidates import CABLE_CANDIDATES
+    from ankle_rt.diagnosis.regression import effective_samples, fit
+
+    shapes = [c.design(cable, nl).X for c in CABLE_CANDIDATES for nl in OFFSET_SHAPE_WIDTHS.get(c.cause, (0.0,))]
+    X = np.hstack([cable.baseline_design()] + shapes)
+    f = fit(cable.target(), X)
+    cov = f.covariance(effective_samples(f.residual, cable.m))
+    idx = [2, 5]                       # the offset column of each axis in the cable baseline
+    off = f.coef[idx]
+    sd = np.sqrt(np.maximum(np.diag(cov)[idx], 0.0))
+    if not np.any((np.abs(off) > GAUGE_OFFSET_NM) & (np.abs(off) > GAUGE_OFFSET_SD * sd)):
+        return None
+    return off
+
+
+#: slack half-widths (m) whose dead-zone shapes stand in for any backlash while an offset is measured
+OFFSET_SHAPE_WIDTHS = {"backlash": (1e-4, 4e-4, 1.5e-3)}
