@@ -32,6 +32,7 @@ class Candidate:
     channel: str = "motor"
     nonlinear: str | None = None     # name of the grid-searched parameter
     integer: bool = False            # the nonlinear parameter is an integer (refined on the grid only)
+    calibration: bool = False        # a sensor / calibration finding: reported, never a cause or a sim effect
 
     def applies(self, ch: Channel) -> bool:
         return True
@@ -242,6 +243,32 @@ class TorqueOffset(Candidate):
         return {f"torque_{i + 1}": (float(coef[i]), _sd(cov, i)) for i in range(len(coef))}
 
 
+class TorqueConstantScale(Candidate):
+    """A torque-constant (or current-sensing) calibration error per motor, not a physical effect: with the
+    true constant ``scale`` x the configured one, ``scale tau = J a + D w + kc s + tc``, i.e. the left side
+    ``tau - tc`` gains ``(1 / scale - 1) tc`` (J, D, kc absorb the rest). Seen only where the strain gauges
+    measure the cable torque independently of the current."""
+
+    cause = "torque_constant"
+    calibration = True
+
+    def applies(self, ch):
+        return bool(np.any(ch.tc))
+
+    def design(self, ch, nl):
+        return Design(ch.per_column(ch.L_tc))
+
+    def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
+        return {f"scale_{i + 1}": (1.0 / (1.0 + float(coef[i])), _sd(cov, i) / (1.0 + float(coef[i])) ** 2)
+                for i in range(len(coef))}
+
+    def rejection(self, params):
+        off = [f"{v:.3g}" for v, _ in params.values() if not SCALE_RANGE[0] < v < SCALE_RANGE[1]]
+        if off:
+            return f"torque-constant scale {', '.join(off)} outside {SCALE_RANGE[0]:g}-{SCALE_RANGE[1]:g}: no calibration error"
+        return super().rejection(params)
+
+
 class Delay(Candidate):
     cause = "delay"
     nonlinear = "delay"
@@ -298,10 +325,11 @@ class HardeningStiffness(Candidate):
 
 
 MOTOR_CANDIDATES: tuple[Candidate, ...] = (Stribeck(), AsymmetricFriction(), LoadDependentFriction(),
-                                           Cogging(), Delay(), TorqueOffset())
+                                           Cogging(), Delay(), TorqueOffset(), TorqueConstantScale())
 CABLE_CANDIDATES: tuple[Candidate, ...] = (Backlash(), HardeningStiffness())
 
 MIN_COGGING_PERIODS = 2.0
+SCALE_RANGE = (0.5, 2.0)           # plausible torque-constant calibration scales (true / configured)
 MIN_COGGING_SEARCH = 2500          # periods per revolution searched at least (rotor cogging x gearbox)
 MAX_COGGING_BINS = 1 << 22         # angle-domain grid points per revolution, at most
 SPEED_BANDS = 16                   # speed bands of the angle-domain spectrum

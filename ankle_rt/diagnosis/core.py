@@ -43,6 +43,8 @@ EDGE_MIN_SHARE = 0.01
 PER = 3
 
 PLANTS = ("ankle", "actuator")
+#: candidates that are calibration findings (fitted and reported, never causes or sim effects)
+CALIBRATIONS = tuple(c.cause for c in MOTOR_CANDIDATES if c.calibration)
 
 
 class DiagnosisError(ValueError):
@@ -66,6 +68,7 @@ class Diagnosis:
     adequacy: dict[str, Any] = field(default_factory=dict)   # channel -> what is left after the chosen model
     actuator_refit: dict[str, float] | None = None
     baseline_extended: dict[str, Any] | None = None   # the baseline part of the extended model's fit
+    calibration: list[dict[str, Any]] = field(default_factory=list)   # fitted calibration errors, not causes
     detail: dict[str, Any] = field(default_factory=dict, repr=False)   # fits and channels for the report
 
     @property
@@ -98,6 +101,7 @@ class Diagnosis:
                 "parameters": self.parameters, "baseline": self.baseline, "baseline_extended": self.baseline_extended,
                 "nrmse_baseline": self.nrmse_baseline, "nrmse_extended": self.nrmse_extended,
                 "gain": self.gain, "validation": self.validation, "effect": self.effect,
+                "calibration": self.calibration,
                 "notes": self.notes}
 
 
@@ -464,13 +468,20 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
     for res in results:
         chosen[res.name] = _validated(res, vchans[res.name], chosen[res.name], notes)
     fits = {res.name: _sound_fit(res, chosen[res.name], notes) for res in results}
-    effects = _effect_entries(results, fits, vchans, notes)
+    entries = _effect_entries(results, fits, vchans, notes)
+    effects = [e for e in entries if e["type"] not in CALIBRATIONS]
+    calibration = [e for e in entries if e["type"] in CALIBRATIONS]
+    for e in calibration:
+        e.pop("effect")
+        warnings.append(f"calibration: the {e['type'].replace('_', ' ')} fits "
+                        + ", ".join(f"{v['value']:.4g} +/- {v['sd']:.2g}" for v in e["parameters"].values())
+                        + " x the configured one (per motor): fitted as a calibration, not named as an effect")
     causes = [e["type"] for e in effects] + (["unknown"] if unexplained else [])
     if unusable and not causes:
         causes = ["unknown"]
     causes = causes or ["none"]
-    if effects:
-        confidence = min(e["confidence"] for e in effects)
+    if effects or calibration:
+        confidence = min(e["confidence"] for e in effects or calibration)
     elif unexplained:
         confidence = min(1.0, max(r.catch_all_reduction for r in results if r.name in unexplained) / 0.2)
     elif unusable:
@@ -486,7 +497,7 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
     base_v = [validation_nrmse(r, vchans[r.name], []) for r in main]
     ext_v = [nrmse(vchans[r.name], [(c, v) for c, v, _ in fits[r.name].specs], fits[r.name].coef) for r in main]
     nrmse_base = float(np.sqrt(np.mean(np.square(base_v))))
-    nrmse_ext = float(np.sqrt(np.mean(np.square(ext_v)))) if effects else nrmse_base
+    nrmse_ext = float(np.sqrt(np.mean(np.square(ext_v)))) if entries else nrmse_base
     baseline = {r.name: baseline_dict(r.name, r.baseline.coef, r.baseline.covariance(r.n_eff), r.channel.m)
                 for r in results}
     baseline_extended = {name: baseline_dict(name, cf.coef, cf.cov, cf.result.channel.m)
@@ -497,9 +508,15 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
         m = chans["motor"].m
         actuator_refit = {key: float(np.mean([mc[j + PER * i] for i in range(m)]))
                           for j, (key, _) in enumerate(BASELINE_NAMES["motor"])}
+        for e in calibration:
+            scale = float(np.mean([v["value"] for v in e["parameters"].values()]))
+            actuator_refit["torque_constant"] = inputs.kt * scale
+            # the baseline was fitted in configured-torque units: scale tau = J a + ..., so J, D, kc scale too
+            for key in ("inertia", "damping", "coulomb"):
+                actuator_refit[key] *= scale
     channel = effects[0]["channel"] if effects else (next(iter(unexplained)) if unexplained else None)
     detail = {"results": results, "fits": fits, "validation_channels": vchans}
-    return Diagnosis(causes=causes, confidence=float(confidence), channel=channel,
+    return Diagnosis(calibration=calibration, causes=causes, confidence=float(confidence), channel=channel,
                      candidates=candidate_table(results), effects=effects, baseline=baseline,
                      nrmse_baseline=nrmse_base, nrmse_extended=nrmse_ext, validation=vname, notes=notes,
                      data_warnings=warnings, unexplained=unexplained or None, adequacy=_adequacy(results),
