@@ -33,6 +33,9 @@ class Candidate:
     nonlinear: str | None = None     # name of the grid-searched parameter
     integer: bool = False            # the nonlinear parameter is an integer (refined on the grid only)
     calibration: bool = False        # a sensor / calibration finding: reported, never a cause or a sim effect
+    #: fixed settings of the simulator effect this form stands for (several forms may share a cause; a
+    #: channel names at most one form per cause)
+    form: dict[str, str] = {}
 
     def applies(self, ch: Channel) -> bool:
         return True
@@ -284,49 +287,78 @@ class Delay(Candidate):
 
 
 class Backlash(Candidate):
+    """Slack as a dead zone per ankle axis: the spring term K dz(phi_a) with dz +/- half_width / R_axis."""
+
     cause = "backlash"
     channel = "cable"
     nonlinear = "half_width"
+    form = {"per": "axis"}
 
     def grid(self, ch):
         return list(np.geomspace(1e-5, 2e-3, 28))
 
+    def clipped(self, ch, half_width: float) -> np.ndarray:
+        """The stretch inside the dead zone per axis (samples x axes): the spring force it takes away / K."""
+        b = half_width / ch.geometry.levers
+        return np.clip(ch.phi, -b, b)
+
     def design(self, ch, nl):
-        b = nl / ch.geometry.levers
-        clipped = np.clip(ch.phi, -b, b)
-        return Design(ch.per_column(ch.sm.smooth(clipped)))
+        return Design(ch.per_column(ch.sm.smooth(self.clipped(ch, nl))))
 
     def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
         return {"half_width": (nl, nl_sd)}
 
 
+class CableBacklash(Backlash):
+    """Slack as a dead zone on each cable's own stretch r (R phi)_i: per axis a the spring term loses
+    (R^T clip(R phi, +/- half_width / r))_a / (R^T R)_aa, which is phi_a inside both dead zones."""
+
+    form = {"per": "cable"}
+
+    def clipped(self, ch, half_width):
+        R = np.linalg.inv(ch.geometry.R_inv)
+        r = float(ch.geometry.levers[0] / R[0, 0])            # pulley radius, m
+        b = half_width / r
+        c = np.clip(ch.phi @ R.T, -b, b)
+        return (c @ R) / np.sum(R * R, axis=0)
+
+
 class HardeningStiffness(Candidate):
+    """Monotone stiffening of the cables: force k s (1 + (|s| / s_h)^(e - 1)), e on a grid (3: cubic,
+    2: k s (1 + |s| / s0), 4), joint-torque correction K phi (R |phi| / s_h)^(e - 1) per axis."""
+
     cause = "stiffness_nonlinear"
     channel = "cable"
+    nonlinear = "exponent"
+    integer = True
+
+    def grid(self, ch):
+        return [2.0, 3.0, 4.0]
 
     def design(self, ch, nl):
         # nominal K per axis: both axes scale with the one cable stiffness k, so one shared coefficient
-        # (k_true / k_nominal) / s_h^2 fits both, whatever k is
-        return Design(ch.filt(ch.geometry.K * ch.geometry.levers ** 2 * ch.phi ** 3)[:, None])
+        # (k_true / k_nominal) / s_h^(e - 1) fits both, whatever k is
+        return Design(ch.filt(ch.geometry.K * ch.phi * np.abs(ch.geometry.levers * ch.phi) ** (nl - 1.0))[:, None])
 
     def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
         # the extended fit's own K (coefficients of phi) gives k_true / k_nominal
         ratio = float(np.mean(ch.geometry.K / base_coef[[0, 3]]))
         c, sd = float(coef[0]) * ratio, _sd(cov, 0) * ratio
         if c <= 0.0:
-            return {"hardening_stretch": (float("inf"), float("inf"))}
-        s = c ** -0.5
-        return {"hardening_stretch": (s, 0.5 * s * sd / c)}
+            return {"hardening_stretch": (float("inf"), float("inf")), "exponent": (nl, 0.0)}
+        p = nl - 1.0
+        s = c ** (-1.0 / p)
+        return {"hardening_stretch": (s, s * sd / (p * c)), "exponent": (nl, 0.0)}
 
     def rejection(self, params):
         if not math.isfinite(params["hardening_stretch"][0]):
-            return "the fitted cubic term is zero or negative (a linear or softening cable, not a hardening one)"
+            return "the fitted stiffening term is zero or negative (a linear or softening cable, not a hardening one)"
         return super().rejection(params)
 
 
 MOTOR_CANDIDATES: tuple[Candidate, ...] = (Stribeck(), AsymmetricFriction(), LoadDependentFriction(),
                                            Cogging(), Delay(), TorqueOffset(), TorqueConstantScale())
-CABLE_CANDIDATES: tuple[Candidate, ...] = (Backlash(), HardeningStiffness())
+CABLE_CANDIDATES: tuple[Candidate, ...] = (Backlash(), CableBacklash(), HardeningStiffness())
 
 MIN_COGGING_PERIODS = 2.0
 SCALE_RANGE = (0.5, 2.0)           # plausible torque-constant calibration scales (true / configured)

@@ -258,11 +258,12 @@ def baseline_dict(name: str, coef: np.ndarray, cov: np.ndarray, m: int) -> dict[
     return out
 
 
-def effect_entry(cause: str, params: dict[str, tuple[float, float]]) -> dict[str, Any]:
-    entry: dict[str, Any] = {"type": cause}
+def effect_entry(cand: Candidate, params: dict[str, tuple[float, float]]) -> dict[str, Any]:
+    """The ``sim.effects`` entry of a fitted candidate (its form's fixed settings included)."""
+    entry: dict[str, Any] = {"type": cand.cause}
     for k, (v, _) in params.items():
         entry[k] = int(round(v)) if k == "periods_per_rev" else float(v)
-    return entry
+    return {**entry, **cand.form}
 
 
 def candidate_table(results: list[ChannelResult]) -> list[dict[str, Any]]:
@@ -405,7 +406,7 @@ def _effect_entries(results: list[ChannelResult], fits: dict[str, ChannelFit], v
                      "parameters": {k: {"value": v, "sd": sd} for k, (v, sd) in params.items()},
                      "confidence": round(ts.confidence, 4), "rss_share": round(ts.share, 5), "size": round(ts.size, 5),
                      "gain": validation_nrmse(res, vch, others) / full if full > 0 else 1.0,
-                     "effect": effect_entry(cand.cause, params)}
+                     "effect": effect_entry(cand, params)}
             if ts.rival is not None and ts.rival_margin < AMBIGUOUS_IC:
                 entry["alternative"] = ts.rival
                 notes.append(f"{cand.cause} and {ts.rival} fit these data nearly equally well (criterion "

@@ -245,7 +245,7 @@ def strain_gauge_offset(cable) -> np.ndarray | None:
     from ankle_rt.diagnosis.candidates import CABLE_CANDIDATES
     from ankle_rt.diagnosis.regression import effective_samples, fit
 
-    shapes = [c.design(cable, nl).X for c in CABLE_CANDIDATES for nl in OFFSET_SHAPE_WIDTHS.get(c.cause, (0.0,))]
+    shapes = [c.design(cable, nl).X for c in CABLE_CANDIDATES for nl in OFFSET_SHAPES[c.cause]]
     X = np.hstack([cable.baseline_design()] + shapes)
     f = fit(cable.target(), X)
     cov = f.covariance(effective_samples(f.residual, cable.m))
@@ -257,5 +257,6 @@ def strain_gauge_offset(cable) -> np.ndarray | None:
     return off
 
 
-#: slack half-widths (m) whose dead-zone shapes stand in for any backlash while an offset is measured
-OFFSET_SHAPE_WIDTHS = {"backlash": (1e-4, 4e-4, 1.5e-3)}
+#: the cable candidates' shapes that stand in for any cable effect while an offset is measured: slack
+#: half-widths (m), stiffening exponents
+OFFSET_SHAPES = {"backlash": (1e-4, 4e-4, 1.5e-3), "stiffness_nonlinear": (2.0, 3.0)}

@@ -131,7 +131,7 @@ class ChannelModels:
         self._designs: dict[tuple[str, float], Design] = {}
 
     def term(self, cand: Candidate, nl: float) -> Term:
-        key = (cand.cause, float(nl))
+        key = (type(cand).__name__, float(nl))       # a form of its own per class
         if key not in self._designs:
             self._designs[key] = cand.design(self.ch, nl)
         return Term(cand, float(nl), self._designs[key])
@@ -200,7 +200,7 @@ def select_channel(name: str, ch: Channel, candidates: tuple[Candidate, ...], ca
     chosen: list[Term] = []
     current = base
     while len(chosen) < MAX_EFFECTS:
-        left = [c for c in pool if all(t.candidate is not c for t in chosen)]
+        left = [c for c in pool if all(t.cause != c.cause for t in chosen)]    # one form per cause
         trials = [score_against(models, models.best_of(c, chosen, current.residual), current.rss,
                                 models.k(chosen), n_eff) for c in left]
         added = False
@@ -295,7 +295,7 @@ def _term_stats(models: ChannelModels, chosen: list[Term], i: int, pool: list[Ca
     ic_full = information_criterion(s.rss, models.n, models.k(chosen), n_eff)
     residual = fit(*models.system(rest)).residual
     for rival in pool:
-        if any(t.candidate is rival for t in chosen):
+        if any(t.cause == rival.cause for t in chosen):
             continue
         r = models.best_of(rival, rest, residual)
         margin = information_criterion(r.rss, models.n, r.k, n_eff) - ic_full
