@@ -9,6 +9,7 @@ coefficients into the simulator effect's parameters (docs/design.md vocabulary =
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -43,8 +44,9 @@ class Candidate:
     def grid(self, ch: Channel) -> list[float]:
         return [0.0]
 
-    def search_grid(self, ch: Channel, residual: np.ndarray) -> list[float]:
-        """Values of the nonlinear parameter to score, given the current model's residual (stacked)."""
+    def search_grid(self, ch: Channel, residual: np.ndarray, design: Callable[[float], Design]) -> list[float]:
+        """Values of the nonlinear parameter to score, given the current model's residual (stacked);
+        ``design(value)`` gives the candidate's (cached) design at a value."""
         return self.grid(ch)
 
     def design(self, ch: Channel, nl: float) -> Design:
@@ -143,7 +145,7 @@ class Cogging(Candidate):
         n_min, n_max = self.count_range(ch)
         return [float(n) for n in np.unique(np.geomspace(n_min, n_max, 40).round())]
 
-    def search_grid(self, ch, residual: np.ndarray) -> list[float]:
+    def search_grid(self, ch, residual, design):
         """Integer counts worth a regression: the angle-domain spectrum's strongest peaks (see the class
         docstring) with their neighbours, and the config's prior when it gives one."""
         n_min, n_max = self.count_range(ch)
@@ -177,7 +179,7 @@ class Cogging(Candidate):
         # the exact share of the residual each screened count's filtered sin/cos pair explains
         explained = []
         for n in screened:
-            X = self.design(ch, float(n)).X
+            X = design(float(n)).X
             g = X.T @ residual
             explained.append(float(g @ np.linalg.lstsq(X.T @ X, g, rcond=None)[0]))
         best = screened[np.argsort(explained)[::-1][:COGGING_PEAKS]]

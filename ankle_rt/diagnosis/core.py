@@ -25,10 +25,11 @@ import numpy as np
 from ankle_rt.config import Config
 from ankle_rt.diagnosis.candidates import (CABLE_CANDIDATES, INPUT_GROUPS, MOTOR_CANDIDATES, Candidate, Channel,
                                            catch_all_cable, catch_all_motor, time_columns, without_groups)
-from ankle_rt.diagnosis.regression import fit, rss_only
+from ankle_rt.diagnosis.regression import rss_only
 from ankle_rt.diagnosis.screening import Screening, screen, strain_gauge_drift, strain_gauge_offset
 from ankle_rt.diagnosis.selection import (IC_THRESHOLD, MIN_REDUCTION, MIN_SIZE, MIN_SIZE_UNKNOWN,
-                                          MIN_UNKNOWN_REDUCTION, AMBIGUOUS_IC, ChannelResult, select_channel)
+                                          MIN_UNKNOWN_REDUCTION, AMBIGUOUS_IC, ChannelModels, ChannelResult,
+                                          select_channel)
 from ankle_rt.diagnosis.signals import CableChannel, Geometry, MotorChannel
 from ankle_rt.interchange import InterchangeError, Recording
 
@@ -205,40 +206,25 @@ class ChannelFit:
         return self.result.name
 
 
-def system(ch: Channel, specs: list[tuple[Candidate, float]]) -> tuple[np.ndarray, np.ndarray, list[slice]]:
-    """(y, X, each effect's column slice) of the baseline extended by ``specs`` on channel ``ch``."""
-    Xb = ch.baseline_design()
-    y, blocks, slices, k = ch.target(), [Xb], [], Xb.shape[1]
-    for cand, nl in specs:
-        d = cand.design(ch, nl)
-        if d.y is not None:
-            y = d.y
-        blocks.append(d.X)
-        slices.append(slice(k, k + d.X.shape[1]))
-        k += d.X.shape[1]
-    return y, np.hstack(blocks), slices
-
-
 def joint_fit(result: ChannelResult, specs: list[tuple[Candidate, float, float]]) -> ChannelFit:
     """The baseline and ``specs`` (candidate, nonlinear value, its sd) fitted jointly, with the
     coefficient covariance inflated for the residual's autocorrelation."""
-    y, X, slices = system(result.channel, [(c, v) for c, v, _ in specs])
-    f = fit(y, X)
-    return ChannelFit(result, specs, f.coef, f.covariance(result.n_eff), slices,
-                      result.channel.baseline_design().shape[1])
+    terms = result.models.terms([(c, v) for c, v, _ in specs])
+    f = result.models.fit(terms)
+    return ChannelFit(result, specs, f.coef, f.covariance(result.n_eff), result.models.slices(terms),
+                      result.models.Xb.shape[1])
 
 
-def nrmse(ch: Channel, specs: list[tuple[Candidate, float]], coef: np.ndarray) -> float:
+def nrmse(models: ChannelModels, specs: list[tuple[Candidate, float]], coef: np.ndarray) -> float:
     """RMS error of the inverse model's prediction / std of the measured side (filtered alike)."""
-    y, X, _ = system(ch, specs)
+    y, X = models.system(models.terms(specs))
     err = y - X @ coef
-    return float(np.sqrt(np.mean(err ** 2)) / max(np.std(ch.measured()), 1e-300))
+    return float(np.sqrt(np.mean(err ** 2)) / models.scale)
 
 
-def validation_nrmse(result: ChannelResult, vch: Channel, specs: list[tuple[Candidate, float]]) -> float:
+def validation_nrmse(result: ChannelResult, vmodels: ChannelModels, specs: list[tuple[Candidate, float]]) -> float:
     """Fit ``specs`` on the identification channel, predict the validation channel."""
-    y, X, _ = system(result.channel, specs)
-    return nrmse(vch, specs, fit(y, X).coef)
+    return nrmse(vmodels, specs, result.models.fit(result.models.terms(specs)).coef)
 
 
 # -- reporting helpers ---------------------------------------------------------------------------------
@@ -338,7 +324,7 @@ def _named_sets(results: list[ChannelResult], notes: list[str],
     return chosen, unexplained
 
 
-def _validated(res: ChannelResult, vch: Channel, specs: list[tuple[Candidate, float]],
+def _validated(res: ChannelResult, vch: ChannelModels, specs: list[tuple[Candidate, float]],
                notes: list[str]) -> list[tuple[Candidate, float]]:
     """Drop, one at a time, the effect whose removal does not make the validation prediction worse."""
     specs = list(specs)
@@ -388,7 +374,7 @@ def _sound_fit(res: ChannelResult, chosen: list[tuple[Candidate, float]], notes:
         del specs[bad]
 
 
-def _effect_entries(results: list[ChannelResult], fits: dict[str, ChannelFit], vchans: dict[str, Channel],
+def _effect_entries(results: list[ChannelResult], fits: dict[str, ChannelFit], vchans: dict[str, ChannelModels],
                     notes: list[str]) -> list[dict[str, Any]]:
     """The ``effects`` list: each named effect's parameters, confidence, shares and own validation gain."""
     stats = {(res.name, ts.term.cause): ts for res in results for ts in res.terms}
@@ -462,14 +448,15 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
     motor_pool = tuple(c for c in MOTOR_CANDIDATES if c.cause not in skip)
     motor_catch_all = without_groups(catch_all_motor, INPUT_GROUPS) if scr.one_way or vscr.one_way else catch_all_motor
     results = [select_channel("motor", chans["motor"], motor_pool, motor_catch_all)]
+    vmodels = {name: ChannelModels(vch) for name, vch in vchans.items()}
     if "cable" in chans and "cable" in vchans:
         results.append(select_channel("cable", chans["cable"], CABLE_CANDIDATES, catch_all_cable))
 
     chosen, unexplained = _named_sets(results, notes, unusable)
     for res in results:
-        chosen[res.name] = _validated(res, vchans[res.name], chosen[res.name], notes)
+        chosen[res.name] = _validated(res, vmodels[res.name], chosen[res.name], notes)
     fits = {res.name: _sound_fit(res, chosen[res.name], notes) for res in results}
-    entries = _effect_entries(results, fits, vchans, notes)
+    entries = _effect_entries(results, fits, vmodels, notes)
     effects = [e for e in entries if e["type"] not in CALIBRATIONS]
     calibration = [e for e in entries if e["type"] in CALIBRATIONS]
     for e in calibration:
@@ -495,8 +482,8 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
                      + ", ".join(f"{c['with']} ({100 * c['share']:.0f} %)" for c in u["correlates_with"]))
 
     main = [r for r in results if fits[r.name].specs] or [r for r in results if r.name in unexplained] or results[:1]
-    base_v = [validation_nrmse(r, vchans[r.name], []) for r in main]
-    ext_v = [nrmse(vchans[r.name], [(c, v) for c, v, _ in fits[r.name].specs], fits[r.name].coef) for r in main]
+    base_v = [validation_nrmse(r, vmodels[r.name], []) for r in main]
+    ext_v = [nrmse(vmodels[r.name], [(c, v) for c, v, _ in fits[r.name].specs], fits[r.name].coef) for r in main]
     nrmse_base = float(np.sqrt(np.mean(np.square(base_v))))
     nrmse_ext = float(np.sqrt(np.mean(np.square(ext_v)))) if entries else nrmse_base
     baseline = {r.name: baseline_dict(r.name, r.baseline.coef, r.baseline.covariance(r.n_eff), r.channel.m)
@@ -516,7 +503,7 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
             for key in ("inertia", "damping", "coulomb"):
                 actuator_refit[key] *= scale
     channel = effects[0]["channel"] if effects else (next(iter(unexplained)) if unexplained else None)
-    detail = {"results": results, "fits": fits, "validation_channels": vchans}
+    detail = {"results": results, "fits": fits, "validation_channels": vchans, "validation_models": vmodels}
     return Diagnosis(calibration=calibration, causes=causes, confidence=float(confidence), channel=channel,
                      candidates=candidate_table(results), effects=effects, baseline=baseline,
                      nrmse_baseline=nrmse_base, nrmse_extended=nrmse_ext, validation=vname, notes=notes,
