@@ -58,9 +58,11 @@ class Candidate:
         ``coef`` (covariance ``cov``) and the baseline's coefficients of the same extended fit."""
         raise NotImplementedError
 
-    def rejection(self, params: dict[str, tuple[float, float]]) -> str | None:
-        """Why fitted ``params`` cannot be a simulator effect (None: they can): a non-finite value, or
-        one outside the effect's physical range. A rejected candidate is dropped, never written."""
+    def rejection(self, params: dict[str, tuple[float, float]], coef: np.ndarray,
+                  base_coef: np.ndarray) -> str | None:
+        """Why fitted ``params`` (from the candidate's ``coef`` beside the baseline's ``base_coef``)
+        cannot be a simulator effect (None: they can): a non-finite value, or one outside the effect's
+        physical range. A rejected candidate is dropped, never written."""
         bad = [k for k, (v, _) in params.items() if not math.isfinite(v)]
         return f"non-finite {', '.join(bad)}" if bad else None
 
@@ -267,11 +269,11 @@ class TorqueConstantScale(Candidate):
         return {f"scale_{i + 1}": (1.0 / (1.0 + float(coef[i])), _sd(cov, i) / (1.0 + float(coef[i])) ** 2)
                 for i in range(len(coef))}
 
-    def rejection(self, params):
+    def rejection(self, params, coef, base_coef):
         off = [f"{v:.3g}" for v, _ in params.values() if not SCALE_RANGE[0] < v < SCALE_RANGE[1]]
         if off:
             return f"torque-constant scale {', '.join(off)} outside {SCALE_RANGE[0]:g}-{SCALE_RANGE[1]:g}: no calibration error"
-        return super().rejection(params)
+        return super().rejection(params, coef, base_coef)
 
 
 class Delay(Candidate):
@@ -309,6 +311,15 @@ class Backlash(Candidate):
 
     def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
         return {"half_width": (nl, nl_sd)}
+
+    def rejection(self, params, coef, base_coef):
+        # slack takes the spring force away inside the dead zone: coefficient -K per axis; a positive one
+        # is a spring that saturates (a clipped gauge), not slack
+        share = -np.asarray(coef) / base_coef[[0, 3]]
+        if np.any(share < SLACK_SHARE[0]) or np.any(share > SLACK_SHARE[1]):
+            return (f"the dead zone takes {', '.join(f'{v:.2f}' for v in share)} x the stiffness per axis "
+                    f"(slack: {SLACK_SHARE[0]:g}-{SLACK_SHARE[1]:g}; below 0 a saturating spring, e.g. a clipped gauge)")
+        return super().rejection(params, coef, base_coef)
 
 
 class CableBacklash(Backlash):
@@ -352,10 +363,10 @@ class HardeningStiffness(Candidate):
         s = c ** (-1.0 / p)
         return {"hardening_stretch": (s, s * sd / (p * c)), "exponent": (nl, 0.0)}
 
-    def rejection(self, params):
+    def rejection(self, params, coef, base_coef):
         if not math.isfinite(params["hardening_stretch"][0]):
             return "the fitted stiffening term is zero or negative (a linear or softening cable, not a hardening one)"
-        return super().rejection(params)
+        return super().rejection(params, coef, base_coef)
 
 
 MOTOR_CANDIDATES: tuple[Candidate, ...] = (Stribeck(), AsymmetricFriction(), LoadDependentFriction(),
@@ -364,6 +375,7 @@ CABLE_CANDIDATES: tuple[Candidate, ...] = (Backlash(), CableBacklash(), Hardenin
 
 MIN_COGGING_PERIODS = 2.0
 SCALE_RANGE = (0.5, 2.0)           # plausible torque-constant calibration scales (true / configured)
+SLACK_SHARE = (0.3, 2.0)           # share of the axis stiffness a dead zone may take away (ideal slack: 1)
 MIN_COGGING_SEARCH = 2500          # periods per revolution searched at least (rotor cogging x gearbox)
 MAX_COGGING_BINS = 1 << 22         # angle-domain grid points per revolution, at most
 SPEED_BANDS = 16                   # speed bands of the angle-domain spectrum

@@ -346,8 +346,9 @@ def _rejection(res: ChannelResult, cf: ChannelFit, i: int) -> str | None:
     of the grid while it explains almost nothing."""
     cand, nl, nl_sd = cf.specs[i]
     sl = cf.slices[i]
-    reason = cand.rejection(cand.parameters(cf.coef[sl], cf.cov[sl, sl], nl, nl_sd, res.channel,
-                                            cf.coef[:cf.n_base]))
+    base = cf.coef[:cf.n_base]
+    reason = cand.rejection(cand.parameters(cf.coef[sl], cf.cov[sl, sl], nl, nl_sd, res.channel, base),
+                            cf.coef[sl], base)
     if reason or cand.nonlinear is None or cand.integer:
         return reason
     grid = cand.grid(res.channel)
