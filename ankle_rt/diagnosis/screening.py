@@ -100,7 +100,7 @@ def _held(x: np.ndarray, rail: np.ndarray, at_rest: np.ndarray | None = None) ->
         return np.zeros(len(x), dtype=bool)
     out = np.zeros(len(x), dtype=bool)
     for a, b in _runs(same & ~rail):
-        if b - a + 1 >= HOLD_SAMPLES and not (at_rest is not None and bool(np.all(at_rest[max(0, a - 1):b]))):
+        if b - a + 1 >= HOLD_SAMPLES and not (at_rest is not None and bool(np.all(at_rest[a:b]))):
             out[max(0, a - 1):b] = True
     return out
 
