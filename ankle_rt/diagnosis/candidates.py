@@ -37,6 +37,8 @@ class Candidate:
     #: fixed settings of the simulator effect this form stands for (several forms may share a cause; a
     #: channel names at most one form per cause)
     form: dict[str, str] = {}
+    #: a richer form of the same effect tried once this one is chosen (e.g. cogging with a harmonic)
+    upgrade: "Candidate | None" = None
 
     def applies(self, ch: Channel) -> bool:
         return True
@@ -201,9 +203,14 @@ class Cogging(Candidate):
         x = np.clip((f - f1) / (f2 - f1), 0.0, 1.0)
         return 0.5 * (1.0 + np.cos(np.pi * x))
 
+    #: harmonics in the regressor: the count is searched and selected on the fundamental alone (a second
+    #: harmonic's columns let wrong counts fit aliased residue); :data:`upgrade` then adds the second
+    #: harmonic where it earns its place (selection._with_richer_forms)
+    harmonics = 1
+
     def design(self, ch, nl):
         waves = []
-        for h in (1.0, 2.0):
+        for h in range(1, self.harmonics + 1):
             ang = h * nl * ch.pos
             w = self.taper(ch, h * nl * ch.vel)
             waves += [w * np.sin(ang), w * np.cos(ang)]
@@ -220,12 +227,25 @@ class Cogging(Candidate):
             suffix = "" if i == 0 else f"_{i + 1}"
             out["amplitude" + suffix] = (amp, amp_sd)
             out["phase" + suffix] = (ph, amp_sd / max(amp, 1e-300))
-            harmonic.append(_sine(coef, cov, i + 2 * m, i + 3 * m))
+            if self.harmonics > 1:
+                harmonic.append(_sine(coef, cov, i + 2 * m, i + 3 * m))
+        if not harmonic:
+            return out
         out["harmonic_amplitude"] = (float(np.mean([h[0] for h in harmonic])),
                                      float(np.sqrt(np.mean([h[1] ** 2 for h in harmonic]))))
         for i, (h, h_sd, q) in enumerate(harmonic):
             out["harmonic_phase" + ("" if i == 0 else f"_{i + 1}")] = (q, h_sd / max(h, 1e-300))
         return out
+
+
+class CoggingHarmonic(Cogging):
+    """Cogging with its second harmonic (2 n periods per revolution, its own phase per motor): the richer
+    form a chosen cogging term is tried in, never searched for its count."""
+
+    harmonics = 2
+
+
+Cogging.upgrade = CoggingHarmonic()
 
 
 def _sine(coef: np.ndarray, cov: np.ndarray, i_sin: int, i_cos: int) -> tuple[float, float, float]:

@@ -43,6 +43,8 @@ LARGE_UNKNOWN_CV = 0.6
 AMBIGUOUS_IC = 10.0
 CV_FOLDS = 5
 MAX_EFFECTS = 4
+#: coordinate passes re-searching the chosen blocks' nonlinear parameters, at most
+REGRID_PASSES = 3
 #: designs a channel keeps cached (least recently used dropped first)
 MAX_DESIGNS = 160
 
@@ -264,6 +266,15 @@ def select_channel(name: str, ch: Channel, candidates: tuple[Candidate, ...], ca
     chosen = _prune(models, chosen, n_eff)
     chosen = _regrid(models, chosen)
     chosen, out.nl_sd = _refine(models, chosen, n_eff)
+    for _ in range(REGRID_PASSES):
+        # an integer value (never refined) chosen beside an unrefined continuous one may be off: re-grid
+        # the integers with the refined values in, and refine again, until they stay
+        before = [t.nl for t in chosen]
+        chosen = _regrid(models, chosen, integer_only=True)
+        if [t.nl for t in chosen] == before:
+            break
+        chosen, out.nl_sd = _refine(models, chosen, n_eff)
+    chosen = _with_richer_forms(models, chosen, n_eff)
     out.terms = [_term_stats(models, chosen, i, pool, n_eff, base.rss) for i in range(len(chosen))]
     out.model = models.fit(chosen)
     _catch_all_on_top(out, models, chosen, C, groups, n_eff, base)
@@ -289,16 +300,36 @@ def _prune(models: ChannelModels, chosen: list[Term], n_eff: float) -> list[Term
     return chosen
 
 
-def _regrid(models: ChannelModels, chosen: list[Term]) -> list[Term]:
-    """Search each chosen block's nonlinear parameter again with the others in (one coordinate pass):
-    a value chosen alone is biased by the effects not yet in the model."""
+def _regrid(models: ChannelModels, chosen: list[Term], integer_only: bool = False) -> list[Term]:
+    """Search each chosen block's nonlinear parameter (``integer_only``: the integer ones) again with the
+    others in, in coordinate passes until no value moves (at most REGRID_PASSES): a value chosen alone
+    is biased by the effects not yet in the model (Stribeck + delay; a stiffening exponent chosen before
+    the slack is in)."""
+    for _ in range(REGRID_PASSES):
+        moved = False
+        for i, t in enumerate(chosen):
+            if t.candidate.nonlinear is None or (integer_only and not t.candidate.integer):
+                continue
+            others = chosen[:i] + chosen[i + 1:]
+            s = models.best_of(t.candidate, others, models.fit(others).residual)
+            moved |= s.nl != t.nl
+            chosen[i] = models.term(t.candidate, s.nl)
+        if not moved:
+            break
+    return chosen
+
+
+def _with_richer_forms(models: ChannelModels, chosen: list[Term], n_eff: float) -> list[Term]:
+    """Each chosen term with an ``upgrade`` (a richer form of its effect at the same nonlinear value)
+    takes that form where the extra columns pass the significance tests against the chosen model."""
     for i, t in enumerate(chosen):
-        if t.candidate.nonlinear is None:
+        up = t.candidate.upgrade
+        if up is None:
             continue
-        others = chosen[:i] + chosen[i + 1:]
-        residual = models.fit(others).residual
-        s = models.best_of(t.candidate, others, residual)
-        chosen[i] = models.term(t.candidate, s.nl)
+        richer = chosen[:i] + [models.term(up, t.nl)] + chosen[i + 1:]
+        s = Score(t.cause, up, t.nl, models.rss(richer), models.k(richer))
+        if significant(score_against(models, s, models.rss(chosen), models.k(chosen), n_eff)):
+            chosen = richer
     return chosen
 
 
