@@ -27,9 +27,9 @@ from ankle_rt.diagnosis.candidates import (CABLE_CANDIDATES, INPUT_GROUPS, MOTOR
                                            catch_all_cable, catch_all_motor, time_columns, without_groups)
 from ankle_rt.diagnosis.regression import rss_only
 from ankle_rt.diagnosis.screening import Screening, screen, strain_gauge_drift, strain_gauge_offset
-from ankle_rt.diagnosis.selection import (IC_THRESHOLD, MIN_REDUCTION, MIN_SIZE, MIN_SIZE_UNKNOWN,
-                                          MIN_UNKNOWN_REDUCTION, AMBIGUOUS_IC, ChannelModels, ChannelResult,
-                                          select_channel)
+from ankle_rt.diagnosis.selection import (IC_THRESHOLD, LARGE_REDUCTION, MIN_REDUCTION, MIN_SIZE, MIN_SIZE_UNKNOWN,
+                                          MIN_UNKNOWN_REDUCTION, AMBIGUOUS_IC, ChannelModels, ChannelResult, Score,
+                                          select_channel, significant)
 from ankle_rt.diagnosis.signals import CableChannel, Geometry, MotorChannel
 from ankle_rt.interchange import InterchangeError, Recording
 
@@ -252,14 +252,30 @@ def effect_entry(cand: Candidate, params: dict[str, tuple[float, float]]) -> dic
     return {**entry, **cand.form}
 
 
-def candidate_table(results: list[ChannelResult]) -> list[dict[str, Any]]:
-    """Every candidate alone against its channel's baseline, strongest first; then ``none`` and the
-    catch-all ``unknown`` of each channel, which are verdicts, not causes, and never outrank one."""
+def _why_not(s: Score, chosen: set[str]) -> str | None:
+    """Why a candidate scored alone is not among the chosen effects of its channel (None: it is)."""
+    if s.cause in chosen:
+        return None
+    if not significant(s):
+        return (f"alone it does not pass the tests (criterion gain {s.delta_ic:.1f}, needs {IC_THRESHOLD:g}; "
+                f"removes {100 * s.reduction:.1f} % of the residual, needs {100 * MIN_REDUCTION:g} %; "
+                f"size {s.size:.4f}, needs {MIN_SIZE:g} or {100 * LARGE_REDUCTION:g} % of the residual)")
+    return ("passes alone but not beside the chosen effects (forward selection, cross-validation, drop-one), "
+            "or was rejected or dropped by the validation (notes say which)")
+
+
+def candidate_table(results: list[ChannelResult], fits: dict[str, ChannelFit]) -> list[dict[str, Any]]:
+    """Every candidate alone against its channel's baseline, strongest first, each not chosen with why
+    (``dropped``); then ``none`` and the catch-all ``unknown`` of each channel, which are verdicts, not
+    causes, and never outrank one."""
     named, tail = [], [{"cause": "none", "channel": None, "score": 0.0, "rss_reduction": 0.0, "size": 0.0}]
     for res in results:
+        chosen = {c.cause for c, _, _ in fits[res.name].specs}
         for s in res.first:
             item = {"cause": s.cause, "channel": res.name, "score": round(s.delta_ic, 2),
                     "rss_reduction": round(s.reduction, 5), "size": round(s.size, 5)}
+            if (why := _why_not(s, chosen)) is not None:
+                item["dropped"] = why
             if s.candidate.nonlinear:
                 item[s.candidate.nonlinear] = s.nl
             named.append(item)
@@ -506,7 +522,7 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
     channel = effects[0]["channel"] if effects else (next(iter(unexplained)) if unexplained else None)
     detail = {"results": results, "fits": fits, "validation_channels": vchans, "validation_models": vmodels}
     return Diagnosis(calibration=calibration, causes=causes, confidence=float(confidence), channel=channel,
-                     candidates=candidate_table(results), effects=effects, baseline=baseline,
+                     candidates=candidate_table(results, fits), effects=effects, baseline=baseline,
                      nrmse_baseline=nrmse_base, nrmse_extended=nrmse_ext, validation=vname, notes=notes,
                      data_warnings=warnings, unexplained=unexplained or None, adequacy=_adequacy(results),
                      actuator_refit=actuator_refit, baseline_extended=baseline_extended, detail=detail)
