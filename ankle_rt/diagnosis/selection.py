@@ -199,9 +199,12 @@ class ChannelModels:
     def size(self, rss_without: float, rss_with: float) -> float:
         return math.sqrt(max(0.0, rss_without - rss_with) / self.n) / self.scale
 
-    def best_of(self, cand: Candidate, others: list[Term], residual: np.ndarray) -> Score:
-        """``cand`` added to ``others`` at the value of its nonlinear parameter with the smallest RSS."""
+    def best_of(self, cand: Candidate, others: list[Term], residual: np.ndarray, current: float | None = None) -> Score:
+        """``cand`` added to ``others`` at the value of its nonlinear parameter with the smallest RSS
+        (``current``, a value it holds already, scored too: a re-search never makes the model worse)."""
         grid = cand.search_grid(self.ch, residual, lambda nl: self.design(cand, nl))
+        if current is not None and current not in grid:
+            grid = list(grid) + [current]
         profile = [(nl, self.rss(others + [self.term(cand, nl)])) for nl in grid]
         nl, rss = min(profile, key=lambda p: p[1])
         profile.sort()
@@ -311,7 +314,7 @@ def _regrid(models: ChannelModels, chosen: list[Term], integer_only: bool = Fals
             if t.candidate.nonlinear is None or (integer_only and not t.candidate.integer):
                 continue
             others = chosen[:i] + chosen[i + 1:]
-            s = models.best_of(t.candidate, others, models.fit(others).residual)
+            s = models.best_of(t.candidate, others, models.fit(others).residual, t.nl)
             moved |= s.nl != t.nl
             chosen[i] = models.term(t.candidate, s.nl)
         if not moved:
