@@ -43,7 +43,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from ankle_rt.diagnosis import diagnose  # noqa: E402
 from ankle_rt.diagnosis.core import Diagnosis  # noqa: E402
 from tests.diagnosis_cases import README_RUN_YAML, draw_scenario, make_case, primary_error  # noqa: E402
-from tests.diagnosis_cases_b import draw_case_b, make_case_b  # noqa: E402
+from tests.diagnosis_cases_b import draw_case_b, make_case_b, write_case_b  # noqa: E402
 
 NAMES_EXCLUDED = ("none", "unknown")
 
@@ -195,6 +195,11 @@ def generator_b(args: argparse.Namespace) -> list[Row]:
     print(f"{'seed':>6} {'ctl':<9} {'motion':<9} {'jit':<3} {'conditions':<52} {'truth':<36} {'named':<36} {'s':>5}")
     for i in range(args.n):
         case = make_case_b(**draw_case_b(args.seed + i))
+        if args.save_b:
+            write_case_b(case, args.save_b)
+            with open(args.save_b / "truth.txt", "a") as f:
+                f.write(f"b{case.seed}: causes {','.join(case.causes)}; flag expected {case.expect_flag}; "
+                        f"{case.describe()}\n")
         row = run_case(case.ident, case.valid, "ankle", case.nominal_cfg, case.causes, case.expect_flag)
         rows.append(row)
         flag = "" if not case.expect_flag else (" flag ok" if row.diag and flagged(row.diag) else " NO FLAG")
@@ -212,7 +217,11 @@ def main() -> int:
     ap.add_argument("--runtime-s", type=float, default=30.0, help="length of the runtime file (0: skip)")
     ap.add_argument("--generator", choices=("a", "b", "both"), default="both",
                     help="a: the project simulator's cases; b: the independent generator; both: side by side")
+    ap.add_argument("--save-b", type=Path, metavar="DIR", help="also write generator B's cases there as interchange "
+                    "CSVs (b<seed>_ident.csv, b<seed>_valid.csv) with their truth in truth.txt")
     args = ap.parse_args()
+    if args.save_b:
+        args.save_b.mkdir(parents=True, exist_ok=True)
 
     results = {}
     if args.generator in ("a", "both"):

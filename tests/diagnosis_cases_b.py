@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from ankle_rt.config import Config, load_config
-from ankle_rt.interchange import Recording
+from ankle_rt.interchange import Recording, write_csv
 
 SIM_CONFIG = Path(__file__).resolve().parent.parent / "config" / "sim.yaml"
 SUBSTEPS = 10
@@ -326,6 +326,15 @@ def make_case_b(seed: int, kinds: list[str], controller: str = "pd", motion: str
     causes = tuple(sorted({WORDS[k] for k in kinds if k in WORDS})) or ("none",)
     flag = any(k in CALIBRATIONS for k in kinds)
     return CaseB(seed, causes, conditions, controller, motion, jitter, nominal, ident, valid, flag, tuple(kinds))
+
+
+def write_case_b(case: CaseB, directory: Path) -> tuple[Path, Path]:
+    """Write a case's identification and validation data as interchange CSVs (``b<seed>_ident.csv``,
+    ``b<seed>_valid.csv``) for ``ankle-rt diagnose FILE --validation FILE --config config/sim.yaml``."""
+    paths = (directory / f"b{case.seed}_ident.csv", directory / f"b{case.seed}_valid.csv")
+    for path, rec in zip(paths, (case.ident, case.valid)):
+        write_csv(path, rec.columns)
+    return paths
 
 
 #: scenario kinds of generator B and their shares

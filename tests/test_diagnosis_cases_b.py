@@ -48,3 +48,14 @@ def test_truth_words_and_flags():
     assert kinds == set(WORDS) | set(CALIBRATIONS)
     assert sum(len([k for k in s["kinds"] if k in WORDS]) >= 2 for s in specs) > 40
     assert not any(s["jitter"] and set(s["kinds"]) & set(CALIBRATIONS) for s in specs)
+
+
+def test_cases_are_written_as_interchange_files(tmp_path):
+    from ankle_rt.interchange import read_csv
+    from tests.diagnosis_cases_b import write_case_b
+
+    case = make_case_b(9, ["delay"], jitter=True, ident_s=1.0, valid_s=0.5)
+    ident, valid = write_case_b(case, tmp_path)
+    back = read_csv(ident)
+    assert np.allclose(back["t"], case.ident["t"]) and np.allclose(back["sg_torque_ie"], case.ident["sg_torque_ie"])
+    assert len(read_csv(valid)) == len(case.valid)
