@@ -267,7 +267,7 @@ def simulate_b(plant: Plant, rng: np.random.Generator, duration_s: float, contro
         s0, s1 = plant.spring(p0, p1)
         tau_j = (s0 + beta * K[0] * (r00 * v[2] + r01 * v[3] - v[0]),
                  s1 + beta * K[1] * (r10 * v[2] + r11 * v[3] - v[1]))
-    if "sg_clip" in c:
+    if "sg_clip" in c:    # the logging amplifier's range: the log clips, the controller's own reading does not
         for name, share in zip(("sg_torque_dp", "sg_torque_ie"), c["sg_clip"]["share"]):
             level = share * float(np.max(np.abs(cols[name])))
             cols[name] = np.clip(cols[name], -level, level)
