@@ -49,3 +49,18 @@ def test_noise_floor_and_systematic_error_tell_noise_from_a_structured_error():
     assert systematic_error(drift + noise, 1e-3) / floor > SIGNIFICANCE
     # a noise-free channel: the floor is a share of its range, not zero
     assert noise_floor(signal) > 0.0
+
+
+def test_a_failed_check_names_the_diagnose_command_for_its_saved_recording(tmp_path, capsys):
+    from pathlib import Path
+
+    import yaml
+
+    sim = Path(__file__).resolve().parent.parent / "config" / "sim.yaml"
+    wrong = tmp_path / "wrong.yaml"
+    wrong.write_text(yaml.safe_dump({"include": [str(sim)], "actuator": {"inertia": 0.0624}}))
+    out = tmp_path / "v"
+    assert main(["validate", "--config", str(sim), "--model", str(wrong), "--check", "step", "--out", str(out)]) == 1
+    text = capsys.readouterr().out
+    assert f"next: ankle-rt diagnose {out / 'validate_1.csv'} --plant actuator --config {wrong}" in text
+    assert (out / "validate_1.csv").exists()
