@@ -43,7 +43,8 @@ def next_steps(comparisons: list, failed: list, args: argparse.Namespace, out: P
             continue
         data = args.source or str(out / f"validate_{k}.csv")
         plant = " --plant actuator" if not c.measured.two_motors or "off the cables" in c.label else ""
-        lines.append(f"next: ankle-rt diagnose {data}{plant} --config {model}   (re-fits the baseline and names the effects behind the discrepancy)")
+        lines.append(f"next: ankle-rt diagnose {data}{plant} --config {model}   "
+                     "(re-fits the baseline and names the effects behind the discrepancy)")
     return lines
 
 
