@@ -222,5 +222,5 @@ def test_the_configs_cogging_prior_is_scored_and_the_search_reaches_2000_periods
     ch = build_channels(case.ident, inputs)["motor"]
     noise = np.random.default_rng(0).standard_normal(len(ch.target()))
     cog = Cogging()
-    assert 7 * 81 in cog.search_grid(ch, noise)
+    assert 7 * 81 in cog.search_grid(ch, noise, lambda n: cog.design(ch, n))
     assert cog.count_range(ch)[1] >= 2000
