@@ -166,8 +166,10 @@ GAIT_MIN_STRIBECK_VELOCITY = 0.1
 #: sensor and data artefacts a case can carry (not physics: flagged, never named)
 ARTEFACTS = ("sg_clip", "sg_drift", "sg_hold", "current_limit", "dropouts")
 #: further sensor faults, for the targeted tests (not drawn by the benchmark's scenarios): gauges clipped
-#: before their noise is added (a rail that is not exactly flat), constant gauge zero offsets
-SENSOR_FAULTS = ("sg_clip_noise", "sg_offset")
+#: before their noise is added (a rail that is not exactly flat), constant gauge zero offsets, motor
+#: encoders scaled against the ankle encoders
+SENSOR_FAULTS = ("sg_clip_noise", "sg_offset", "encoder_scale")
+ENCODER_SCALE = 1.015           # the motor encoders read this x the true angle in the "encoder_scale" fault
 SG_OFFSET_NM = (0.3, -0.25)     # N m on DP, IE of the "sg_offset" fault
 MOTIONS = ("multisine", "gait", "one_way")
 
@@ -361,6 +363,9 @@ def corrupt(rec: Recording, artefact: str, rng: np.random.Generator) -> Recordin
     elif artefact == "sg_offset":       # zero offsets (tared under load, or a shifted bridge)
         for c, off in zip(("sg_torque_dp", "sg_torque_ie"), SG_OFFSET_NM):
             cols[c] += off
+    elif artefact == "encoder_scale":
+        for c in ("motor_pos_1", "motor_pos_2"):
+            cols[c] *= ENCODER_SCALE
     elif artefact == "sg_drift":        # offsets wandering slowly (temperature)
         u = np.linspace(0.0, 1.0, n)
         for c in ("sg_torque_dp", "sg_torque_ie"):

@@ -18,7 +18,7 @@ from ankle_rt.diagnosis.candidates import HardeningStiffness
 from ankle_rt.diagnosis.model_fragment import fragment
 from ankle_rt.diagnosis.screening import screen
 from ankle_rt.interchange import Recording
-from tests.diagnosis_cases import SG_OFFSET_NM, make_case
+from tests.diagnosis_cases import ENCODER_SCALE, SG_OFFSET_NM, make_case
 
 PHYSICAL = {"stribeck", "asymmetric_friction", "load_dependent_friction", "backlash", "cogging", "delay",
             "stiffness_nonlinear", "torque_offset"}
@@ -85,6 +85,15 @@ def test_a_ten_percent_torque_constant_error_is_none_with_a_calibration_finding(
     kt = case.nominal_cfg["actuator"]["torque_constant"]
     assert frag["actuator"]["torque_constant"] == pytest.approx(1.1 * kt, rel=0.02), msg
     assert frag["sim"]["effects"] == [], msg
+
+
+def test_a_motor_encoder_scale_error_is_a_calibration_finding():
+    _, diag, msg = _diagnose(seed=75, plant="ankle", cause="none", artefacts=("encoder_scale",))
+    assert diag.causes == ["none"], msg
+    found = [c for c in diag.calibration if c["type"] == "encoder_scale"]
+    assert found, msg
+    for v in found[0]["parameters"].values():
+        assert v["value"] == pytest.approx(ENCODER_SCALE, abs=0.003), msg
 
 
 def test_a_torque_constant_error_beside_an_effect_leaves_the_effect_named():

@@ -296,6 +296,32 @@ class TorqueConstantScale(Candidate):
         return super().rejection(params, coef, base_coef)
 
 
+class EncoderScale(Candidate):
+    """A scale mismatch between the motor and the ankle encoders (a calibration, not an effect): with the
+    motor angles read f x too large, the measured stretch is phi' = f phi + (f - 1) theta_j, so the cable
+    law gains a column of the joint angle per axis, ``tau_j = K' phi' + c theta_j`` with f = 1 - c / K'.
+    Only the ratio of the two encoders' scales shows (either may be off)."""
+
+    cause = "encoder_scale"
+    channel = "cable"
+    calibration = True
+
+    def design(self, ch, nl):
+        return Design(ch.per_column(ch.sm.smooth(ch.joint)))
+
+    def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
+        K = base_coef[[0, 3]]
+        return {f"motor_to_ankle_scale_{a}": (1.0 - float(coef[i] / K[i]), _sd(cov, i) / abs(float(K[i])))
+                for i, a in enumerate(("dp", "ie"))}
+
+    def rejection(self, params, coef, base_coef):
+        off = [f"{v:.3g}" for v, _ in params.values() if not ENCODER_SCALE_RANGE[0] < v < ENCODER_SCALE_RANGE[1]]
+        if off:
+            return (f"encoder scale ratio {', '.join(off)} outside {ENCODER_SCALE_RANGE[0]:g}-"
+                    f"{ENCODER_SCALE_RANGE[1]:g}: no calibration error")
+        return super().rejection(params, coef, base_coef)
+
+
 class Delay(Candidate):
     cause = "delay"
     nonlinear = "delay"
@@ -391,10 +417,11 @@ class HardeningStiffness(Candidate):
 
 MOTOR_CANDIDATES: tuple[Candidate, ...] = (Stribeck(), AsymmetricFriction(), LoadDependentFriction(),
                                            Cogging(), Delay(), TorqueOffset(), TorqueConstantScale())
-CABLE_CANDIDATES: tuple[Candidate, ...] = (Backlash(), CableBacklash(), HardeningStiffness())
+CABLE_CANDIDATES: tuple[Candidate, ...] = (Backlash(), CableBacklash(), HardeningStiffness(), EncoderScale())
 
 MIN_COGGING_PERIODS = 2.0
 SCALE_RANGE = (0.5, 2.0)           # plausible torque-constant calibration scales (true / configured)
+ENCODER_SCALE_RANGE = (0.8, 1.25)  # plausible motor / ankle encoder scale ratios
 SLACK_SHARE = (0.3, 2.0)           # share of the axis stiffness a dead zone may take away (ideal slack: 1)
 MIN_COGGING_SEARCH = 2500          # periods per revolution searched at least (rotor cogging x gearbox)
 MAX_COGGING_BINS = 1 << 22         # angle-domain grid points per revolution, at most

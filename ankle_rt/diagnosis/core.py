@@ -45,7 +45,10 @@ PER = 3
 
 PLANTS = ("ankle", "actuator")
 #: candidates that are calibration findings (fitted and reported, never causes or sim effects)
-CALIBRATIONS = tuple(c.cause for c in MOTOR_CANDIDATES if c.calibration)
+#: what each calibration finding's scales are
+CALIBRATION_TEXT = {"torque_constant": "the torque constant is (true / configured, per motor)",
+                    "encoder_scale": "the motor encoders read, relative to the ankle encoders (per axis),"}
+CALIBRATIONS = tuple(c.cause for c in MOTOR_CANDIDATES + CABLE_CANDIDATES if c.calibration)
 
 
 class DiagnosisError(ValueError):
@@ -478,9 +481,9 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
     calibration = [e for e in entries if e["type"] in CALIBRATIONS]
     for e in calibration:
         e.pop("effect")
-        warnings.append(f"calibration: the {e['type'].replace('_', ' ')} fits "
-                        + ", ".join(f"{v['value']:.4g} +/- {v['sd']:.2g}" for v in e["parameters"].values())
-                        + " x the configured one (per motor): fitted as a calibration, not named as an effect")
+        warnings.append(f"calibration: {CALIBRATION_TEXT[e['type']]} "
+                        + ", ".join(f"{k} {v['value']:.4g} +/- {v['sd']:.2g}" for k, v in e["parameters"].items())
+                        + ": fitted as a calibration, not named as an effect")
     causes = [e["type"] for e in effects] + (["unknown"] if unexplained else [])
     if unusable and not causes:
         causes = ["unknown"]
@@ -513,7 +516,7 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
         m = chans["motor"].m
         actuator_refit = {key: float(np.mean([mc[j + PER * i] for i in range(m)]))
                           for j, (key, _) in enumerate(BASELINE_NAMES["motor"])}
-        for e in calibration:
+        for e in (e for e in calibration if e["type"] == "torque_constant"):
             scale = float(np.mean([v["value"] for v in e["parameters"].values()]))
             actuator_refit["torque_constant"] = inputs.kt * scale
             # the baseline was fitted in configured-torque units: scale tau = J a + ..., so J, D, kc scale too

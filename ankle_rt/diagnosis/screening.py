@@ -260,6 +260,6 @@ def strain_gauge_offset(cable) -> np.ndarray | None:
     return off
 
 
-#: the cable candidates' shapes that stand in for any cable effect while an offset is measured: slack
-#: half-widths (m), stiffening exponents
-OFFSET_SHAPES = {"backlash": (1e-4, 4e-4, 1.5e-3), "stiffness_nonlinear": (2.0, 3.0)}
+#: the cable candidates' shapes that stand in for any cable effect (and an encoder scale mismatch) while
+#: an offset is measured: slack half-widths (m), stiffening exponents
+OFFSET_SHAPES = {"backlash": (1e-4, 4e-4, 1.5e-3), "stiffness_nonlinear": (2.0, 3.0), "encoder_scale": (0.0,)}

@@ -240,6 +240,7 @@ class CableChannel(_StackedChannel):
         pos_m = np.column_stack([rec["motor_pos_1"], rec["motor_pos_2"]])
         joint = np.column_stack([rec["ankle_dp"], rec["ankle_ie"]])
         self.phi = pos_m @ geometry.R_inv.T - joint
+        self.joint = joint
         self.tau_j = np.column_stack([rec["sg_torque_dp"], rec["sg_torque_ie"]])
         self.m = 2
         self.L_tau_j = sm.smooth(self.tau_j)
