@@ -216,12 +216,13 @@ def strain_gauge_drift(cable) -> list[float] | None:
     cable channel's residual follows slow shapes of time strongly; else None. The cable law has no slow
     time dependence (the catch-all's stretch shapes stand in for any cable effect while testing), so a
     residual that follows time is the gauges', not the cables'."""
-    from ankle_rt.diagnosis.candidates import catch_all_cable, time_columns
+    from ankle_rt.diagnosis.candidates import EncoderScale, catch_all_cable, time_columns
     from ankle_rt.diagnosis.regression import fit
 
     C, groups = catch_all_cable(cable)
     shapes = C[:, [j for j, g in enumerate(groups) if g != "time (drift)"]]
-    y, Xb = cable.target(), np.hstack([cable.baseline_design(), shapes])
+    # the joint-angle columns of an encoder scale mismatch too: slow motion would read as a drift
+    y, Xb = cable.target(), np.hstack([cable.baseline_design(), shapes, EncoderScale().design(cable, 0.0).X])
     T = time_columns(cable)
     base = fit(y, Xb)
     full = fit(y, np.hstack([Xb, T]))
