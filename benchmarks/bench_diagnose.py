@@ -1,4 +1,6 @@
-"""Benchmark of `ankle-rt diagnose` on N seeded cases of the extended generator (tests/diagnosis_cases.py:
+"""Benchmark of `ankle-rt diagnose` on N seeded cases of two generators, side by side.
+
+Generator A, the extended generator (tests/diagnosis_cases.py, the project's simulator and effect classes:
 one, two or three effects at once, rotor cogging through the gearbox, torque offsets, effect-free and
 out-of-vocabulary data, clipped / drifting / held strain gauges, currents at the amplifier limit, dropped
 samples, gait-like and one-directional motion, short records).
@@ -11,7 +13,13 @@ trajectory with 486-period rotor cogging at 1 % of the rated torque, and the dia
 recall >= 95 % per effect, false names <= 2 %, single-effect top-1 100 %, parameter error median <= 10 %,
 the 486-period cogging named with its count exact, runtime <= 20 s.
 
-    python benchmarks/bench_diagnose.py [--n 64] [--seed 1000]
+Generator B (tests/diagnosis_cases_b.py, issue 21): its own plant integration and effect forms (cogging
+per motor with harmonics at 1134 / 1944 periods per output turn, per-cable backlash, k(1+|s|/s0)
+stiffening, ...), walking-only logs, the impedance controller, irregular time stamps, calibration and
+sensor conditions (truth `none` with a finding expected). Both report exact-set accuracy, recall per
+word, false names, files without a verdict (diagnose raised), flags given where expected, seconds per file.
+
+    python benchmarks/bench_diagnose.py [--n 64] [--seed 1000] [--generator a|b|both]
 """
 
 from __future__ import annotations
@@ -21,6 +29,7 @@ import os
 import sys
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 # The regressions are small (thousands of rows, tens of columns): BLAS threads only fight over the two
@@ -32,10 +41,15 @@ import numpy as np  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from ankle_rt.diagnosis import diagnose  # noqa: E402
+from ankle_rt.diagnosis.core import Diagnosis  # noqa: E402
 from ankle_rt.timing_reference import reference_step_s  # noqa: E402
 from tests.diagnosis_cases import README_RUN_YAML, draw_scenario, make_case, primary_error  # noqa: E402
+from tests.diagnosis_cases_b import draw_case_b, make_case_b, write_case_b  # noqa: E402
 
 NAMES_EXCLUDED = ("none", "unknown")
+REF_S = [float("nan")]     # s per reference step, measured once per run in main()
+
+
 def pct(x: float) -> str:
     return f"{100 * x:.1f} %"
 
@@ -67,75 +81,108 @@ def readme_rotor_cogging() -> str:
             f"{p['amplitude']['value']:.4f} N m (true {effect['amplitude']:.4f}), {dt:.1f} s")
 
 
-def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--n", type=int, default=64, help="number of cases (>= 60 for the issue's figures)")
-    ap.add_argument("--seed", type=int, default=1000, help="first seed; case i uses seed + i")
-    ap.add_argument("--runtime-s", type=float, default=30.0, help="length of the runtime file (0: skip)")
-    args = ap.parse_args()
+@dataclass
+class Row:
+    """One benchmark file: its truth, what diagnose said (None: no verdict, ``error`` says why), its time."""
 
-    rows = []
+    truth: tuple[str, ...]
+    diag: Diagnosis | None
+    seconds: float
+    expect_flag: bool = False
+    error: str = ""
+
+    @property
+    def named(self) -> list[str]:
+        return list(self.diag.causes) if self.diag is not None else []
+
+    @property
+    def exact(self) -> bool:
+        return sorted(self.named) == sorted(self.truth)
+
+
+def flagged(diag: Diagnosis) -> bool:
+    """A data warning or a calibration finding (when the diagnosis reports one) was given."""
+    return bool(diag.data_warnings) or bool(getattr(diag, "calibration", None))
+
+
+def run_case(ident, valid, plant: str, cfg, truth, expect_flag: bool = False) -> Row:
+    """Diagnose one case; an exception is a file without a verdict (counted, never fatal)."""
+    t0 = time.perf_counter()
+    try:
+        diag, error = diagnose(ident, valid, plant=plant, cfg=cfg), ""
+    except Exception as exc:   # noqa: BLE001 - the benchmark counts it as "no verdict"
+        diag, error = None, f"{type(exc).__name__}: {exc}"
+    return Row(tuple(truth), diag, time.perf_counter() - t0, expect_flag, error)
+
+
+def summary(rows: list[Row]) -> dict[str, str]:
+    """The figures both generators report, as printable strings."""
+    if not rows:
+        return {"cases": "0"}
+    recall: dict[str, list[bool]] = {}
+    false_names: dict[str, int] = {}
+    for r in rows:
+        for x in r.truth:
+            recall.setdefault(x, []).append(x in r.named)
+        for x in r.named:
+            if x not in r.truth:
+                false_names[x] = false_names.get(x, 0) + 1
+    times = [r.seconds for r in rows]
+    expect = [r for r in rows if r.expect_flag]
+    return {
+        "cases": str(len(rows)),
+        "exact-set accuracy": f"{sum(r.exact for r in rows)}/{len(rows)} ({pct(np.mean([r.exact for r in rows]))})",
+        "files without a verdict": str(sum(r.diag is None for r in rows)),
+        "flag expected and given": (f"{sum(flagged(r.diag) for r in expect if r.diag)}/{len(expect)}"
+                                    if expect else "-"),
+        "false names (cases)": ", ".join(f"{k} {v}" for k, v in sorted(false_names.items())) or "none",
+        "seconds per file": f"median {np.median(times):.2f}, max {max(times):.2f}",
+        "ref steps per file": f"median {np.median(times) / REF_S[0]:.3g}, max {max(times) / REF_S[0]:.3g}",
+        **{f"recall {k}": f"{sum(v)}/{len(v)}" for k, v in sorted(recall.items())},
+    }
+
+
+def generator_a(args: argparse.Namespace) -> list[Row]:
+    """Generator A (tests/diagnosis_cases.py) with its own detailed figures (issue 11's goals)."""
+    rows, cases = [], []
     print(f"{'seed':>6} {'plant':<8} {'motion':<9} {'artefact':<13} {'truth':<44} {'named':<44} {'s':>5}")
     for i in range(args.n):
         spec = draw_scenario(args.seed + i)
         case = make_case(**spec)
-        t0 = time.perf_counter()
-        diag = diagnose(case.ident, case.valid, plant=case.plant, cfg=case.nominal_cfg)
-        dt = time.perf_counter() - t0
-        rows.append((case, diag, dt))
-        mark = "" if sorted(diag.causes) == sorted(case.causes) else "  <-- differs"
+        row = run_case(case.ident, case.valid, case.plant, case.nominal_cfg, case.causes)
+        rows.append(row)
+        cases.append(case)
+        mark = "" if row.exact else "  <-- differs"
         print(f"{case.seed:>6} {case.plant:<8} {case.motion:<9} {','.join(case.artefacts) or '-':<13} "
-              f"{','.join(case.causes):<44} {','.join(diag.causes):<44} {dt:>5.2f}{mark}", flush=True)
-
-    exact = np.mean([sorted(d.causes) == sorted(c.causes) for c, d, _ in rows])
-    multi = [r for r in rows if len([x for x in r[0].causes if x not in NAMES_EXCLUDED]) >= 2]
-    single = [r for r in rows if len(r[0].effects) == 1 and r[0].causes[0] not in NAMES_EXCLUDED]
-    clean = [r for r in rows if not r[0].effects]
-    artefact_cases = [r for r in rows if r[0].artefacts]
-    false_clean = [r for r in clean if any(x not in NAMES_EXCLUDED for x in r[1].causes)]
-    unknown_clean = [r for r in clean if "unknown" in r[1].causes]
-    flagged = np.mean([bool(r[1].data_warnings) for r in artefact_cases]) if artefact_cases else float("nan")
-    recall: dict[str, list[bool]] = {}
-    false_names: dict[str, int] = {}
-    errors = []
-    for c, d, _ in rows:
-        for x in c.causes:
-            recall.setdefault(x, []).append(x in d.causes)
-        for x in d.causes:
-            if x not in c.causes:
-                false_names[x] = false_names.get(x, 0) + 1
-        for e in d.effects:
-            if e["type"] in c.causes:
-                err = primary_error(c, e["parameters"], e["type"])
-                if err is not None:
-                    errors.append(err)
-    errs = np.array(errors)
+              f"{','.join(case.causes):<44} {','.join(row.named) or row.error:<44} {row.seconds:>5.2f}{mark}",
+              flush=True)
+    pairs = [(c, r) for c, r in zip(cases, rows) if r.diag is not None]
+    multi = [(c, r) for c, r in pairs if len([x for x in c.causes if x not in NAMES_EXCLUDED]) >= 2]
+    single = [(c, r) for c, r in pairs if len(c.effects) == 1 and c.causes[0] not in NAMES_EXCLUDED]
+    clean = [(c, r) for c, r in pairs if not c.effects]
+    artefact_cases = [(c, r) for c, r in pairs if c.artefacts]
+    false_clean = [p for p in clean if any(x not in NAMES_EXCLUDED for x in p[1].named)]
+    unknown_clean = [p for p in clean if "unknown" in p[1].named]
+    errors = [e for c, r in pairs for d in r.diag.effects if d["type"] in c.causes
+              for e in [primary_error(c, d["parameters"], d["type"])] if e is not None]
     print()
-    print(f"cases: {len(rows)} (seeds {args.seed}..{args.seed + args.n - 1}): {len(multi)} with two or more effects "
-          f"({pct(len(multi) / len(rows))}), {len(single)} single-effect, {len(clean)} effect-free or artefact-only, "
-          f"{len(artefact_cases)} with sensor artefacts")
-    print(f"exact-set accuracy:                      {pct(exact)}   (goal >= 90 %)")
+    print(f"generator A, cases: {len(rows)} (seeds {args.seed}..{args.seed + args.n - 1}): {len(multi)} with two or "
+          f"more effects ({pct(len(multi) / len(rows))}), {len(single)} single-effect, {len(clean)} effect-free or "
+          f"artefact-only, {len(artefact_cases)} with sensor artefacts")
+    print(f"exact-set accuracy:                      {pct(np.mean([r.exact for r in rows]))}   (goal >= 90 %)")
     if multi:
-        rate = np.mean([sorted(d.causes) == sorted(c.causes) for c, d, _ in multi])
-        print(f"exact-set accuracy, several effects:     {pct(rate)}")
+        print(f"exact-set accuracy, several effects:     {pct(np.mean([r.exact for _, r in multi]))}")
     if single:
-        rate = np.mean([d.causes[0] == c.causes[0] for c, d, _ in single])
-        print(f"single-effect top-1:                     {pct(rate)}   (goal 100 %)")
+        print(f"single-effect top-1:                     "
+              f"{pct(np.mean([r.named[0] == c.causes[0] for c, r in single]))}   (goal 100 %)")
     print(f"false names, effect-free/artefact-only:  {pct(len(false_clean) / max(1, len(clean)))}   (goal <= 2 %); "
           f"'unknown' there: {pct(len(unknown_clean) / max(1, len(clean)))}")
-    print(f"artefact cases with a data warning:      {pct(flagged)}")
-    print("recall per word (goal >= 95 %):   " + ", ".join(f"{k} {sum(v)}/{len(v)}" for k, v in sorted(recall.items())))
-    print("false names per word (cases):     "
-          + (", ".join(f"{k} {v}" for k, v in sorted(false_names.items())) or "none"))
-    if errs.size:
-        print(f"primary parameter error (named effects): median {pct(np.median(errs))}, 90th pct "
-              f"{pct(np.percentile(errs, 90))}   (goal median <= 10 %)")
-    times = [r[2] for r in rows]
-    ref_s = reference_step_s()     # the machine-independent unit (ankle_rt.timing_reference)
-    print(f"diagnose time per case: median {np.median(times):.2f} s, max {max(times):.2f} s "
-          f"(= {np.median(times) / ref_s:.3g} / {max(times) / ref_s:.3g} ref steps of {ref_s * 1e6:.1f} us)")
+    if artefact_cases:
+        print(f"artefact cases with a data warning:      {pct(np.mean([flagged(r.diag) for _, r in artefact_cases]))}")
+    if errors:
+        print(f"primary parameter error (named effects): median {pct(np.median(errors))}, 90th pct "
+              f"{pct(np.percentile(errors, 90))}   (goal median <= 10 %)")
     print(f"README trajectory, 486-period rotor cogging at 1 % rated torque: {readme_rotor_cogging()}")
-
     if args.runtime_s > 0:
         case = make_case(args.seed - 1, "ankle", ["stribeck", "delay"], ident_s=args.runtime_s,
                          valid_s=args.runtime_s / 3)
@@ -143,7 +190,65 @@ def main() -> int:
         diag = diagnose(case.ident, case.valid, plant="ankle", cfg=case.nominal_cfg)
         dt = time.perf_counter() - t0
         print(f"runtime: diagnose on a {args.runtime_s:g} s, 1 kHz, two-motor file (+ {args.runtime_s / 3:g} s "
-              f"validation): {dt:.1f} s = {dt / ref_s:.3g} ref steps (goal <= 20 s); named {diag.causes}")
+              f"validation): {dt:.1f} s = {dt / REF_S[0]:.3g} ref steps (goal <= 20 s); named {diag.causes}")
+    return rows
+
+
+def generator_b(args: argparse.Namespace) -> list[Row]:
+    """Generator B (tests/diagnosis_cases_b.py): its own plant integration and effect forms."""
+    rows = []
+    print(f"{'seed':>6} {'ctl':<9} {'motion':<9} {'jit':<3} {'conditions':<52} {'truth':<36} {'named':<36} {'s':>5}")
+    for i in range(args.n):
+        case = make_case_b(**draw_case_b(args.seed + i))
+        if args.save_b:
+            write_case_b(case, args.save_b)
+            with open(args.save_b / "truth.txt", "a") as f:
+                f.write(f"b{case.seed}: causes {','.join(case.causes)}; flag expected {case.expect_flag}; "
+                        f"{case.describe()}\n")
+        row = run_case(case.ident, case.valid, "ankle", case.nominal_cfg, case.causes, case.expect_flag)
+        rows.append(row)
+        flag = "" if not case.expect_flag else (" flag ok" if row.diag and flagged(row.diag) else " NO FLAG")
+        mark = "" if row.exact else "  <-- differs"
+        print(f"{case.seed:>6} {case.controller:<9} {case.motion:<9} {'y' if case.jitter else '-':<3} "
+              f"{','.join(case.kinds) or '-':<52} {','.join(case.causes):<36} {','.join(row.named) or row.error:<36} "
+              f"{row.seconds:>5.2f}{mark}{flag}", flush=True)
+    if args.runtime_s > 0:   # walking under the impedance law: slow motor reversals widen the cogging search
+        case = make_case_b(args.seed - 1, ["stribeck", "asymmetric_friction"], "impedance", "walking",
+                           ident_s=args.runtime_s, valid_s=args.runtime_s / 3)
+        row = run_case(case.ident, case.valid, "ankle", case.nominal_cfg, case.causes)
+        print(f"\nruntime, generator B: diagnose on a {args.runtime_s:g} s walking file under the impedance law "
+              f"(+ {args.runtime_s / 3:g} s validation): {row.seconds:.1f} s = {row.seconds / REF_S[0]:.3g} ref steps "
+              f"(goal <= 20 s); named {row.named}")
+    return rows
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=64, help="number of cases per generator (>= 60 for the issue's figures)")
+    ap.add_argument("--seed", type=int, default=1000, help="first seed; case i uses seed + i")
+    ap.add_argument("--runtime-s", type=float, default=30.0, help="length of the runtime file (0: skip)")
+    ap.add_argument("--generator", choices=("a", "b", "both"), default="both",
+                    help="a: the project simulator's cases; b: the independent generator; both: side by side")
+    ap.add_argument("--save-b", type=Path, metavar="DIR", help="also write generator B's cases there as interchange "
+                    "CSVs (b<seed>_ident.csv, b<seed>_valid.csv) with their truth in truth.txt")
+    args = ap.parse_args()
+    if args.save_b:
+        args.save_b.mkdir(parents=True, exist_ok=True)
+    REF_S[0] = reference_step_s()     # the machine-independent unit (ankle_rt.timing_reference)
+    print(f"reference step (plain-Python RK4 of the cable model): {REF_S[0] * 1e6:.1f} us on this machine")
+
+    results = {}
+    if args.generator in ("a", "both"):
+        results["A"] = summary(generator_a(args))
+        print()
+    if args.generator in ("b", "both"):
+        results["B"] = summary(generator_b(args))
+        print()
+    keys = list(dict.fromkeys(k for s in results.values() for k in s if not k.startswith("recall")))
+    keys += sorted({k for s in results.values() for k in s if k.startswith("recall")})
+    print(f"{'':<34}" + "".join(f"{'generator ' + g:<40}" for g in results))
+    for k in keys:
+        print(f"{k:<34}" + "".join(f"{s.get(k, '-'):<40}" for s in results.values()))
     return 0
 
 

@@ -165,6 +165,12 @@ STRIBECK_VELOCITY = (0.03, 0.3)
 GAIT_MIN_STRIBECK_VELOCITY = 0.1
 #: sensor and data artefacts a case can carry (not physics: flagged, never named)
 ARTEFACTS = ("sg_clip", "sg_drift", "sg_hold", "current_limit", "dropouts")
+#: further sensor faults, for the targeted tests (not drawn by the benchmark's scenarios): gauges clipped
+#: before their noise is added (a rail that is not exactly flat), constant gauge zero offsets, motor
+#: encoders scaled against the ankle encoders
+SENSOR_FAULTS = ("sg_clip_noise", "sg_offset", "encoder_scale")
+ENCODER_SCALE = 1.015           # the motor encoders read this x the true angle in the "encoder_scale" fault
+SG_OFFSET_NM = (0.3, -0.25)     # N m on DP, IE of the "sg_offset" fault
 MOTIONS = ("multisine", "gait", "one_way")
 
 
@@ -350,6 +356,16 @@ def corrupt(rec: Recording, artefact: str, rng: np.random.Generator) -> Recordin
         for c in ("sg_torque_dp", "sg_torque_ie"):
             level = 0.7 * float(np.max(np.abs(cols[c])))
             cols[c] = np.clip(cols[c], -level, level)
+    elif artefact == "sg_clip_noise":   # saturating before the noise is added: the rail is not flat
+        for c in ("sg_torque_dp", "sg_torque_ie"):
+            level = 0.7 * float(np.max(np.abs(cols[c])))
+            cols[c] = np.clip(cols[c], -level, level) + 0.02 * rng.standard_normal(n)
+    elif artefact == "sg_offset":       # zero offsets (tared under load, or a shifted bridge)
+        for c, off in zip(("sg_torque_dp", "sg_torque_ie"), SG_OFFSET_NM):
+            cols[c] += off
+    elif artefact == "encoder_scale":
+        for c in ("motor_pos_1", "motor_pos_2"):
+            cols[c] *= ENCODER_SCALE
     elif artefact == "sg_drift":        # offsets wandering slowly (temperature)
         u = np.linspace(0.0, 1.0, n)
         for c in ("sg_torque_dp", "sg_torque_ie"):
@@ -371,12 +387,15 @@ def corrupt(rec: Recording, artefact: str, rng: np.random.Generator) -> Recordin
 def make_case(seed: int, plant: str = "ankle", cause: str | list[str] | None = None, ident_s: float = 12.0,
               valid_s: float = 6.0, p_none: float = 0.25, p_unknown: float = 0.1,
               strength: float | None = None, artefacts: tuple[str, ...] = (), motion: str = "multisine",
-              rotor_cogging: bool = False) -> Case:
+              rotor_cogging: bool = False, effects: list[dict] | None = None, kt_scale: float = 1.0) -> Case:
     """Draw a case from ``seed``. ``cause``: an effect name, a list of them (several at once), "none" or
     an out-of-vocabulary one; else random (``p_none`` effect-free, ``p_unknown`` out of vocabulary, the
     rest uniform over the vocabulary). ``strength``: see :func:`draw_effect`. ``artefacts``: sensor and
     data faults (:data:`ARTEFACTS`); ``motion``: the reference's kind (:data:`MOTIONS`);
-    ``rotor_cogging``: cogging at the rotor's count through the gearbox (see :func:`draw_effect`)."""
+    ``rotor_cogging``: cogging at the rotor's count through the gearbox (see :func:`draw_effect`);
+    ``effects``: explicit sim.effects entries instead of drawn ones (``cause`` then gives the expected
+    words); ``kt_scale``: the true torque constant is this x the configured one (a calibration error).
+    With ``current_limit`` the config given to the diagnosis states that amplifier limit."""
     rng = np.random.default_rng(seed)
     pool = ANKLE_EFFECTS if plant == "ankle" else MOTOR_EFFECTS
     if cause is None:
@@ -393,13 +412,18 @@ def make_case(seed: int, plant: str = "ankle", cause: str | list[str] | None = N
     truth = perturbed(nominal, rng)
     truth["sim"]["seed"] = int(seed)
     truth["sim"]["cables"] = plant == "ankle"
-    drawn = [draw_effect(c, rng, strength, truth, rotor_cogging, motion) for c in names]
+    truth["actuator"]["torque_constant"] *= kt_scale
+    drawn = ([(e, 1.0) for e in effects] if effects is not None
+             else [draw_effect(c, rng, strength, truth, rotor_cogging, motion) for c in names])
     effects = [e for e, _ in drawn]
     truth["sim"]["effects"] = effects
     limit = None
     if "current_limit" in artefacts:      # an amplifier limit the experiment reaches now and then
         probe = simulate(truth, plant, copy.deepcopy(rng), ident_s, motion)     # the same experiment
         limit = float(np.percentile(np.abs(probe.motor_input(1.0)), 99.5))
+        nominal = nominal.deep_copy()
+        nominal["amplifier"]["current_limit_peak"] = limit
+        nominal["amplifier"]["current_limit_continuous"] = min(limit, nominal["amplifier"]["current_limit_continuous"])
     ident = simulate(truth, plant, rng, ident_s, motion, limit)
     valid = simulate(truth, plant, rng, valid_s, motion, limit)
     for a in artefacts:

@@ -115,18 +115,21 @@ def test_an_effect_is_still_named_through_a_sensor_artefact(seed, artefact, caus
 
 def test_currents_held_at_the_limit_most_of_the_time_are_flagged_and_nothing_is_named():
     """The issue's case: set currents on the amplifier's rail 60 % of the time (the recording holds
-    the rail while the applied current does not follow it)."""
+    the rail while the applied current does not follow it). The config states that amplifier limit:
+    a flat extreme below the configured peak is the controller's clamp, which the current follows."""
     case = make_case(47, "ankle", "none", ident_s=10.0, valid_s=5.0)
     print(case.describe())
+    level = float(np.percentile(np.abs(case.ident["current_cmd_1"]), 40))
+    cfg = case.nominal_cfg.deep_copy()
+    cfg["amplifier"]["current_limit_peak"] = cfg["amplifier"]["current_limit_continuous"] = level
 
     def railed(rec: Recording) -> Recording:
         cols = dict(rec.columns)
         for c in ("current_cmd_1", "current_cmd_2"):
-            level = float(np.percentile(np.abs(cols[c]), 40))
             cols[c] = np.clip(cols[c], -level, level)
         return Recording(cols, rec.source)
 
-    diag = diagnose(railed(case.ident), railed(case.valid), plant="ankle", cfg=case.nominal_cfg)
+    diag = diagnose(railed(case.ident), railed(case.valid), plant="ankle", cfg=cfg)
     assert not set(diag.causes) & PHYSICAL, diag.causes
     assert any("limit" in w for w in diag.data_warnings) and any("nothing is named" in w for w in diag.data_warnings)
 
@@ -221,5 +224,5 @@ def test_the_configs_cogging_prior_is_scored_and_the_search_reaches_2000_periods
     ch = build_channels(case.ident, inputs)["motor"]
     noise = np.random.default_rng(0).standard_normal(len(ch.target()))
     cog = Cogging()
-    assert 7 * 81 in cog.search_grid(ch, noise)
+    assert 7 * 81 in cog.search_grid(ch, noise, lambda n: cog.design(ch, n))
     assert cog.count_range(ch)[1] >= 2000

@@ -33,6 +33,21 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(handler=run)
 
 
+def next_steps(comparisons: list, failed: list, args: argparse.Namespace, out: Path) -> list[str]:
+    """What to run to name the cause of each failed check: ``ankle-rt diagnose`` on its data against the
+    model validated (a check's recording is saved as validate_N.csv; the Fig. 6 steps are actuator data)."""
+    model = args.model or args.config
+    lines = []
+    for k, c in enumerate(comparisons, start=1):
+        if c not in failed:
+            continue
+        data = args.source or str(out / f"validate_{k}.csv")
+        plant = " --plant actuator" if not c.measured.two_motors or "off the cables" in c.label else ""
+        lines.append(f"next: ankle-rt diagnose {data}{plant} --config {model}   "
+                     "(re-fits the baseline and names the effects behind the discrepancy)")
+    return lines
+
+
 def run(args: argparse.Namespace) -> int:
     from ankle_rt.config import ConfigError, load_config
     from ankle_rt.identification.runner import actuator_config
@@ -92,5 +107,6 @@ def run(args: argparse.Namespace) -> int:
     failed = [c for c in comparisons if not c.passed(tolerance)]
     lines.append(f"verdict: {'DISCREPANCY in ' + str(len(failed)) + ' of ' if failed else 'model agrees in all '}"
                  f"{len(comparisons)} check(s) (NRMSE tolerance {100 * tolerance:g} %)")
+    lines += next_steps(comparisons, failed, args, out)
     print("\n".join(lines))
     return 1 if failed else 0

@@ -9,6 +9,7 @@ coefficients into the simulator effect's parameters (docs/design.md vocabulary =
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,6 +33,12 @@ class Candidate:
     channel: str = "motor"
     nonlinear: str | None = None     # name of the grid-searched parameter
     integer: bool = False            # the nonlinear parameter is an integer (refined on the grid only)
+    calibration: bool = False        # a sensor / calibration finding: reported, never a cause or a sim effect
+    #: fixed settings of the simulator effect this form stands for (several forms may share a cause; a
+    #: channel names at most one form per cause)
+    form: dict[str, str] = {}
+    #: a richer form of the same effect tried once this one is chosen (e.g. cogging with a harmonic)
+    upgrade: "Candidate | None" = None
 
     def applies(self, ch: Channel) -> bool:
         return True
@@ -39,8 +46,9 @@ class Candidate:
     def grid(self, ch: Channel) -> list[float]:
         return [0.0]
 
-    def search_grid(self, ch: Channel, residual: np.ndarray) -> list[float]:
-        """Values of the nonlinear parameter to score, given the current model's residual (stacked)."""
+    def search_grid(self, ch: Channel, residual: np.ndarray, design: Callable[[float], Design]) -> list[float]:
+        """Values of the nonlinear parameter to score, given the current model's residual (stacked);
+        ``design(value)`` gives the candidate's (cached) design at a value."""
         return self.grid(ch)
 
     def design(self, ch: Channel, nl: float) -> Design:
@@ -51,6 +59,14 @@ class Candidate:
         """Effect parameters as {name: (value, standard deviation)} from the candidate's coefficients
         ``coef`` (covariance ``cov``) and the baseline's coefficients of the same extended fit."""
         raise NotImplementedError
+
+    def rejection(self, params: dict[str, tuple[float, float]], coef: np.ndarray,
+                  base_coef: np.ndarray) -> str | None:
+        """Why fitted ``params`` (from the candidate's ``coef`` beside the baseline's ``base_coef``)
+        cannot be a simulator effect (None: they can): a non-finite value, or one outside the effect's
+        physical range. A rejected candidate is dropped, never written."""
+        bad = [k for k, (v, _) in params.items() if not math.isfinite(v)]
+        return f"non-finite {', '.join(bad)}" if bad else None
 
 
 def _sd(cov: np.ndarray, i: int) -> float:
@@ -98,18 +114,21 @@ class LoadDependentFriction(Candidate):
 
 
 class Cogging(Candidate):
-    """Torque ripple periodic in the motor angle: ``a sin(n theta) + b cos(n theta)``, n periods per
-    revolution (2 pi of the position unit), shared by the motors as the simulator effect is.
+    """Torque ripple periodic in the motor angle, with its own phase and amplitude per motor (two motors
+    never share a rotor position) and a second harmonic: ``a_i sin(n theta_i) + b_i cos(n theta_i) +
+    c_i sin(2 n theta_i) + d_i cos(2 n theta_i)`` per motor i, n periods per revolution (2 pi of the
+    position unit) shared by the motors.
 
     The count is found without a prior by the residual's spectrum in the angle domain: the residual is
     taken back through the filter (its adjoint: the zero-phase filter again) to the raw samples, binned
-    onto a uniform grid of the angle modulo 2 pi and Fourier-transformed, which gives its projection on
-    every integer count at once (per speed band, each band weighted by the taper the regressor gives
-    a ripple at that speed); each count's projection is normalised by the variance it would have were
-    the residual noise. The strongest peaks are screened by the share of the residual their own
-    filtered columns explain, and the best of them, with their neighbours, scored by the regression.
-    Rotor cogging through the gearbox (e.g. 6 periods per motor turn x 81 = 486)
-    is found where the motion is slow enough for the ripple to stay in the pass band."""
+    onto a uniform grid of each motor's angle modulo 2 pi and Fourier-transformed, which gives its
+    projection on every integer count at once (per speed band, each band weighted by the taper the
+    regressor gives a ripple at that speed); each count's projection is normalised by the variance it
+    would have were the residual noise, and the motors' powers are added (their phases differ). The
+    strongest peaks are screened by the share of the residual their own filtered columns explain, and the
+    best of them, with their neighbours, scored by the regression. Rotor cogging through the gearbox
+    (e.g. 6, 14 or 24 periods per motor turn x 81 = 486, 1134, 1944) is found where the motion is slow
+    enough for the ripple to stay in the pass band."""
 
     cause = "cogging"
     nonlinear = "periods_per_rev"
@@ -130,38 +149,41 @@ class Cogging(Candidate):
         n_min, n_max = self.count_range(ch)
         return [float(n) for n in np.unique(np.geomspace(n_min, n_max, 40).round())]
 
-    def search_grid(self, ch, residual: np.ndarray) -> list[float]:
+    def search_grid(self, ch, residual, design):
         """Integer counts worth a regression: the angle-domain spectrum's strongest peaks (see the class
         docstring) with their neighbours, and the config's prior when it gives one."""
         n_min, n_max = self.count_range(ch)
         full = np.zeros((ch.n_samples, ch.m))
         full[ch.rows] = residual.reshape(ch.m, -1).T
-        back = ch.sm.smooth(full).ravel()                        # adjoint of "filter, keep rows"
+        back = ch.sm.smooth(full)                                # adjoint of "filter, keep rows"
         bins = 1 << int(math.ceil(math.log2(8 * n_max)))
-        idx = (np.floor(np.mod(ch.pos, 2.0 * np.pi) * (bins / (2.0 * np.pi))).astype(np.int64) % bins).ravel()
-        speed = np.abs(ch.vel).ravel()
+        idx = np.floor(np.mod(ch.pos, 2.0 * np.pi) * (bins / (2.0 * np.pi))).astype(np.int64) % bins
+        speed = np.abs(ch.vel)
         # speed bands, within which the taper of a count's ripple is nearly one number
         edges = np.unique(np.quantile(speed, np.linspace(0.0, 1.0, SPEED_BANDS + 1)))
         band = np.clip(np.searchsorted(edges, speed, side="right") - 1, 0, len(edges) - 2)
         counts = np.arange(n_max + 1, dtype=float)
-        spectrum = np.zeros(n_max + 1, dtype=complex)
-        variance = np.zeros(n_max + 1)
-        for b in range(len(edges) - 1):
-            sel = band == b
-            if not sel.any():
-                continue
-            v_b = float(np.sqrt(max(edges[b], 1e-12) * max(edges[b + 1], 1e-12)))
-            w = self.taper(ch, counts * v_b)
-            spectrum += w * np.fft.fft(np.bincount(idx[sel], weights=back[sel], minlength=bins))[: n_max + 1]
-            variance += 0.5 * w ** 2 * float(back[sel] @ back[sel])
-        power = np.abs(spectrum) ** 2 / np.maximum(variance, 1e-300)
+        power = np.zeros(n_max + 1)
+        for i in range(ch.m):
+            spectrum = np.zeros(n_max + 1, dtype=complex)
+            variance = np.zeros(n_max + 1)
+            for b in range(len(edges) - 1):
+                sel = band[:, i] == b
+                if not sel.any():
+                    continue
+                v_b = float(np.sqrt(max(edges[b], 1e-12) * max(edges[b + 1], 1e-12)))
+                w = self.taper(ch, counts * v_b)
+                r = back[sel, i]
+                spectrum += w * np.fft.fft(np.bincount(idx[sel, i], weights=r, minlength=bins))[: n_max + 1]
+                variance += 0.5 * w ** 2 * float(r @ r)
+            power += np.abs(spectrum) ** 2 / np.maximum(variance, 1e-300)
         power[:n_min] = 0.0
         peaks = np.flatnonzero((power[1:-1] > power[:-2]) & (power[1:-1] >= power[2:])) + 1
         screened = peaks[np.argsort(power[peaks])[::-1][:COGGING_SCREENED]]
         # the exact share of the residual each screened count's filtered sin/cos pair explains
         explained = []
         for n in screened:
-            X = self.design(ch, float(n)).X
+            X = design(float(n)).X
             g = X.T @ residual
             explained.append(float(g @ np.linalg.lstsq(X.T @ X, g, rcond=None)[0]))
         best = screened[np.argsort(explained)[::-1][:COGGING_PEAKS]]
@@ -181,19 +203,58 @@ class Cogging(Candidate):
         x = np.clip((f - f1) / (f2 - f1), 0.0, 1.0)
         return 0.5 * (1.0 + np.cos(np.pi * x))
 
+    #: harmonics in the regressor: the count is searched and selected on the fundamental alone (a second
+    #: harmonic's columns let wrong counts fit aliased residue); :data:`upgrade` then adds the second
+    #: harmonic where it earns its place (selection._with_richer_forms)
+    harmonics = 1
+
     def design(self, ch, nl):
-        ang = nl * ch.pos
-        w = self.taper(ch, nl * ch.vel)
-        both = ch.sm.smooth(np.hstack([w * np.sin(ang), w * np.cos(ang)]))[ch.rows]   # one filter pass for both
-        return Design(np.column_stack([both[:, :ch.m].T.ravel(), both[:, ch.m:].T.ravel()]))
+        waves = []
+        for h in range(1, self.harmonics + 1):
+            ang = h * nl * ch.pos
+            w = self.taper(ch, h * nl * ch.vel)
+            waves += [w * np.sin(ang), w * np.cos(ang)]
+        filtered = ch.sm.smooth(np.hstack(waves))                 # one filter pass for all
+        m = ch.m
+        return Design(np.hstack([ch.per_column(filtered[:, j * m:(j + 1) * m]) for j in range(len(waves))]))
 
     def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
-        s, c = float(coef[0]), float(coef[1])
-        amp = float(np.hypot(s, c))
-        g = np.array([s, c]) / max(amp, 1e-300)
-        amp_sd = float(np.sqrt(max(g @ cov[:2, :2] @ g, 0.0)))
-        return {"amplitude": (amp, amp_sd), "periods_per_rev": (nl, 0.0),
-                "phase": (float(np.arctan2(c, s)), amp_sd / max(amp, 1e-300))}
+        m = ch.m
+        out: dict[str, tuple[float, float]] = {"periods_per_rev": (nl, 0.0)}
+        harmonic = []
+        for i in range(m):
+            amp, amp_sd, ph = _sine(coef, cov, i, i + m)
+            suffix = "" if i == 0 else f"_{i + 1}"
+            out["amplitude" + suffix] = (amp, amp_sd)
+            out["phase" + suffix] = (ph, amp_sd / max(amp, 1e-300))
+            if self.harmonics > 1:
+                harmonic.append(_sine(coef, cov, i + 2 * m, i + 3 * m))
+        if not harmonic:
+            return out
+        out["harmonic_amplitude"] = (float(np.mean([h[0] for h in harmonic])),
+                                     float(np.sqrt(np.mean([h[1] ** 2 for h in harmonic]))))
+        for i, (h, h_sd, q) in enumerate(harmonic):
+            out["harmonic_phase" + ("" if i == 0 else f"_{i + 1}")] = (q, h_sd / max(h, 1e-300))
+        return out
+
+
+class CoggingHarmonic(Cogging):
+    """Cogging with its second harmonic (2 n periods per revolution, its own phase per motor): the richer
+    form a chosen cogging term is tried in, never searched for its count."""
+
+    harmonics = 2
+
+
+Cogging.upgrade = CoggingHarmonic()
+
+
+def _sine(coef: np.ndarray, cov: np.ndarray, i_sin: int, i_cos: int) -> tuple[float, float, float]:
+    """(amplitude, its sd, phase) of ``s sin(x) + c cos(x)`` = A sin(x + phase) from coefficients i_sin, i_cos."""
+    s, c = float(coef[i_sin]), float(coef[i_cos])
+    amp = float(np.hypot(s, c))
+    g = np.array([s, c]) / max(amp, 1e-300)
+    sub = cov[np.ix_([i_sin, i_cos], [i_sin, i_cos])]
+    return amp, float(np.sqrt(max(g @ sub @ g, 0.0))), float(np.arctan2(c, s))
 
 
 class TorqueOffset(Candidate):
@@ -207,6 +268,58 @@ class TorqueOffset(Candidate):
 
     def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
         return {f"torque_{i + 1}": (float(coef[i]), _sd(cov, i)) for i in range(len(coef))}
+
+
+class TorqueConstantScale(Candidate):
+    """A torque-constant (or current-sensing) calibration error per motor, not a physical effect: with the
+    true constant ``scale`` x the configured one, ``scale tau = J a + D w + kc s + tc``, i.e. the left side
+    ``tau - tc`` gains ``(1 / scale - 1) tc`` (J, D, kc absorb the rest). Seen only where the strain gauges
+    measure the cable torque independently of the current."""
+
+    cause = "torque_constant"
+    calibration = True
+
+    def applies(self, ch):
+        return bool(np.any(ch.tc))
+
+    def design(self, ch, nl):
+        return Design(ch.per_column(ch.L_tc))
+
+    def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
+        return {f"scale_{i + 1}": (1.0 / (1.0 + float(coef[i])), _sd(cov, i) / (1.0 + float(coef[i])) ** 2)
+                for i in range(len(coef))}
+
+    def rejection(self, params, coef, base_coef):
+        off = [f"{v:.3g}" for v, _ in params.values() if not SCALE_RANGE[0] < v < SCALE_RANGE[1]]
+        if off:
+            return f"torque-constant scale {', '.join(off)} outside {SCALE_RANGE[0]:g}-{SCALE_RANGE[1]:g}: no calibration error"
+        return super().rejection(params, coef, base_coef)
+
+
+class EncoderScale(Candidate):
+    """A scale mismatch between the motor and the ankle encoders (a calibration, not an effect): with the
+    motor angles read f x too large, the measured stretch is phi' = f phi + (f - 1) theta_j, so the cable
+    law gains a column of the joint angle per axis, ``tau_j = K' phi' + c theta_j`` with f = 1 - c / K'.
+    Only the ratio of the two encoders' scales shows (either may be off)."""
+
+    cause = "encoder_scale"
+    channel = "cable"
+    calibration = True
+
+    def design(self, ch, nl):
+        return Design(ch.per_column(ch.sm.smooth(ch.joint)))
+
+    def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
+        K = base_coef[[0, 3]]
+        return {f"motor_to_ankle_scale_{a}": (1.0 - float(coef[i] / K[i]), _sd(cov, i) / abs(float(K[i])))
+                for i, a in enumerate(("dp", "ie"))}
+
+    def rejection(self, params, coef, base_coef):
+        off = [f"{v:.3g}" for v, _ in params.values() if not ENCODER_SCALE_RANGE[0] < v < ENCODER_SCALE_RANGE[1]]
+        if off:
+            return (f"encoder scale ratio {', '.join(off)} outside {ENCODER_SCALE_RANGE[0]:g}-"
+                    f"{ENCODER_SCALE_RANGE[1]:g}: no calibration error")
+        return super().rejection(params, coef, base_coef)
 
 
 class Delay(Candidate):
@@ -224,46 +337,92 @@ class Delay(Candidate):
 
 
 class Backlash(Candidate):
+    """Slack as a dead zone per ankle axis: the spring term K dz(phi_a) with dz +/- half_width / R_axis."""
+
     cause = "backlash"
     channel = "cable"
     nonlinear = "half_width"
+    form = {"per": "axis"}
 
     def grid(self, ch):
         return list(np.geomspace(1e-5, 2e-3, 28))
 
+    def clipped(self, ch, half_width: float) -> np.ndarray:
+        """The stretch inside the dead zone per axis (samples x axes): the spring force it takes away / K."""
+        b = half_width / ch.geometry.levers
+        return np.clip(ch.phi, -b, b)
+
     def design(self, ch, nl):
-        b = nl / ch.geometry.levers
-        clipped = np.clip(ch.phi, -b, b)
-        return Design(ch.per_column(ch.sm.smooth(clipped)))
+        return Design(ch.per_column(ch.sm.smooth(self.clipped(ch, nl))))
 
     def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
         return {"half_width": (nl, nl_sd)}
 
+    def rejection(self, params, coef, base_coef):
+        # slack takes the spring force away inside the dead zone: coefficient -K per axis; a positive one
+        # is a spring that saturates (a clipped gauge), not slack
+        share = -np.asarray(coef) / base_coef[[0, 3]]
+        if np.any(share < SLACK_SHARE[0]) or np.any(share > SLACK_SHARE[1]):
+            return (f"the dead zone takes {', '.join(f'{v:.2f}' for v in share)} x the stiffness per axis "
+                    f"(slack: {SLACK_SHARE[0]:g}-{SLACK_SHARE[1]:g}; below 0 a saturating spring, e.g. a clipped gauge)")
+        return super().rejection(params, coef, base_coef)
+
+
+class CableBacklash(Backlash):
+    """Slack as a dead zone on each cable's own stretch r (R phi)_i: per axis a the spring term loses
+    (R^T clip(R phi, +/- half_width / r))_a / (R^T R)_aa, which is phi_a inside both dead zones."""
+
+    form = {"per": "cable"}
+
+    def clipped(self, ch, half_width):
+        R = np.linalg.inv(ch.geometry.R_inv)
+        r = float(ch.geometry.levers[0] / R[0, 0])            # pulley radius, m
+        b = half_width / r
+        c = np.clip(ch.phi @ R.T, -b, b)
+        return (c @ R) / np.sum(R * R, axis=0)
+
 
 class HardeningStiffness(Candidate):
+    """Monotone stiffening of the cables: force k s (1 + (|s| / s_h)^(e - 1)), e on a grid (3: cubic,
+    2: k s (1 + |s| / s0), 4), joint-torque correction K phi (R |phi| / s_h)^(e - 1) per axis."""
+
     cause = "stiffness_nonlinear"
     channel = "cable"
+    nonlinear = "exponent"
+    integer = True
+
+    def grid(self, ch):
+        return [2.0, 3.0, 4.0]
 
     def design(self, ch, nl):
         # nominal K per axis: both axes scale with the one cable stiffness k, so one shared coefficient
-        # (k_true / k_nominal) / s_h^2 fits both, whatever k is
-        return Design(ch.filt(ch.geometry.K * ch.geometry.levers ** 2 * ch.phi ** 3)[:, None])
+        # (k_true / k_nominal) / s_h^(e - 1) fits both, whatever k is
+        return Design(ch.filt(ch.geometry.K * ch.phi * np.abs(ch.geometry.levers * ch.phi) ** (nl - 1.0))[:, None])
 
     def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
         # the extended fit's own K (coefficients of phi) gives k_true / k_nominal
         ratio = float(np.mean(ch.geometry.K / base_coef[[0, 3]]))
         c, sd = float(coef[0]) * ratio, _sd(cov, 0) * ratio
         if c <= 0.0:
-            return {"hardening_stretch": (float("inf"), float("inf"))}
-        s = c ** -0.5
-        return {"hardening_stretch": (s, 0.5 * s * sd / c)}
+            return {"hardening_stretch": (float("inf"), float("inf")), "exponent": (nl, 0.0)}
+        p = nl - 1.0
+        s = c ** (-1.0 / p)
+        return {"hardening_stretch": (s, s * sd / (p * c)), "exponent": (nl, 0.0)}
+
+    def rejection(self, params, coef, base_coef):
+        if not math.isfinite(params["hardening_stretch"][0]):
+            return "the fitted stiffening term is zero or negative (a linear or softening cable, not a hardening one)"
+        return super().rejection(params, coef, base_coef)
 
 
 MOTOR_CANDIDATES: tuple[Candidate, ...] = (Stribeck(), AsymmetricFriction(), LoadDependentFriction(),
-                                           Cogging(), Delay(), TorqueOffset())
-CABLE_CANDIDATES: tuple[Candidate, ...] = (Backlash(), HardeningStiffness())
+                                           Cogging(), Delay(), TorqueOffset(), TorqueConstantScale())
+CABLE_CANDIDATES: tuple[Candidate, ...] = (Backlash(), CableBacklash(), HardeningStiffness(), EncoderScale())
 
 MIN_COGGING_PERIODS = 2.0
+SCALE_RANGE = (0.5, 2.0)           # plausible torque-constant calibration scales (true / configured)
+ENCODER_SCALE_RANGE = (0.8, 1.25)  # plausible motor / ankle encoder scale ratios
+SLACK_SHARE = (0.3, 2.0)           # share of the axis stiffness a dead zone may take away (ideal slack: 1)
 MIN_COGGING_SEARCH = 2500          # periods per revolution searched at least (rotor cogging x gearbox)
 MAX_COGGING_BINS = 1 << 22         # angle-domain grid points per revolution, at most
 SPEED_BANDS = 16                   # speed bands of the angle-domain spectrum

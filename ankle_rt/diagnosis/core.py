@@ -25,10 +25,11 @@ import numpy as np
 from ankle_rt.config import Config
 from ankle_rt.diagnosis.candidates import (CABLE_CANDIDATES, INPUT_GROUPS, MOTOR_CANDIDATES, Candidate, Channel,
                                            catch_all_cable, catch_all_motor, time_columns, without_groups)
-from ankle_rt.diagnosis.regression import fit, rss_only
-from ankle_rt.diagnosis.screening import Screening, screen, strain_gauge_drift
-from ankle_rt.diagnosis.selection import (IC_THRESHOLD, MIN_REDUCTION, MIN_SIZE, MIN_SIZE_UNKNOWN,
-                                          MIN_UNKNOWN_REDUCTION, AMBIGUOUS_IC, ChannelResult, select_channel)
+from ankle_rt.diagnosis.regression import rss_only
+from ankle_rt.diagnosis.screening import Screening, screen, strain_gauge_drift, strain_gauge_offset
+from ankle_rt.diagnosis.selection import (IC_THRESHOLD, LARGE_REDUCTION, MIN_REDUCTION, MIN_SIZE, MIN_SIZE_UNKNOWN,
+                                          MIN_UNKNOWN_REDUCTION, AMBIGUOUS_IC, ChannelModels, ChannelResult, Score,
+                                          select_channel, significant)
 from ankle_rt.diagnosis.signals import CableChannel, Geometry, MotorChannel
 from ankle_rt.interchange import InterchangeError, Recording
 
@@ -36,10 +37,18 @@ from ankle_rt.interchange import InterchangeError, Recording
 #: residual when a remainder is left unexplained; else the discrepancy is ``unknown`` without names
 MIN_EXPLAINED = 0.6
 HOLDOUT_FRACTION = 0.25
+#: a fitted nonlinear parameter on the edge of its grid (its optimum may lie beyond what the form can
+#: describe) must explain at least this share of the baseline residual to be named
+EDGE_MIN_SHARE = 0.01
 #: baseline columns per motor (J, D, kc) or ankle axis (K, K beta, offset)
 PER = 3
 
 PLANTS = ("ankle", "actuator")
+#: candidates that are calibration findings (fitted and reported, never causes or sim effects)
+#: what each calibration finding's scales are
+CALIBRATION_TEXT = {"torque_constant": "the torque constant is (true / configured, per motor)",
+                    "encoder_scale": "the motor encoders read, relative to the ankle encoders (per axis),"}
+CALIBRATIONS = tuple(c.cause for c in MOTOR_CANDIDATES + CABLE_CANDIDATES if c.calibration)
 
 
 class DiagnosisError(ValueError):
@@ -63,6 +72,7 @@ class Diagnosis:
     adequacy: dict[str, Any] = field(default_factory=dict)   # channel -> what is left after the chosen model
     actuator_refit: dict[str, float] | None = None
     baseline_extended: dict[str, Any] | None = None   # the baseline part of the extended model's fit
+    calibration: list[dict[str, Any]] = field(default_factory=list)   # fitted calibration errors, not causes
     detail: dict[str, Any] = field(default_factory=dict, repr=False)   # fits and channels for the report
 
     @property
@@ -95,6 +105,7 @@ class Diagnosis:
                 "parameters": self.parameters, "baseline": self.baseline, "baseline_extended": self.baseline_extended,
                 "nrmse_baseline": self.nrmse_baseline, "nrmse_extended": self.nrmse_extended,
                 "gain": self.gain, "validation": self.validation, "effect": self.effect,
+                "calibration": self.calibration,
                 "notes": self.notes}
 
 
@@ -198,40 +209,25 @@ class ChannelFit:
         return self.result.name
 
 
-def system(ch: Channel, specs: list[tuple[Candidate, float]]) -> tuple[np.ndarray, np.ndarray, list[slice]]:
-    """(y, X, each effect's column slice) of the baseline extended by ``specs`` on channel ``ch``."""
-    Xb = ch.baseline_design()
-    y, blocks, slices, k = ch.target(), [Xb], [], Xb.shape[1]
-    for cand, nl in specs:
-        d = cand.design(ch, nl)
-        if d.y is not None:
-            y = d.y
-        blocks.append(d.X)
-        slices.append(slice(k, k + d.X.shape[1]))
-        k += d.X.shape[1]
-    return y, np.hstack(blocks), slices
-
-
 def joint_fit(result: ChannelResult, specs: list[tuple[Candidate, float, float]]) -> ChannelFit:
     """The baseline and ``specs`` (candidate, nonlinear value, its sd) fitted jointly, with the
     coefficient covariance inflated for the residual's autocorrelation."""
-    y, X, slices = system(result.channel, [(c, v) for c, v, _ in specs])
-    f = fit(y, X)
-    return ChannelFit(result, specs, f.coef, f.covariance(result.n_eff), slices,
-                      result.channel.baseline_design().shape[1])
+    terms = result.models.terms([(c, v) for c, v, _ in specs])
+    f = result.models.fit(terms)
+    return ChannelFit(result, specs, f.coef, f.covariance(result.n_eff), result.models.slices(terms),
+                      result.models.Xb.shape[1])
 
 
-def nrmse(ch: Channel, specs: list[tuple[Candidate, float]], coef: np.ndarray) -> float:
+def nrmse(models: ChannelModels, specs: list[tuple[Candidate, float]], coef: np.ndarray) -> float:
     """RMS error of the inverse model's prediction / std of the measured side (filtered alike)."""
-    y, X, _ = system(ch, specs)
+    y, X = models.system(models.terms(specs))
     err = y - X @ coef
-    return float(np.sqrt(np.mean(err ** 2)) / max(np.std(ch.measured()), 1e-300))
+    return float(np.sqrt(np.mean(err ** 2)) / models.scale)
 
 
-def validation_nrmse(result: ChannelResult, vch: Channel, specs: list[tuple[Candidate, float]]) -> float:
+def validation_nrmse(result: ChannelResult, vmodels: ChannelModels, specs: list[tuple[Candidate, float]]) -> float:
     """Fit ``specs`` on the identification channel, predict the validation channel."""
-    y, X, _ = system(result.channel, specs)
-    return nrmse(vch, specs, fit(y, X).coef)
+    return nrmse(vmodels, specs, result.models.fit(result.models.terms(specs)).coef)
 
 
 # -- reporting helpers ---------------------------------------------------------------------------------
@@ -251,21 +247,38 @@ def baseline_dict(name: str, coef: np.ndarray, cov: np.ndarray, m: int) -> dict[
     return out
 
 
-def effect_entry(cause: str, params: dict[str, tuple[float, float]]) -> dict[str, Any]:
-    entry: dict[str, Any] = {"type": cause}
+def effect_entry(cand: Candidate, params: dict[str, tuple[float, float]]) -> dict[str, Any]:
+    """The ``sim.effects`` entry of a fitted candidate (its form's fixed settings included)."""
+    entry: dict[str, Any] = {"type": cand.cause}
     for k, (v, _) in params.items():
         entry[k] = int(round(v)) if k == "periods_per_rev" else float(v)
-    return entry
+    return {**entry, **cand.form}
 
 
-def candidate_table(results: list[ChannelResult]) -> list[dict[str, Any]]:
-    """Every candidate alone against its channel's baseline, strongest first; then ``none`` and the
-    catch-all ``unknown`` of each channel, which are verdicts, not causes, and never outrank one."""
+def _why_not(s: Score, chosen: set[str]) -> str | None:
+    """Why a candidate scored alone is not among the chosen effects of its channel (None: it is)."""
+    if s.cause in chosen:
+        return None
+    if not significant(s):
+        return (f"alone it does not pass the tests (criterion gain {s.delta_ic:.1f}, needs {IC_THRESHOLD:g}; "
+                f"removes {100 * s.reduction:.1f} % of the residual, needs {100 * MIN_REDUCTION:g} %; "
+                f"size {s.size:.4f}, needs {MIN_SIZE:g} or {100 * LARGE_REDUCTION:g} % of the residual)")
+    return ("passes alone but not beside the chosen effects (forward selection, cross-validation, drop-one), "
+            "or was rejected or dropped by the validation (notes say which)")
+
+
+def candidate_table(results: list[ChannelResult], fits: dict[str, ChannelFit]) -> list[dict[str, Any]]:
+    """Every candidate alone against its channel's baseline, strongest first, each not chosen with why
+    (``dropped``); then ``none`` and the catch-all ``unknown`` of each channel, which are verdicts, not
+    causes, and never outrank one."""
     named, tail = [], [{"cause": "none", "channel": None, "score": 0.0, "rss_reduction": 0.0, "size": 0.0}]
     for res in results:
+        chosen = {c.cause for c, _, _ in fits[res.name].specs}
         for s in res.first:
             item = {"cause": s.cause, "channel": res.name, "score": round(s.delta_ic, 2),
                     "rss_reduction": round(s.reduction, 5), "size": round(s.size, 5)}
+            if (why := _why_not(s, chosen)) is not None:
+                item["dropped"] = why
             if s.candidate.nonlinear:
                 item[s.candidate.nonlinear] = s.nl
             named.append(item)
@@ -299,6 +312,18 @@ def _add_drift_nuisance(ch: Channel) -> None:
         ch.nuisance = np.hstack([ch.nuisance, ch.per_column(np.ones((ch.n_samples, ch.m)))])
 
 
+def _remove_gauge_offsets(chans: dict[str, Channel], label: str, warnings: list[str]) -> None:
+    """Strain-gauge zero offsets found on the cable side (where the ankle encoders show what the cables
+    carry): warned about and taken out of the motor channel's cable torque, so they never read as a load
+    (``torque_offset``)."""
+    if "cable" not in chans or (off := strain_gauge_offset(chans["cable"])) is None:
+        return
+    warnings.append(f"{label} data: the strain gauges read a zero offset of {off[0]:+.3g} N m (DP), {off[1]:+.3g} "
+                    "N m (IE) that the cable stretch from the ankle encoders does not carry: a sensor offset, "
+                    "not a load; corrected before the motor side is fitted")
+    chans["motor"].remove_gauge_offset(off)
+
+
 def _named_sets(results: list[ChannelResult], notes: list[str],
                 unusable: bool) -> tuple[dict[str, list[tuple[Candidate, float]]], dict[str, Any]]:
     """Per channel the effects to name, and the channels with an unexplained remainder. A named set that
@@ -318,7 +343,7 @@ def _named_sets(results: list[ChannelResult], notes: list[str],
     return chosen, unexplained
 
 
-def _validated(res: ChannelResult, vch: Channel, specs: list[tuple[Candidate, float]],
+def _validated(res: ChannelResult, vch: ChannelModels, specs: list[tuple[Candidate, float]],
                notes: list[str]) -> list[tuple[Candidate, float]]:
     """Drop, one at a time, the effect whose removal does not make the validation prediction worse."""
     specs = list(specs)
@@ -334,7 +359,42 @@ def _validated(res: ChannelResult, vch: Channel, specs: list[tuple[Candidate, fl
     return specs
 
 
-def _effect_entries(results: list[ChannelResult], fits: dict[str, ChannelFit], vchans: dict[str, Channel],
+def _rejection(res: ChannelResult, cf: ChannelFit, i: int) -> str | None:
+    """Why the ``i``-th effect of a channel's joint fit cannot be named (None: it can): its fitted
+    parameters are non-finite or outside the effect's range, or its nonlinear parameter sits on the edge
+    of the grid while it explains almost nothing."""
+    cand, nl, nl_sd = cf.specs[i]
+    sl = cf.slices[i]
+    base = cf.coef[:cf.n_base]
+    reason = cand.rejection(cand.parameters(cf.coef[sl], cf.cov[sl, sl], nl, nl_sd, res.channel, base),
+                            cf.coef[sl], base)
+    if reason or cand.nonlinear is None or cand.integer:
+        return reason
+    grid = cand.grid(res.channel)
+    share = next(ts.share for ts in res.terms if ts.term.candidate is cand)
+    if (nl <= min(grid) or nl >= max(grid)) and share < EDGE_MIN_SHARE:
+        return (f"{cand.nonlinear} = {nl:.4g} lies on the edge of its grid and the effect explains only "
+                f"{100 * share:.2f} % of the residual: the form does not describe what it fits")
+    return None
+
+
+def _sound_fit(res: ChannelResult, chosen: list[tuple[Candidate, float]], notes: list[str]) -> ChannelFit:
+    """The joint fit of a channel's chosen effects without those whose fit cannot be a simulator effect
+    (each dropped with its reason in ``notes``; the rest re-fitted): nothing non-finite or out of range
+    is ever named or written into a config."""
+    sd_of = {ts.term.cause: sd for ts, sd in zip(res.terms, res.nl_sd)}
+    specs = [(c, v, sd_of[c.cause]) for c, v in chosen]
+    while True:
+        cf = joint_fit(res, specs)
+        reasons = [_rejection(res, cf, i) for i in range(len(specs))]
+        bad = next((i for i, r in enumerate(reasons) if r), None)
+        if bad is None:
+            return cf
+        notes.append(f"{res.name} channel: {specs[bad][0].cause} rejected: {reasons[bad]}")
+        del specs[bad]
+
+
+def _effect_entries(results: list[ChannelResult], fits: dict[str, ChannelFit], vchans: dict[str, ChannelModels],
                     notes: list[str]) -> list[dict[str, Any]]:
     """The ``effects`` list: each named effect's parameters, confidence, shares and own validation gain."""
     stats = {(res.name, ts.term.cause): ts for res in results for ts in res.terms}
@@ -352,7 +412,7 @@ def _effect_entries(results: list[ChannelResult], fits: dict[str, ChannelFit], v
                      "parameters": {k: {"value": v, "sd": sd} for k, (v, sd) in params.items()},
                      "confidence": round(ts.confidence, 4), "rss_share": round(ts.share, 5), "size": round(ts.size, 5),
                      "gain": validation_nrmse(res, vch, others) / full if full > 0 else 1.0,
-                     "effect": effect_entry(cand.cause, params)}
+                     "effect": effect_entry(cand, params)}
             if ts.rival is not None and ts.rival_margin < AMBIGUOUS_IC:
                 entry["alternative"] = ts.rival
                 notes.append(f"{cand.cause} and {ts.rival} fit these data nearly equally well (criterion "
@@ -401,26 +461,35 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
         for ch in list(chans.values()) + list(vchans.values()):
             _add_drift_nuisance(ch)
         scr.skip.add("torque_offset")
+    else:
+        _remove_gauge_offsets(chans, "identification", warnings)
+        _remove_gauge_offsets(vchans, "validation", warnings)
     skip = scr.skip | vscr.skip
     motor_pool = tuple(c for c in MOTOR_CANDIDATES if c.cause not in skip)
     motor_catch_all = without_groups(catch_all_motor, INPUT_GROUPS) if scr.one_way or vscr.one_way else catch_all_motor
     results = [select_channel("motor", chans["motor"], motor_pool, motor_catch_all)]
+    vmodels = {name: ChannelModels(vch) for name, vch in vchans.items()}
     if "cable" in chans and "cable" in vchans:
         results.append(select_channel("cable", chans["cable"], CABLE_CANDIDATES, catch_all_cable))
 
     chosen, unexplained = _named_sets(results, notes, unusable)
     for res in results:
-        chosen[res.name] = _validated(res, vchans[res.name], chosen[res.name], notes)
-    sd_of = {res.name: {ts.term.cause: sd for ts, sd in zip(res.terms, res.nl_sd)} for res in results}
-    fits = {res.name: joint_fit(res, [(c, v, sd_of[res.name][c.cause]) for c, v in chosen[res.name]])
-            for res in results}
-    effects = _effect_entries(results, fits, vchans, notes)
+        chosen[res.name] = _validated(res, vmodels[res.name], chosen[res.name], notes)
+    fits = {res.name: _sound_fit(res, chosen[res.name], notes) for res in results}
+    entries = _effect_entries(results, fits, vmodels, notes)
+    effects = [e for e in entries if e["type"] not in CALIBRATIONS]
+    calibration = [e for e in entries if e["type"] in CALIBRATIONS]
+    for e in calibration:
+        e.pop("effect")
+        warnings.append(f"calibration: {CALIBRATION_TEXT[e['type']]} "
+                        + ", ".join(f"{k} {v['value']:.4g} +/- {v['sd']:.2g}" for k, v in e["parameters"].items())
+                        + ": fitted as a calibration, not named as an effect")
     causes = [e["type"] for e in effects] + (["unknown"] if unexplained else [])
     if unusable and not causes:
         causes = ["unknown"]
     causes = causes or ["none"]
-    if effects:
-        confidence = min(e["confidence"] for e in effects)
+    if effects or calibration:
+        confidence = min(e["confidence"] for e in effects or calibration)
     elif unexplained:
         confidence = min(1.0, max(r.catch_all_reduction for r in results if r.name in unexplained) / 0.2)
     elif unusable:
@@ -433,10 +502,10 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
                      + ", ".join(f"{c['with']} ({100 * c['share']:.0f} %)" for c in u["correlates_with"]))
 
     main = [r for r in results if fits[r.name].specs] or [r for r in results if r.name in unexplained] or results[:1]
-    base_v = [validation_nrmse(r, vchans[r.name], []) for r in main]
-    ext_v = [nrmse(vchans[r.name], [(c, v) for c, v, _ in fits[r.name].specs], fits[r.name].coef) for r in main]
+    base_v = [validation_nrmse(r, vmodels[r.name], []) for r in main]
+    ext_v = [nrmse(vmodels[r.name], [(c, v) for c, v, _ in fits[r.name].specs], fits[r.name].coef) for r in main]
     nrmse_base = float(np.sqrt(np.mean(np.square(base_v))))
-    nrmse_ext = float(np.sqrt(np.mean(np.square(ext_v)))) if effects else nrmse_base
+    nrmse_ext = float(np.sqrt(np.mean(np.square(ext_v)))) if entries else nrmse_base
     baseline = {r.name: baseline_dict(r.name, r.baseline.coef, r.baseline.covariance(r.n_eff), r.channel.m)
                 for r in results}
     baseline_extended = {name: baseline_dict(name, cf.coef, cf.cov, cf.result.channel.m)
@@ -447,10 +516,16 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
         m = chans["motor"].m
         actuator_refit = {key: float(np.mean([mc[j + PER * i] for i in range(m)]))
                           for j, (key, _) in enumerate(BASELINE_NAMES["motor"])}
+        for e in (e for e in calibration if e["type"] == "torque_constant"):
+            scale = float(np.mean([v["value"] for v in e["parameters"].values()]))
+            actuator_refit["torque_constant"] = inputs.kt * scale
+            # the baseline was fitted in configured-torque units: scale tau = J a + ..., so J, D, kc scale too
+            for key in ("inertia", "damping", "coulomb"):
+                actuator_refit[key] *= scale
     channel = effects[0]["channel"] if effects else (next(iter(unexplained)) if unexplained else None)
-    detail = {"results": results, "fits": fits, "validation_channels": vchans}
-    return Diagnosis(causes=causes, confidence=float(confidence), channel=channel,
-                     candidates=candidate_table(results), effects=effects, baseline=baseline,
+    detail = {"results": results, "fits": fits, "validation_channels": vchans, "validation_models": vmodels}
+    return Diagnosis(calibration=calibration, causes=causes, confidence=float(confidence), channel=channel,
+                     candidates=candidate_table(results, fits), effects=effects, baseline=baseline,
                      nrmse_baseline=nrmse_base, nrmse_extended=nrmse_ext, validation=vname, notes=notes,
                      data_warnings=warnings, unexplained=unexplained or None, adequacy=_adequacy(results),
                      actuator_refit=actuator_refit, baseline_extended=baseline_extended, detail=detail)

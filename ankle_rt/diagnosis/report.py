@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ankle_rt.diagnosis.core import ChannelFit, Diagnosis, system
+from ankle_rt.diagnosis.core import ChannelFit, Diagnosis
 from ankle_rt.diagnosis.selection import ChannelResult
 from ankle_rt.diagnosis.signals import MotorChannel
 from ankle_rt.plotting import MISSING, pyplot
@@ -38,7 +38,8 @@ def _extended_residual(cf: ChannelFit) -> np.ndarray | None:
     """The residual of the channel's extended model on the identification data (None without effects)."""
     if not cf.specs:
         return None
-    y, X, _ = system(cf.result.channel, [(c, v) for c, v, _ in cf.specs])
+    models = cf.result.models
+    y, X = models.system(models.terms([(c, v) for c, v, _ in cf.specs]))
     return y - X @ cf.coef
 
 
@@ -74,7 +75,8 @@ def _overlay(plt, path: Path, diag: Diagnosis) -> str:
     base = Xb @ cs.baseline.coef + offset
     ext = None
     if cf.specs:
-        y, X, _ = system(vch, [(c, v) for c, v, _ in cf.specs])
+        vmodels = diag.detail["validation_models"][cs.name]
+        y, X = vmodels.system(vmodels.terms([(c, v) for c, v, _ in cf.specs]))
         ext = X @ cf.coef + offset + (measured - offset - y)   # back to the undelayed torque
     k = len(measured) // vch.m
     t = np.arange(k) * vch.dt * vch.sm.step

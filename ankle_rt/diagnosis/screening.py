@@ -32,6 +32,10 @@ MIN_RECORD_S = 2.0            # shorter: nothing is named
 SHORT_RECORD_S = 5.0          # shorter: a warning (weak effects may be missed)
 MASK_S = 0.01                 # s masked either side of a gap
 MIN_USABLE = 0.15             # share of the record that must stay usable after masking
+CLIP_WINDOW = 25              # samples: over this a noisy rail's moving mean ...
+CLIP_FLAT = 0.5               # ... stays within this (noise sd) of its extreme ...
+CLIP_SHARE = 0.015            # ... for at least this share of the record
+CLIP_SNR = 10.0               # ... at a level this many noise sd from the median
 
 
 @dataclass
@@ -61,16 +65,45 @@ def _flat_at_extreme(x: np.ndarray) -> np.ndarray:
     return out
 
 
-def _held(x: np.ndarray, rail: np.ndarray) -> np.ndarray:
+def _noise_sd(x: np.ndarray) -> float:
+    """Robust sd of the white noise on a smooth signal, from its second difference (variance 6 sd^2)."""
+    return float(1.4826 * np.median(np.abs(np.diff(x, 2))) / math.sqrt(6.0)) if len(x) > 2 else 0.0
+
+
+def _clipped_noisy(x: np.ndarray) -> np.ndarray:
+    """Samples of a rail that noise added after the clip keeps from being exactly flat: the moving mean
+    over CLIP_WINDOW samples stays within CLIP_FLAT noise sd of its extreme for at least CLIP_SHARE of
+    the record (noise alone moves it by 1/sqrt(CLIP_WINDOW) sd), at a level CLIP_SNR noise sd or more
+    from the median. A smooth peak passes that level in a few samples; a physical torque plateau (a
+    motor at its current clamp) keeps following the load (<= 0.8 % of the record in the simulated
+    cases, 1.5-18 % per side for a gauge clipped at 70 % of its peak); a signal a few noise sd strong
+    (the README's chirp on the IE gauge) lingers near its crests by noise alone."""
+    out = np.zeros(len(x), dtype=bool)
+    sd = _noise_sd(x)
+    if sd <= 0.0 or len(x) < 4 * CLIP_WINDOW:
+        return out
+    box = np.ones(CLIP_WINDOW)
+    mean = np.convolve(x, box / CLIP_WINDOW, mode="same")
+    mean[:CLIP_WINDOW] = mean[-CLIP_WINDOW:] = np.median(x)          # edges: windows cut short
+    for top in (mean, -mean):
+        at = top >= np.max(top) - CLIP_FLAT * sd
+        if np.mean(at) >= CLIP_SHARE and np.max(top) - np.median(top) >= CLIP_SNR * sd:
+            out |= np.convolve(at.astype(float), box, mode="same") > 0.5
+    return out
+
+
+def _held(x: np.ndarray, rail: np.ndarray, at_rest: np.ndarray | None = None) -> np.ndarray:
     """Runs of >= HOLD_SAMPLES identical values, in a column that otherwise changes almost every sample
     (a noisy sensor or a continuously varying set value). Not held: the column's extremes (a limit,
-    however brief) and exact zeros (an amplifier switched off, e.g. while the gauges are tared)."""
+    however brief), exact zeros (an amplifier switched off, e.g. while the gauges are tared), and runs
+    throughout which ``at_rest`` holds (a set current computed from an encoder that did not move is
+    constant by nature)."""
     same = np.concatenate([[False], np.diff(x) == 0.0]) & (x != np.max(x)) & (x != np.min(x)) & (x != 0.0)
     if np.mean(same & ~rail) > 0.5:        # a signal that is piecewise constant by nature
         return np.zeros(len(x), dtype=bool)
     out = np.zeros(len(x), dtype=bool)
     for a, b in _runs(same & ~rail):
-        if b - a + 1 >= HOLD_SAMPLES:
+        if b - a + 1 >= HOLD_SAMPLES and not (at_rest is not None and bool(np.all(at_rest[a:b]))):
             out[max(0, a - 1):b] = True
     return out
 
@@ -103,15 +136,29 @@ def screen(rec: Recording, v_eps: float, current_limit: float | None = None, lab
         longest = float(np.max(np.diff(t)[gaps]))
         out.warnings.append(f"{label}: {gaps.size} time gap(s) (dropped samples), the longest "
                             f"{1e3 * longest:.0f} ms: the samples around them are masked")
+    motors = [c for c in ("motor_pos_1", "motor_pos_2") if c in rec]
+    at_rest = {}
+    if motors:
+        from ankle_rt.diagnosis.signals import Smoother
+        vel = Smoother.for_period(dt).fast_derivative(np.column_stack([rec[c] for c in motors]))
+        v99 = float(np.percentile(np.abs(vel), 99))
+        moving = np.abs(vel) > max(5.0 * v_eps, 0.01 * v99)
+        for i, c in enumerate(motors):
+            pos = np.asarray(rec[c], dtype=float)
+            at_rest[f"current_cmd_{i + 1}"] = np.concatenate([[True], np.diff(pos) == 0.0]) | ~moving[:, i]
     inputs = [c for c in ("current_cmd_1", "current_cmd_2", "motor_torque_1", "motor_torque_2") if c in rec]
     gauges = [c for c in ("sg_torque_dp", "sg_torque_ie") if c in rec]
     for col in inputs + gauges:
         x = np.asarray(rec[col], dtype=float)
-        rail = _flat_at_extreme(x)
-        if col.startswith("current") and current_limit is not None:
-            rail |= np.abs(x) >= 0.999 * current_limit
-        held = _held(x, rail)
-        what = "set current" if col.startswith("current") else ("motor torque" if col in inputs else "strain gauge")
+        is_current = col.startswith("current")
+        if is_current and current_limit is not None:
+            # the configured amplifier peak says where the current stops following: a flat extreme below
+            # it is the controller's own clamp, which the amplifier delivers
+            rail = np.abs(x) >= 0.999 * current_limit
+        else:
+            rail = _flat_at_extreme(x) | (_clipped_noisy(x) if col in gauges else False)
+        held = _held(x, rail, at_rest.get(col))
+        what = "set current" if is_current else ("motor torque" if col in inputs else "strain gauge")
         if rail.any():
             level = float(np.max(np.abs(x[rail])))
             reason = ("at the amplifier's limit: the applied current need not follow the set value" if col in inputs
@@ -122,12 +169,7 @@ def screen(rec: Recording, v_eps: float, current_limit: float | None = None, lab
             out.warnings.append(f"{label}: {what} {col} holds the same value for {HOLD_SAMPLES}+ samples in "
                                 f"{_pct(float(np.mean(held)))} of the record (held or repeated samples); masked")
         good &= ~(rail | held)
-    motors = [c for c in ("motor_pos_1", "motor_pos_2") if c in rec]
     if motors:
-        from ankle_rt.diagnosis.signals import Smoother
-        vel = Smoother.for_period(dt).fast_derivative(np.column_stack([rec[c] for c in motors]))
-        v99 = float(np.percentile(np.abs(vel), 99))
-        moving = np.abs(vel) > max(5.0 * v_eps, 0.01 * v99)
         share = float(np.mean(moving))
         if share < MOVING_SHARE:
             out.warnings.append(f"{label}: the motors move in only {_pct(share)} of the record: too little "
@@ -174,12 +216,13 @@ def strain_gauge_drift(cable) -> list[float] | None:
     cable channel's residual follows slow shapes of time strongly; else None. The cable law has no slow
     time dependence (the catch-all's stretch shapes stand in for any cable effect while testing), so a
     residual that follows time is the gauges', not the cables'."""
-    from ankle_rt.diagnosis.candidates import catch_all_cable, time_columns
+    from ankle_rt.diagnosis.candidates import EncoderScale, catch_all_cable, time_columns
     from ankle_rt.diagnosis.regression import fit
 
     C, groups = catch_all_cable(cable)
     shapes = C[:, [j for j, g in enumerate(groups) if g != "time (drift)"]]
-    y, Xb = cable.target(), np.hstack([cable.baseline_design(), shapes])
+    # the joint-angle columns of an encoder scale mismatch too: slow motion would read as a drift
+    y, Xb = cable.target(), np.hstack([cable.baseline_design(), shapes, EncoderScale().design(cable, 0.0).X])
     T = time_columns(cable)
     base = fit(y, Xb)
     full = fit(y, np.hstack([Xb, T]))
@@ -190,3 +233,34 @@ def strain_gauge_drift(cable) -> list[float] | None:
     if float(np.max(span)) < DRIFT_SIZE * math.sqrt(full.rss / len(y)):
         return None
     return [float(s) for s in span]
+
+
+#: a strain-gauge zero offset is reported (and corrected) when it exceeds this (N m) ...
+GAUGE_OFFSET_NM = 0.05
+#: ... and this many of its standard deviations
+GAUGE_OFFSET_SD = 5.0
+
+
+def strain_gauge_offset(cable) -> np.ndarray | None:
+    """Zero offsets (N m per ankle axis [DP, IE]) of the strain gauges when significant, else None. A
+    joint torque reaches the gauges only through the cable stretch the ankle encoders measure, so a
+    constant the gauges read beyond the cable law (with the odd dead-zone and hardening shapes a cable
+    effect would add) is the gauges' own offset, not a load: a load stretches the cables."""
+    from ankle_rt.diagnosis.candidates import CABLE_CANDIDATES
+    from ankle_rt.diagnosis.regression import effective_samples, fit
+
+    shapes = [c.design(cable, nl).X for c in CABLE_CANDIDATES for nl in OFFSET_SHAPES[c.cause]]
+    X = np.hstack([cable.baseline_design()] + shapes)
+    f = fit(cable.target(), X)
+    cov = f.covariance(effective_samples(f.residual, cable.m))
+    idx = [2, 5]                       # the offset column of each axis in the cable baseline
+    off = f.coef[idx]
+    sd = np.sqrt(np.maximum(np.diag(cov)[idx], 0.0))
+    if not np.any((np.abs(off) > GAUGE_OFFSET_NM) & (np.abs(off) > GAUGE_OFFSET_SD * sd)):
+        return None
+    return off
+
+
+#: the cable candidates' shapes that stand in for any cable effect (and an encoder scale mismatch) while
+#: an offset is measured: slack half-widths (m), stiffening exponents
+OFFSET_SHAPES = {"backlash": (1e-4, 4e-4, 1.5e-3), "stiffness_nonlinear": (2.0, 3.0), "encoder_scale": (0.0,)}

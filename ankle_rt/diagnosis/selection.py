@@ -43,6 +43,10 @@ LARGE_UNKNOWN_CV = 0.6
 AMBIGUOUS_IC = 10.0
 CV_FOLDS = 5
 MAX_EFFECTS = 4
+#: coordinate passes re-searching the chosen blocks' nonlinear parameters, at most
+REGRID_PASSES = 3
+#: designs a channel keeps cached (least recently used dropped first)
+MAX_DESIGNS = 160
 
 
 @dataclass
@@ -99,6 +103,7 @@ class ChannelResult:
     baseline: Fit
     first: list[Score]             # every candidate alone against the baseline (the candidate table)
     n_eff: float
+    models: ChannelModels          # the channel's systems, designs and fits (cached)
     terms: list[TermStats] = field(default_factory=list)
     model: Fit | None = None
     notes: list[str] = field(default_factory=list)
@@ -120,7 +125,9 @@ class ChannelResult:
 
 
 class ChannelModels:
-    """Models of one channel: the baseline plus candidate blocks, with designs cached by (cause, value)."""
+    """Models of one channel: the baseline plus candidate blocks. Designs are cached by (candidate form,
+    value), residual sums of squares, cross-validation errors and fits by the set of terms: the search,
+    the selection, the validation and the report all build their systems here."""
 
     def __init__(self, ch: Channel):
         self.ch = ch
@@ -129,30 +136,76 @@ class ChannelModels:
         self.n = len(self.y0)
         self.scale = max(float(np.std(ch.measured())), 1e-300)
         self._designs: dict[tuple[str, float], Design] = {}
+        self._rss: dict[tuple, float] = {}
+        self._cv: dict[tuple, np.ndarray] = {}
+        self._fits: dict[tuple, Fit] = {}
+
+    def design(self, cand: Candidate, nl: float) -> Design:
+        """``cand``'s columns at ``nl``, from a cache of the MAX_DESIGNS most recently used (the cogging
+        search screens dozens of counts per step, each a few hundred kB on a long record)."""
+        key = (type(cand).__name__, float(nl))       # a form of its own per class
+        d = self._designs.pop(key, None) or cand.design(self.ch, nl)
+        self._designs[key] = d                       # most recent last
+        if len(self._designs) > MAX_DESIGNS:
+            del self._designs[next(iter(self._designs))]
+        return d
 
     def term(self, cand: Candidate, nl: float) -> Term:
-        key = (cand.cause, float(nl))
-        if key not in self._designs:
-            self._designs[key] = cand.design(self.ch, nl)
-        return Term(cand, float(nl), self._designs[key])
+        return Term(cand, float(nl), self.design(cand, nl))
+
+    def terms(self, specs: list[tuple[Candidate, float]]) -> list[Term]:
+        return [self.term(c, nl) for c, nl in specs]
+
+    @staticmethod
+    def _key(terms: list[Term]) -> tuple:
+        return tuple(sorted((type(t.candidate).__name__, t.nl) for t in terms))
 
     def system(self, terms: list[Term]) -> tuple[np.ndarray, np.ndarray]:
         """(y, X) of the baseline extended by ``terms``."""
         y = next((t.design.y for t in terms if t.design.y is not None), self.y0)
         return y, np.hstack([self.Xb] + [t.design.X for t in terms])
 
+    def slices(self, terms: list[Term]) -> list[slice]:
+        """Each term's columns in the X of :meth:`system`."""
+        out, k = [], self.Xb.shape[1]
+        for t in terms:
+            out.append(slice(k, k + t.design.X.shape[1]))
+            k += t.design.X.shape[1]
+        return out
+
     def k(self, terms: list[Term]) -> int:
         return self.Xb.shape[1] + sum(t.design.X.shape[1] + (t.candidate.nonlinear is not None) for t in terms)
 
     def rss(self, terms: list[Term]) -> float:
-        return rss_only(*self.system(terms))
+        key = self._key(terms)
+        if key not in self._rss:
+            self._rss[key] = rss_only(*self.system(terms))
+        return self._rss[key]
+
+    def fit(self, terms: list[Term]) -> Fit:
+        """The least-squares fit of the baseline extended by ``terms`` (coefficients in their order)."""
+        key = tuple((type(t.candidate).__name__, t.nl) for t in terms)
+        if key not in self._fits:
+            self._fits[key] = fit(*self.system(terms))
+        return self._fits[key]
+
+    def cv(self, terms: list[Term]) -> np.ndarray:
+        """Block cross-validation errors (one per fold) of the baseline extended by ``terms``."""
+        key = self._key(terms)
+        if key not in self._cv:
+            self._cv[key] = block_cv_mse(*self.system(terms), self.ch.m, CV_FOLDS)
+        return self._cv[key]
 
     def size(self, rss_without: float, rss_with: float) -> float:
         return math.sqrt(max(0.0, rss_without - rss_with) / self.n) / self.scale
 
-    def best_of(self, cand: Candidate, others: list[Term], residual: np.ndarray) -> Score:
-        """``cand`` added to ``others`` at the value of its nonlinear parameter with the smallest RSS."""
-        profile = [(nl, self.rss(others + [self.term(cand, nl)])) for nl in cand.search_grid(self.ch, residual)]
+    def best_of(self, cand: Candidate, others: list[Term], residual: np.ndarray, current: float | None = None) -> Score:
+        """``cand`` added to ``others`` at the value of its nonlinear parameter with the smallest RSS
+        (``current``, a value it holds already, scored too: a re-search never makes the model worse)."""
+        grid = cand.search_grid(self.ch, residual, lambda nl: self.design(cand, nl))
+        if current is not None and current not in grid:
+            grid = list(grid) + [current]
+        profile = [(nl, self.rss(others + [self.term(cand, nl)])) for nl in grid]
         nl, rss = min(profile, key=lambda p: p[1])
         profile.sort()
         return Score(cand.cause, cand, nl, rss, self.k(others + [self.term(cand, nl)]), profile)
@@ -175,9 +228,8 @@ def significant(score: Score) -> bool:
 
 def cv_wins(models: ChannelModels, without: list[Term], with_: list[Term]) -> tuple[bool, int]:
     """Block cross-validation of the model without against the model with a block: (confirmed, folds won)."""
-    m = models.ch.m
-    a = block_cv_mse(*models.system(without), m, CV_FOLDS)
-    b = block_cv_mse(*models.system(with_), m, CV_FOLDS)
+    a = models.cv(without)
+    b = models.cv(with_)
     wins = int(np.sum(b < a))
     return bool(np.median(b / a) < 1.0 - 0.5 * MIN_REDUCTION and wins >= CV_FOLDS - 1), wins
 
@@ -195,12 +247,12 @@ def select_channel(name: str, ch: Channel, candidates: tuple[Candidate, ...], ca
     k0 = models.Xb.shape[1]
     for s in first:
         score_against(models, s, base.rss, k0, n_eff)
-    out = ChannelResult(name, ch, base, first, n_eff)
+    out = ChannelResult(name, ch, base, first, n_eff, models)
 
     chosen: list[Term] = []
     current = base
     while len(chosen) < MAX_EFFECTS:
-        left = [c for c in pool if all(t.candidate is not c for t in chosen)]
+        left = [c for c in pool if all(t.cause != c.cause for t in chosen)]    # one form per cause
         trials = [score_against(models, models.best_of(c, chosen, current.residual), current.rss,
                                 models.k(chosen), n_eff) for c in left]
         added = False
@@ -209,7 +261,7 @@ def select_channel(name: str, ch: Channel, candidates: tuple[Candidate, ...], ca
             ok, _ = cv_wins(models, chosen, chosen + [term])
             if ok:
                 chosen.append(term)
-                current = fit(*models.system(chosen))
+                current = models.fit(chosen)
                 added = True
                 break
         if not added:
@@ -217,8 +269,17 @@ def select_channel(name: str, ch: Channel, candidates: tuple[Candidate, ...], ca
     chosen = _prune(models, chosen, n_eff)
     chosen = _regrid(models, chosen)
     chosen, out.nl_sd = _refine(models, chosen, n_eff)
+    for _ in range(REGRID_PASSES):
+        # an integer value (never refined) chosen beside an unrefined continuous one may be off: re-grid
+        # the integers with the refined values in, and refine again, until they stay
+        before = [t.nl for t in chosen]
+        chosen = _regrid(models, chosen, integer_only=True)
+        if [t.nl for t in chosen] == before:
+            break
+        chosen, out.nl_sd = _refine(models, chosen, n_eff)
+    chosen = _with_richer_forms(models, chosen, n_eff)
     out.terms = [_term_stats(models, chosen, i, pool, n_eff, base.rss) for i in range(len(chosen))]
-    out.model = fit(*models.system(chosen))
+    out.model = models.fit(chosen)
     _catch_all_on_top(out, models, chosen, C, groups, n_eff, base)
     return out
 
@@ -242,16 +303,36 @@ def _prune(models: ChannelModels, chosen: list[Term], n_eff: float) -> list[Term
     return chosen
 
 
-def _regrid(models: ChannelModels, chosen: list[Term]) -> list[Term]:
-    """Search each chosen block's nonlinear parameter again with the others in (one coordinate pass):
-    a value chosen alone is biased by the effects not yet in the model."""
+def _regrid(models: ChannelModels, chosen: list[Term], integer_only: bool = False) -> list[Term]:
+    """Search each chosen block's nonlinear parameter (``integer_only``: the integer ones) again with the
+    others in, in coordinate passes until no value moves (at most REGRID_PASSES): a value chosen alone
+    is biased by the effects not yet in the model (Stribeck + delay; a stiffening exponent chosen before
+    the slack is in)."""
+    for _ in range(REGRID_PASSES):
+        moved = False
+        for i, t in enumerate(chosen):
+            if t.candidate.nonlinear is None or (integer_only and not t.candidate.integer):
+                continue
+            others = chosen[:i] + chosen[i + 1:]
+            s = models.best_of(t.candidate, others, models.fit(others).residual, t.nl)
+            moved |= s.nl != t.nl
+            chosen[i] = models.term(t.candidate, s.nl)
+        if not moved:
+            break
+    return chosen
+
+
+def _with_richer_forms(models: ChannelModels, chosen: list[Term], n_eff: float) -> list[Term]:
+    """Each chosen term with an ``upgrade`` (a richer form of its effect at the same nonlinear value)
+    takes that form where the extra columns pass the significance tests against the chosen model."""
     for i, t in enumerate(chosen):
-        if t.candidate.nonlinear is None:
+        up = t.candidate.upgrade
+        if up is None:
             continue
-        others = chosen[:i] + chosen[i + 1:]
-        residual = fit(*models.system(others)).residual
-        s = models.best_of(t.candidate, others, residual)
-        chosen[i] = models.term(t.candidate, s.nl)
+        richer = chosen[:i] + [models.term(up, t.nl)] + chosen[i + 1:]
+        s = Score(t.cause, up, t.nl, models.rss(richer), models.k(richer))
+        if significant(score_against(models, s, models.rss(chosen), models.k(chosen), n_eff)):
+            chosen = richer
     return chosen
 
 
@@ -293,9 +374,9 @@ def _term_stats(models: ChannelModels, chosen: list[Term], i: int, pool: list[Ca
     _, wins = cv_wins(models, rest, chosen)
     stats = TermStats(chosen[i], s.delta_ic, s.reduction, (models.rss(rest) - s.rss) / rss_base, s.size, wins)
     ic_full = information_criterion(s.rss, models.n, models.k(chosen), n_eff)
-    residual = fit(*models.system(rest)).residual
+    residual = models.fit(rest).residual
     for rival in pool:
-        if any(t.candidate is rival for t in chosen):
+        if any(t.cause == rival.cause for t in chosen):
             continue
         r = models.best_of(rival, rest, residual)
         margin = information_criterion(r.rss, models.n, r.k, n_eff) - ic_full
@@ -319,9 +400,8 @@ def _catch_all_on_top(out: ChannelResult, models: ChannelModels, chosen: list[Te
     out.catch_all_size = models.size(model.rss, full.rss)
     out.catch_all_total = 1.0 - fit(models.y0, np.hstack([models.Xb, C])).rss / base.rss
     if out.catch_all_reduction > MIN_UNKNOWN_REDUCTION:
-        m = models.ch.m
-        cv_model = block_cv_mse(y, X, m, CV_FOLDS)
-        cv_full = block_cv_mse(y, Xc, m, CV_FOLDS)
+        cv_model = models.cv(chosen)
+        cv_full = block_cv_mse(y, Xc, models.ch.m, CV_FOLDS)
         out.catch_all_cv_reduction = 1.0 - float(np.median(cv_full / cv_model))
         removed = model.rss - full.rss
         names = list(dict.fromkeys(groups))

@@ -174,6 +174,7 @@ class MotorChannel(_StackedChannel):
                     raise InterchangeError("the ankle plant needs the strain-gauge torques", rec.source, col, 0)
             tau_j = np.column_stack([rec["sg_torque_dp"], rec["sg_torque_ie"]])
             self.tc = tau_j @ geometry.R_inv_T.T
+        self.geometry = geometry
         self.vel = sm.fast_derivative(self.pos)
         self._acc = sm.fast_derivative(self.pos, 2)
         self.v_eps = v_eps
@@ -182,6 +183,11 @@ class MotorChannel(_StackedChannel):
         self.L_tau = sm.smooth(self.tau)
         self.L_tc = sm.smooth(self.tc)
         self.set_smoothing_velocity(v_eps)
+
+    def remove_gauge_offset(self, offset: np.ndarray) -> None:
+        """Correct the cable torque for strain-gauge zero offsets (N m per ankle axis [DP, IE])."""
+        self.tc = self.tc - np.asarray(offset) @ self.geometry.R_inv_T.T
+        self.L_tc = self.sm.smooth(self.tc)
 
     def set_smoothing_velocity(self, v_eps: float) -> None:
         """Change v_eps of the Coulomb regressor tanh(v / v_eps) (position unit/s)."""
@@ -234,6 +240,7 @@ class CableChannel(_StackedChannel):
         pos_m = np.column_stack([rec["motor_pos_1"], rec["motor_pos_2"]])
         joint = np.column_stack([rec["ankle_dp"], rec["ankle_ie"]])
         self.phi = pos_m @ geometry.R_inv.T - joint
+        self.joint = joint
         self.tau_j = np.column_stack([rec["sg_torque_dp"], rec["sg_torque_ie"]])
         self.m = 2
         self.L_tau_j = sm.smooth(self.tau_j)
