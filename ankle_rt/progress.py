@@ -34,11 +34,12 @@ class Progress:
 
     ``stream``: where to draw (default stderr); ``enabled``: None (default) a bar on a terminal and
     a line every LINE_S s elsewhere, True a bar, False nothing; ``clock``: a monotonic time source
-    in s (tests pass their own).
+    in s (tests pass their own); ``poll``: returns the units done so far, read a few times a second
+    by a small thread (for work that cannot report itself).
     """
 
     def __init__(self, label: str, total: float, *, stream: TextIO | None = None, enabled: bool | None = None,
-                 clock: Callable[[], float] = time.monotonic):
+                 clock: Callable[[], float] = time.monotonic, poll: Callable[[], float] | None = None):
         self.label = label
         self.total = float(total)
         self.stream = stream if stream is not None else sys.stderr
@@ -46,6 +47,7 @@ class Progress:
         self.lines = enabled is None and not self.bar
         self.enabled = self.bar or self.lines
         self.clock = clock
+        self.poll = poll
         self.start = clock()
         self.done = 0.0
         self.what = ""
@@ -53,7 +55,8 @@ class Progress:
         self._width = 0
         self._lock = threading.Lock()
         self._closed = threading.Event()
-        self._ticker = threading.Thread(target=self._tick_lines, name="progress", daemon=True) if self.lines else None
+        ticks = self.lines or (self.bar and poll is not None)
+        self._ticker = threading.Thread(target=self._tick, name="progress", daemon=True) if ticks else None
         if self._ticker is not None:
             self._ticker.start()
 
@@ -62,21 +65,19 @@ class Progress:
         self.done = min(max(float(done), 0.0), self.total) if self.total > 0 else 0.0
         self.what = what or self.what
         now = self.clock()
-        if self.bar and (now - self._last_draw >= REDRAW_S or self.done >= self.total):
-            self._last_draw = now
-            self._draw(now)
-        elif self.lines:
-            self._line_if_due(now)
-
-    def _line_if_due(self, now: float) -> None:
         with self._lock:
-            if self.lines and now - self._last_draw >= LINE_S:
+            if self.bar and (now - self._last_draw >= REDRAW_S or self.done >= self.total):
+                self._last_draw = now
+                self._draw(now)
+            elif self.lines and now - self._last_draw >= LINE_S:
                 self._last_draw = now
                 self._write(self.line(now, bar=False) + "\n")
 
-    def _tick_lines(self) -> None:
-        while not self._closed.wait(LINE_S / 5):
-            self._line_if_due(self.clock())
+    def _tick(self) -> None:
+        """The ticker thread: redraws between updates (``poll`` says how far the work is, for work
+        that cannot call :meth:`update` itself, such as a lockstep run)."""
+        while not self._closed.wait(REDRAW_S if self.bar else LINE_S / 5):
+            self.update(self.poll() if self.poll is not None else self.done)
 
     def callback(self, done: float, total: float, what: str = "") -> None:
         """The ``progress(done, total, what)`` hook that library functions call."""
@@ -107,14 +108,14 @@ class Progress:
             self.bar = self.lines = self.enabled = False
 
     def close(self) -> None:
-        """Clear the bar (the command's own output follows on a clean line)."""
-        if self.bar and self._width:
-            self._write("\r" + " " * self._width + "\r")
+        """Stop the ticker and clear the bar (the command's own output follows on a clean line)."""
         self._closed.set()
-        with self._lock:
-            self.bar = self.lines = self.enabled = False
         if self._ticker is not None and self._ticker is not threading.current_thread():
             self._ticker.join()
+        with self._lock:
+            if self.bar and self._width:
+                self._write("\r" + " " * self._width + "\r")
+            self.bar = self.lines = self.enabled = False
 
     def __enter__(self) -> "Progress":
         return self

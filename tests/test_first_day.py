@@ -343,3 +343,32 @@ def test_plot_axes_name_their_units():
     assert _axis_label("current_cmd_1", False) == "current_cmd_1 (A)"
     assert _axis_label("motor_pos_1", True) == "motor_pos_1 - start (rad)"
     assert _axis_label("motor_speed_2", True) == "motor_speed_2 (rad/s)"
+
+
+def test_progress_polls_work_that_cannot_report_itself(monkeypatch):
+    import io
+    import time
+
+    from ankle_rt import progress
+
+    class TTY(io.StringIO):
+        def isatty(self):
+            return True
+
+    monkeypatch.setattr(progress, "REDRAW_S", 0.01)
+    done, screen = [0.0], TTY()
+    with progress.Progress("run --fast", 10.0, stream=screen, poll=lambda: done[0]):
+        guard = time.monotonic() + 30.0
+        done[0] = 5.0                                 # nobody calls update: the ticker reads it
+        while " 50%" not in screen.getvalue() and time.monotonic() < guard:
+            time.sleep(0.01)
+    assert "run --fast [############............]  50%" in screen.getvalue()
+
+
+def test_a_long_lockstep_run_shows_progress_off_a_terminal(monkeypatch, capsys):
+    from ankle_rt import progress
+
+    monkeypatch.setattr(progress, "LINE_S", 0.02)
+    assert main(["run", "--fast", "--duration", "4", "--no-log"]) == 0
+    lines = [line for line in capsys.readouterr().err.splitlines() if line.startswith("run --fast: ")]
+    assert lines and all(" elapsed, ETA " in line for line in lines)

@@ -183,7 +183,7 @@ def test_daemon_survives_fuzz_and_rejects_bad_commands_without_moving(daemon):
     # 3. active and holding: out-of-range and malformed commands are refused and change nothing
     # a corrupted line can still be a valid set_gains (its target applies once active): restore them
     assert client.request(json.dumps({"cmd": "set_gains", **before["gains"]}).encode())["ok"]
-    assert client.request(b'{"cmd":"start_profile","name":"hold"}')["ok"]
+    assert client.request(b'{"cmd":"start_profile","name":"hold","params":{"dp":0,"ie":0}}')["ok"]
     assert activate(client) == {"ok": True, "state": "active"}
     refused = [  # (request, the field the error names, words in the message)
         (b'{"cmd":"set_reference","dp":0.9,"ie":0}', "dp", "outside the ankle range"),

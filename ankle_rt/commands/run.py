@@ -47,6 +47,7 @@ def run(args: argparse.Namespace) -> int:
     from ankle_rt.log.reader import read_tail
     from ankle_rt.log.summary import SUMMARY_MAX_RECORDS, format_summary, plot_run, summarize_log
     from ankle_rt.paths import default_config_path
+    from ankle_rt.progress import Progress
     from ankle_rt.realtime import apply_realtime
 
     config_path = Path(args.config) if args.config else default_config_path()
@@ -111,7 +112,11 @@ def run(args: argparse.Namespace) -> int:
         if daemon.service is not None:
             daemon.service.ready(f"running {cfg['backend']} at {cfg['controller']['rate_hz']} Hz")
         try:
-            daemon.run(duration or None)
+            if args.fast:   # lockstep only: a real-time loop gets no extra thread
+                with Progress("run --fast", duration, poll=lambda: daemon.est.t):
+                    daemon.run(duration)
+            else:
+                daemon.run(duration or None)
         except Exception as exc:   # e.g. a plugin controller's update raised: run() went safe (amplifiers off)
             error = f"{type(exc).__name__}: {exc}"
     finally:
