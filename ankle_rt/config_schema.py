@@ -230,6 +230,18 @@ EFFECT = Section({
     "type": Field(str, "effect name from sim_backend.effects"),
 }, open=True)
 
+WALKING = Section({
+    "mass_kg": Field(float, "kg, the wearer's body mass (the able-bodied moment scales with it)", default=75.0,
+                     low=30.0, high=150.0),
+    "cadence": Field(str, "slow (87 steps/min), normal (105) or fast (123) level walking (docs/simulator.md)",
+                     default="normal", choices=("slow", "normal", "fast")),
+    "seed": Field(int, "seed of the stride-to-stride variability", default=0, low=0, high=2**63 - 1),
+    "variability": non_negative("scale of the stride-to-stride variability (1 = the documented spread, 0 = none)",
+                                default=1.0, high=5.0),
+    "start_s": non_negative("s of simulator time of the first heel strike (the foot hangs free before)",
+                            default=1.0, high=3600.0),
+}, optional=True, doc="the walking scenario (sim.scenario: walking)")
+
 SIM = Section({
     "friction": Field(bool, "baseline Coulomb friction (actuator.coulomb, tanh-smoothed)", default=True),
     "quantization": Field(bool, "encoder quantisation to 2 pi / counts_per_rev", default=True),
@@ -240,6 +252,10 @@ SIM = Section({
     "cables": Field(bool, "false: motors off the cables (actuator identification)", default=True),
     "effects": ListOf(EFFECT, "extra effects switched on, each {type: NAME, ...parameters}"),
     "disturbances": ListOf(DISTURBANCE, "ankle disturbance torque pulses"),
+    "scenario": Field(str, "none: the foot is free but for sim.disturbances; walking: the wearer's body loads the "
+                           "foot in stance (sim.walking, docs/simulator.md)", default="none",
+                      choices=("none", "walking")),
+    "walking": WALKING,
     "strain_gauge_offset": ListOf(Field(float, low=-200.0, high=200.0), "N m [DP, IE] added to the strain-gauge readings (tared away by the daemon)",
                                   default=[0.0, 0.0], length=2),
 }, optional=True)

@@ -62,6 +62,18 @@ def pick(buffer, index):
     return buffer[index]
 
 
+def lookup(table, position):
+    """Linear interpolation in ``table`` (a 1-D numpy array of samples at 0, 1, 2, ...) at
+    ``position`` (0 <= position < len(table) - 1; an array of positions over a batch)."""
+    if position.__class__ is _ARRAY:
+        i = position.astype(np.intp)
+        lo = table[i]
+        return lo + (position - i) * (table[i + 1] - lo)
+    i = int(position)
+    lo = table.item(i)
+    return lo + (position - i) * (table.item(i + 1) - lo)
+
+
 def stack(objects, shared: tuple[str, ...] = ()):
     """One object of the same class standing for ``objects`` (one per plant of a batch): every
     number becomes an array over the batch; anything else must be equal on every object (else
