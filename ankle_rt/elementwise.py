@@ -74,15 +74,18 @@ def lookup(table, position):
     return lo + (position - i) * (table.item(i + 1) - lo)
 
 
-def stack(objects, shared: tuple[str, ...] = ()):
+def stack(objects, shared: tuple[str, ...] = (), tables: tuple[str, ...] = ()):
     """One object of the same class standing for ``objects`` (one per plant of a batch): every
     number becomes an array over the batch; anything else must be equal on every object (else
     ValueError: the caller runs them one by one), except the ``shared`` attributes, which are
-    descriptive only and taken from the first object."""
+    descriptive only and taken from the first object, and the ``tables`` (a sequence of numbers per
+    object, read with :func:`pick`), which become (slots, plants) arrays."""
     first = objects[0]
     out = object.__new__(type(first))
     for name, value in vars(first).items():
-        if isinstance(value, (int, float)) and not isinstance(value, bool):
+        if name in tables:
+            value = np.stack([np.asarray(getattr(o, name), dtype=float) for o in objects], axis=1)
+        elif isinstance(value, (int, float)) and not isinstance(value, bool):
             value = np.array([getattr(o, name) for o in objects], dtype=float)
         elif name not in shared and not all(_equal(getattr(o, name), value) for o in objects[1:]):
             raise ValueError(f"{type(first).__name__}.{name} differs between plants and is not a number")

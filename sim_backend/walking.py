@@ -165,18 +165,7 @@ class WalkingScenario:
     def stack(cls, scenarios: Sequence["WalkingScenario"]) -> "WalkingScenario":
         """One scenario for a batch: numbers become arrays over the plants, the per-stride draws
         (strides, plants) arrays read with :func:`~ankle_rt.elementwise.pick`."""
-        per_stride = ("periods", "amplitudes", "sway", "sway_bias", "offsets")
-        saved = [{k: getattr(s, k) for k in per_stride} for s in scenarios]
-        for s in scenarios:
-            for k in per_stride:
-                delattr(s, k)
-        try:
-            out = stack(scenarios)
-        finally:
-            for s, d in zip(scenarios, saved):
-                vars(s).update(d)
-        for k in per_stride:
-            setattr(out, k, np.stack([d[k] for d in saved], axis=1))
+        out = stack(scenarios, tables=("periods", "amplitudes", "sway", "sway_bias", "offsets"))
         out.stride = out.stride.astype(np.intp)
         out.stance = np.zeros(len(scenarios), dtype=bool)
         return out

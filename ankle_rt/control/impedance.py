@@ -88,10 +88,14 @@ class ImpedanceController(RampedGainController):
         g = self.gains
         g.advance()
         k0, k1, b0, b1 = g.values
-        s = g.scale
         ref, pos, vel = self.ref, est.ankle_pos, est.ankle_vel
-        t0 = k0 * (ref.item(0) - pos.item(0)) - b0 * vel.item(0)
-        t1 = k1 * (ref.item(1) - pos.item(1)) - b1 * vel.item(1)
+        self.actuate(k0 * (ref.item(0) - pos.item(0)) - b0 * vel.item(0),
+                     k1 * (ref.item(1) - pos.item(1)) - b1 * vel.item(1), est, out_torque)
+
+    def actuate(self, t0: float, t1: float, est: Estimate, out_torque: np.ndarray) -> None:
+        """Desired joint torques (N m) to motor torques: through the joint-torque loop if closed,
+        mapped with R^-T, plus the friction feed-forward, times the soft-start scale."""
+        s = self.gains.scale
         sg = est.sg_torque
         j0, j1 = sg.item(0), sg.item(1)
         loop = self.torque_loop
