@@ -126,11 +126,11 @@ TORQUE_LOOP = Section({
 # walking scenario with `ankle-rt bench walk`; sources and tuning rule in docs/daemon.md). Per phase:
 # (stiffness_dp N m/rad, damping_dp N m s/rad, equilibrium_dp rad, stiffness_ie, damping_ie, equilibrium_ie).
 GAIT_PHASE_DEFAULTS = {
-    "early_stance": (300.0, 3.0, -0.02, 100.0, 1.5, 0.0),
-    "late_stance": (220.0, 2.0, -0.35, 100.0, 1.5, 0.0),
-    "early_swing": (60.0, 2.5, 0.0, 40.0, 1.0, 0.0),
-    "late_swing": (100.0, 3.0, 0.0, 40.0, 1.0, 0.0),
-    "safe": (150.0, 3.0, 0.0, 60.0, 1.5, 0.0),
+    "early_stance": (400.0, 6.0, -0.02, 100.0, 1.5, 0.0),
+    "late_stance": (150.0, 6.0, -0.55, 100.0, 1.5, 0.0),
+    "early_swing": (60.0, 8.0, 0.0, 40.0, 1.0, 0.0),
+    "late_swing": (100.0, 8.0, 0.0, 40.0, 1.0, 0.0),
+    "safe": (150.0, 6.0, 0.0, 60.0, 1.5, 0.0),
 }
 MAX_EQUILIBRIUM = 0.7   # rad; the configured ankle range bounds it further (40 deg shipped)
 
@@ -156,8 +156,8 @@ GAIT_PHASE = Section({
     "load_off_nm": Field(float, "N m below which it is unloaded (toe-off); < load_on_nm: the hysteresis",
                          default=5.0, low=-50.0, high=300.0),
     "late_stance_angle": Field(float, "rad of dorsiflexion past which early stance becomes late stance",
-                               default=0.10, low=-MAX_EQUILIBRIUM, high=MAX_EQUILIBRIUM),
-    "late_stance_load_nm": non_negative("N m of load also needed for late stance", default=40.0, high=300.0),
+                               default=0.08, low=-MAX_EQUILIBRIUM, high=MAX_EQUILIBRIUM),
+    "late_stance_load_nm": non_negative("N m of load also needed for late stance", default=80.0, high=300.0),
     "late_swing_angle": Field(float, "rad; early swing becomes late swing above this DP angle ...", default=-0.09,
                               low=-MAX_EQUILIBRIUM, high=MAX_EQUILIBRIUM),
     "late_swing_velocity": Field(float, "rad/s ... and below this DP rate", default=1.0, low=-20.0, high=20.0),

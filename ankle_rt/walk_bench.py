@@ -5,7 +5,8 @@ safety layer on a simulated clock).
 
 Wearers: the shipped gait-phase parameters are for 75 kg; for another mass m the stance and safe
 phases' stiffness and damping and the load thresholds are scaled by m / 75 (the able-bodied moment
-scales with mass, Winter 1991); swing is the foot's alone and keeps its parameters.
+scales with mass, Winter 1991), stiffness capped at the joint-torque loop's stable set; swing is the
+foot's alone and keeps its parameters.
 
 Per stride (heel strike to heel strike, from the scenario's ground truth), against the able-bodied
 stride of that instant (:class:`~sim_backend.walking.WalkingScenario`):
@@ -37,10 +38,16 @@ LATE_STANCE = 1   # ankle_rt.control.gait_phase.LATE_STANCE (imported lazily the
 
 def wearer_overrides(cfg: Mapping[str, Any], mass_kg: float, cadence: str, seed: int) -> dict:
     """Config overrides for a wearer of ``mass_kg`` at ``cadence`` (the tuning rule of the module
-    docstring applied to ``cfg``'s gait-phase parameters)."""
-    g = cfg["controller"]["gait_phase"]
+    docstring applied to ``cfg``'s gait-phase parameters; a stiffness is capped at what the
+    joint-torque loop renders stably and at controller.gain_limits)."""
+    from ankle_rt.control.torque_loop import ImpedanceLimits
+
+    limits = ImpedanceLimits.from_config(cfg)
+    cap = {"stiffness_dp": limits.max_stiffness[0], "stiffness_ie": limits.max_stiffness[1]}
+    g, most = cfg["controller"]["gait_phase"], cfg["controller"]["gain_limits"]
     r = mass_kg / REFERENCE_MASS_KG
-    gait = {p: {k: g[p][k] * r for k in MASS_SCALED_PARAMS} for p in MASS_SCALED_PHASES}
+    gait = {p: {k: min(g[p][k] * r, cap.get(k, math.inf), most[k.split("_")[0]]) for k in MASS_SCALED_PARAMS}
+            for p in MASS_SCALED_PHASES}
     gait.update({k: g[k] * r for k in MASS_SCALED_THRESHOLDS})
     return {"sim": {"scenario": "walking", "walking": {"mass_kg": mass_kg, "cadence": cadence, "seed": seed}},
             "controller": {"gait_phase": gait}}
