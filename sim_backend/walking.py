@@ -178,7 +178,7 @@ class WalkingScenario:
         t_start = select(new, self.t_end, self.t_start)
         self.t_start = t_start
         period = pick(self.periods, stride)
-        self.t_end = t_start + period
+        self.t_end = select(new, t_start + period, self.t_end)
         walking = t >= self.start
         s = select(walking, (t - t_start) / period, 0.0)
         sf = self.stance_fraction
