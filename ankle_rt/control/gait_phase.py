@@ -17,7 +17,7 @@ Phases and transitions (``load`` = the plantarflexor moment the strain gauges me
 
 Hysteresis: ``load_on_nm > load_off_nm``, and phases only move forward through the stride, so an
 angle hovering at a threshold cannot make them chatter. No transition happens before ``min_dwell_s``
-in a phase. The active K, B and theta_0 move towards the phase's values with a first-order blend of
+in a phase. The active K, B and K theta_0 move towards the phase's values with a first-order blend of
 time constant ``blend_s``, so neither a transition nor a live parameter change (``ctl gains
 --phase``) makes the torque jump.
 
@@ -70,7 +70,10 @@ class GaitPhaseLaw:
         self.phase = SAFE
         self.time = 0.0        # s in the current phase
         self.armed = 0.0       # 1 once the load fell below load_off while safe
-        self.k0 = self.b0 = self.e0 = self.k1 = self.b1 = self.e1 = 0.0
+        # the blended impedance: stiffness K, damping B and spring offset P = K theta_0 per axis (blending
+        # P rather than theta_0 keeps the torque P - K theta linear in what is blended: at a fixed angle
+        # it moves monotonically, by at most the blend's share of the change per cycle)
+        self.k0 = self.b0 = self.p0 = self.k1 = self.b1 = self.p1 = 0.0
         self.start()
 
     @classmethod
@@ -88,10 +91,10 @@ class GaitPhaseLaw:
         self.armed = select(where, 0.0, self.armed)
         self.k0 = select(where, pick(self.stiffness_dp, SAFE), self.k0)
         self.b0 = select(where, pick(self.damping_dp, SAFE), self.b0)
-        self.e0 = select(where, pick(self.equilibrium_dp, SAFE), self.e0)
+        self.p0 = select(where, pick(self.stiffness_dp, SAFE) * pick(self.equilibrium_dp, SAFE), self.p0)
         self.k1 = select(where, pick(self.stiffness_ie, SAFE), self.k1)
         self.b1 = select(where, pick(self.damping_ie, SAFE), self.b1)
-        self.e1 = select(where, pick(self.equilibrium_ie, SAFE), self.e1)
+        self.p1 = select(where, pick(self.stiffness_ie, SAFE) * pick(self.equilibrium_ie, SAFE), self.p1)
 
     def update(self, load: Value, dp: Value, vdp: Value, ie: Value, vie: Value) -> tuple[Value, Value]:
         """One cycle: ``load`` N m (plantarflexor moment), DP and IE angles (rad) and rates (rad/s) in;
@@ -113,14 +116,15 @@ class GaitPhaseLaw:
         self.time = select(changed, 0.0, t)
         self.phase = nxt
         a = self.alpha
-        k0 = self.k0 + a * (pick(self.stiffness_dp, nxt) - self.k0)
+        k0, k1 = pick(self.stiffness_dp, nxt), pick(self.stiffness_ie, nxt)
+        p0 = self.p0 + a * (k0 * pick(self.equilibrium_dp, nxt) - self.p0)
+        p1 = self.p1 + a * (k1 * pick(self.equilibrium_ie, nxt) - self.p1)
+        k0 = self.k0 + a * (k0 - self.k0)
+        k1 = self.k1 + a * (k1 - self.k1)
         b0 = self.b0 + a * (pick(self.damping_dp, nxt) - self.b0)
-        e0 = self.e0 + a * (pick(self.equilibrium_dp, nxt) - self.e0)
-        k1 = self.k1 + a * (pick(self.stiffness_ie, nxt) - self.k1)
         b1 = self.b1 + a * (pick(self.damping_ie, nxt) - self.b1)
-        e1 = self.e1 + a * (pick(self.equilibrium_ie, nxt) - self.e1)
-        self.k0, self.b0, self.e0, self.k1, self.b1, self.e1 = k0, b0, e0, k1, b1, e1
-        return k0 * (e0 - dp) - b0 * vdp, k1 * (e1 - ie) - b1 * vie
+        self.k0, self.b0, self.p0, self.k1, self.b1, self.p1 = k0, b0, p0, k1, b1, p1
+        return p0 - k0 * dp - b0 * vdp, p1 - k1 * ie - b1 * vie
 
     def set_phase_params(self, phase: int, **params: float) -> None:
         """New parameters of one phase (one device); reached through the blend, no jump."""
