@@ -131,9 +131,14 @@ class Daemon:
                 ankle[0], ankle[1], ref[0], ref[1], torque[0], torque[1],
                 safety.current[0], safety.current[1],
                 (t_start_ns - loop.start_ns) * 1e-9, frame.seq, loop.last_period_ns * 1e-3, latency_ns * 1e-3,
-                loop.stats.overruns, safety.state, safety.fault, frame.faults)
+                loop.stats.overruns, safety.state, safety.fault, frame.faults, self.gait_phase())
             if self.recorder.failed and self.log_fault and safety.state != FAULT:
                 self._fault(Fault.LOG_FAILED)
+
+    def gait_phase(self) -> int:
+        """The log record's gait_phase code: 1 + the gait-phase controller's phase, 0 for any other."""
+        phase = getattr(self.controller, "phase", None)
+        return 0 if phase is None else phase + 1
 
     def _service_tick(self, now: float) -> None:
         service = self.service
