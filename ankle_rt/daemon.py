@@ -135,6 +135,15 @@ class Daemon:
             if self.recorder.failed and self.log_fault and safety.state != FAULT:
                 self._fault(Fault.LOG_FAILED)
 
+    def _gait_phase_status(self) -> dict | None:
+        """The gait-phase controller's phase and per-phase parameters (None for another controller)."""
+        law = getattr(self.controller, "law", None)
+        if law is None or not hasattr(law, "phase_params"):
+            return None
+        from ankle_rt.control.gait_phase import PHASES
+
+        return {"phase": PHASES[law.phase], "time_in_phase_s": law.time, "params": law.phase_params()}
+
     def gait_phase(self) -> int:
         """The log record's gait_phase code: 1 + the gait-phase controller's phase, 0 for any other."""
         phase = getattr(self.controller, "phase", None)
@@ -217,6 +226,8 @@ class Daemon:
         if setter is None:
             raise ValueError("this controller has no run-time gains")
         for name, value in gains.items():
+            if name in proto.PHASE_FIELDS:         # the phase and its equilibria: the controller checks them
+                continue
             limit = self.gain_maxima.get(name, math.inf)
             if not (isinstance(value, (int, float)) and 0.0 <= value <= limit):   # False for NaN
                 raise GainError(name, f"gain {name!r} must be a finite number in [0, {limit:g}] "
@@ -323,6 +334,7 @@ class Daemon:
             "motor_pos_rad": est.motor_pos.tolist(), "motor_vel_rad_s": est.motor_vel.tolist(),
             "sg_torque_nm": est.sg_torque.tolist(), "current_a": list(s.current),
             "gains": gains.as_dict() if hasattr(gains, "as_dict") else None,
+            "gait_phase": self._gait_phase_status(),
             "loop": self.loop.stats.summary(),
             "backend": self.backend.counters(),
             "log": self.recorder.status() if self.recorder is not None else None,

@@ -281,3 +281,46 @@ def test_the_batch_plant_walks_as_each_plant_alone():
         np.testing.assert_allclose(batch.model.x[:, j], p.model.x, rtol=1e-9, atol=1e-12)
         assert batch.walking.stride[j] == p.walking.stride
     assert {int(s) for s in batch.walking.stride} != {0}     # strides went by
+
+
+def test_the_phase_reaches_the_log_status_and_ctl_gains(tmp_path):
+    """The gait phase in the log record (CSV columns follow FIELDS), the status reply, ctl watch,
+    and per-phase tuning through the service protocol (checked, then blended)."""
+    from ankle_rt.commands.ctl import watch_view
+    from ankle_rt.log.export import csv_columns
+    from ankle_rt.log.reader import read_log
+    from ankle_rt.log.summary import plot_run
+    from ankle_rt.service import protocol as proto
+
+    assert proto.GAIT_PHASES == PHASES
+    cfg = load_config(WALK, {"sim": {"walking": {"start_s": 0.5}}})
+    from ankle_rt.daemon import run_lockstep
+
+    res = run_lockstep(cfg, 2.5, log_path=tmp_path / "w.arlog")
+    codes = set(np.unique(res["gait_phase"]).tolist())
+    assert {1 + EARLY_STANCE, 1 + LATE_STANCE, 1 + EARLY_SWING, 1 + LATE_SWING} <= codes
+    log = read_log(tmp_path / "w.arlog")
+    assert np.array_equal(csv_columns(log.records)["gait_phase [code]"], res["gait_phase"])
+    assert "plot" in plot_run(log.records, 1.66, str(tmp_path / "run.png"))
+    daemon = Daemon(cfg, SimClock())
+    try:
+        daemon.run(0.2)
+        status = daemon.status()
+        assert status["gait_phase"]["phase"] == "safe"
+        assert any("gait phase: safe" in line for line in watch_view(status, tmp_path))
+        limits = proto.CommandLimits.from_config(cfg)
+        cmd = proto.parse_command(b'{"cmd": "set_gains", "phase": "late_swing", "stiffness_dp": 80, '
+                                  b'"equilibrium_dp": 0.05}', limits)
+        daemon.handle(cmd)
+        assert daemon.status()["gait_phase"]["params"]["late_swing"]["equilibrium_dp"] == 0.05
+        for line, field in [(b'{"cmd": "set_gains", "phase": "stance", "kp": 1}', "phase"),
+                            (b'{"cmd": "set_gains", "equilibrium_dp": 0.1}', "phase"),
+                            (b'{"cmd": "set_gains", "phase": "safe", "equilibrium_dp": 2.0}', "equilibrium_dp")]:
+            with pytest.raises(proto.CommandError) as err:
+                proto.parse_command(line, limits)
+            assert err.value.field == field
+        with pytest.raises(proto.CommandError) as err:     # kp is no gait-phase parameter
+            daemon.handle(proto.parse_command(b'{"cmd": "set_gains", "phase": "safe", "kp": 1}', limits))
+        assert err.value.field == "kp"
+    finally:
+        daemon.close()

@@ -35,7 +35,7 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 import numpy as np
 
-from ankle_rt.control.gains import GainError
+from ankle_rt.control.gains import GainError, GainRamp
 from ankle_rt.control.impedance import ImpedanceController
 from ankle_rt.control.torque_loop import ImpedanceLimits, JointTorqueLoop, TorqueLoopGains, torque_feedback
 from ankle_rt.elementwise import Value, pick, select, stack
@@ -48,6 +48,7 @@ if TYPE_CHECKING:
 
 PHASES = ("early_stance", "late_stance", "early_swing", "late_swing", "safe")
 EARLY_STANCE, LATE_STANCE, EARLY_SWING, LATE_SWING, SAFE = range(len(PHASES))
+PHASE_NAMES = ("none", *PHASES)    # by the log record's gait_phase code (1 + phase; 0: another controller)
 PARAMS = ("stiffness_dp", "damping_dp", "equilibrium_dp", "stiffness_ie", "damping_ie", "equilibrium_ie")
 TRANSITIONS = ("load_on_nm", "load_off_nm", "late_stance_angle", "late_stance_load_nm", "late_swing_angle",
                "late_swing_velocity", "min_dwell_s", "timeout_s", "blend_s")
@@ -153,7 +154,8 @@ class GaitPhaseController(ImpedanceController):
                                             "damping_ie": 0.0}, dt=dt, soft_start_s=soft_start_s,
                          friction=friction, torque_loop=torque_loop, limits=None)
         self.limits = limits
-        for i, phase in enumerate(PHASES):
+        self.gains = GainRamp({}, dt=dt, ramp_s=0.0, soft_start_s=soft_start_s)   # the soft start only: the
+        for i, phase in enumerate(PHASES):                                         # law blends its own parameters
             self._check_phase(i, {n: getattr(law, n)[i] for n in PARAMS})
 
     @classmethod
