@@ -1,5 +1,5 @@
 """The walking experiment behind ``ankle-rt bench walk``: strides on the simulator's walking scenario
-(:mod:`sim_backend.walking`) under the configured controller (the gait-phase controller with
+(``sim_backend.walking``) under the configured controller (the gait-phase controller with
 ``config/walk.yaml``), per wearer mass and cadence, in lockstep (the real daemon, controller and
 safety layer on a simulated clock).
 
@@ -9,7 +9,7 @@ scales with mass, Winter 1991), stiffness capped at the joint-torque loop's stab
 foot's alone and keeps its parameters.
 
 Per stride (heel strike to heel strike, from the scenario's ground truth), against the able-bodied
-stride of that instant (:class:`~sim_backend.walking.WalkingScenario`):
+stride of that instant (the scenario's ground truth, :mod:`ankle_rt.gait_data`):
 
 - moment error: RMS over the stride of (rendered plantarflexor moment, -strain-gauge DP torque, minus
   the able-bodied one) in % of the stride's able-bodied peak;
@@ -68,7 +68,7 @@ def run_walk(cfg_path: str, mass_kg: float, cadence: str, strides: int, seed: in
     """Walk ``strides`` strides (plus the first, a warm-up not counted) in lockstep; stops early on a fault."""
     from ankle_rt.clock import SimClock
     from ankle_rt.daemon import Daemon
-    from sim_backend.walking import CADENCES
+    from ankle_rt.gait_data import CADENCES
 
     base = load_config(cfg_path)
     cfg = load_config(cfg_path, wearer_overrides(base, mass_kg, cadence, seed))
@@ -188,7 +188,7 @@ def plot_walk(runs: Sequence[WalkRun], png: str) -> str:
     import matplotlib.pyplot as plt
 
     from ankle_rt.control.gait_phase import PHASES
-    from sim_backend.walking import able_bodied
+    from ankle_rt.gait_data import able_bodied
 
     cadences = list(dict.fromkeys(r.cadence for r in runs))
     masses = sorted({r.mass_kg for r in runs})

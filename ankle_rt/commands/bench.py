@@ -395,7 +395,7 @@ def bench_walk(args: argparse.Namespace) -> int:
     from ankle_rt import jsonout
     from ankle_rt.progress import Progress
     from ankle_rt.walk_bench import default_walk_config, plot_walk, walk_bench
-    from sim_backend.walking import CADENCES
+    from ankle_rt.gait_data import CADENCES
 
     try:
         masses = [float(m) for m in args.masses.split(",")]
