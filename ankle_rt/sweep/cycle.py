@@ -8,9 +8,10 @@ difference + low-pass, strain-gauge tare), reference, sensor checks, auto-activa
 start, the control law (the impedance controller's joint-torque loop and the friction feed-forward,
 coulomb_viscous or identified, are the daemon's own element-wise code, stacked), the current clamp
 and I^2 t limit, and a latched fault that zeroes the set values. ``tests/test_batch_cycle.py`` holds
-it to ``run_lockstep`` run by run. Only the built-in ``pd`` and ``impedance`` controllers are
-batched (a plugin is refused, naming ``controller.type``); plants of one batch share the controller
-type and, for impedance, whether the joint-torque loop is closed (:func:`batch_key` groups them).
+it to ``run_lockstep`` run by run. Only the built-in ``pd``, ``impedance`` and ``gait_phase``
+controllers are batched (the gait-phase law stacked element-wise, :class:`GaitPhaseLaw`; a plugin
+is refused, naming ``controller.type``); plants of one batch share the controller type and, for
+impedance and gait_phase, whether the joint-torque loop is closed (:func:`batch_key` groups them).
 Not modelled (no sweep exercises them): run-time gain changes, service commands, backend fault
 injection, stale samples (the simulator's sequence always advances).
 """
@@ -27,6 +28,7 @@ from ankle_rt.backend import batch_plant_class
 from ankle_rt.config import ConfigError
 from ankle_rt.control import build_controller
 from ankle_rt.control.friction import FrictionFeedForward
+from ankle_rt.control.gait_phase import GaitPhaseController, GaitPhaseLaw
 from ankle_rt.control.impedance import ImpedanceController
 from ankle_rt.control.torque_loop import JointTorqueLoop, torque_feedback
 from ankle_rt.estimation import Estimator
@@ -68,7 +70,7 @@ def first_fault(code: np.ndarray, checks: list[tuple[np.ndarray, int]]) -> np.nd
     return np.where(code == 0, first, code)
 
 
-BATCHED_CONTROLLERS = ("pd", "impedance")    # built-ins win over plugins of the same name
+BATCHED_CONTROLLERS = ("pd", "impedance", "gait_phase")    # built-ins win over plugins of the same name
 
 
 def batch_key(cfg: Mapping[str, Any]) -> tuple:
@@ -77,10 +79,10 @@ def batch_key(cfg: Mapping[str, Any]) -> tuple:
     naming ``controller.type`` for a controller the batch does not run (a plugin)."""
     name = cfg["controller"]["type"]
     if name not in BATCHED_CONTROLLERS:
-        raise ConfigError(f"the batched daemon cycle runs the built-in pd and impedance controllers, not {name!r} "
+        raise ConfigError(f"the batched daemon cycle runs the built-in pd, impedance and gait_phase controllers, not {name!r} "
                           "(a plugin runs in the daemon: ankle-rt run --fast)", getattr(cfg, "source", None),
                           "controller.type")
-    return batch_plant_class(cfg["backend"], getattr(cfg, "source", None)).structure_key(cfg) + (name, torque_feedback(cfg) if name == "impedance" else None)
+    return batch_plant_class(cfg["backend"], getattr(cfg, "source", None)).structure_key(cfg) + (name, torque_feedback(cfg) if name in ("impedance", "gait_phase") else None)
 
 
 def _column(objects: Sequence[Any], get) -> np.ndarray:
@@ -114,6 +116,8 @@ class BatchRun:
         self._check_controllers(cfgs)
         ctls = [build_controller(c, k, r.ref) for c, k, r in zip(cfgs, kins, refs)]
         self.impedance = isinstance(ctls[0], ImpedanceController)
+        # the gait-phase controller: its law (element-wise) stacked; the impedance actuation below serves it
+        self.gait = GaitPhaseLaw.stack([c.law for c in ctls]) if isinstance(ctls[0], GaitPhaseController) else None
         self.gains = np.array([c.gains.values for c in ctls]).T      # (gains, plants) in the law's order
         self.soft_step = _column(ctls, lambda c: c.gains.soft_step)
         self.ff_any = any(c.friction.enabled for c in ctls)
@@ -260,6 +264,8 @@ class BatchRun:
                     r1 = np.where(hs, a1, r1)
                 if loop is not None:        # ImpedanceController.reset
                     loop.reset_state(e0, e1, starting)
+                if self.gait is not None:   # GaitPhaseController.reset
+                    self.gait.start(starting)
             # -- control law (MotorPD / ImpedanceController.update), soft start, friction feed-forward
             controlling = (state == ACTIVE) & (code == 0)
             scale = np.minimum(scale + self.soft_step, 1.0)
@@ -267,8 +273,11 @@ class BatchRun:
             if self.impedance:
                 w0 = Ri[0] * v1 + Ri[1] * v2
                 w1 = Ri[2] * v1 + Ri[3] * v2
-                u0 = g[0] * (r0 - a0) - g[2] * w0
-                u1 = g[1] * (r1 - a1) - g[3] * w1
+                if self.gait is not None:   # GaitPhaseController.update (restarted at activation)
+                    u0, u1 = self.gait.update(-e0, a0, w0, a1, w1)
+                else:
+                    u0 = g[0] * (r0 - a0) - g[2] * w0
+                    u1 = g[1] * (r1 - a1) - g[3] * w1
                 if loop is not None:
                     u0, u1 = loop.update(u0, u1, e0, e1, scale >= 1.0)
                 if ff_any:          # each motor's friction sees the cable torque it feels, R^-T tau_sg
