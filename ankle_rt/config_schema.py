@@ -276,9 +276,10 @@ SENSORS = Section({
 # the able-bodied peak plantarflexor moment is 1.5-1.6 N m/kg (Winter 1991); the rendered moment
 # overshoots it (bench walk), so the rail must sit above this ...
 WALKING_PEAK_MOMENT_PER_KG = 2.0   # N m/kg
-# ... and the fastest change of the joint torque between two samples at 1 kHz (heel strike and
-# push-off on the walking scenario, measured with `ankle-rt bench walk` at 100 kg, fast cadence, x 2)
-WALKING_TORQUE_STEP_PER_KG = 0.05  # N m/kg per ms
+# ... and the jump check above the fastest change of the joint torque between two samples (the
+# walking scenario under the gait-phase controller: 0.13 N m/kg per ms at 50 kg fast, 8.6 N m at 100 kg
+# fast; rounded up)
+WALKING_TORQUE_STEP_PER_KG = 0.15  # N m/kg per ms
 
 WEARER = Section({
     "mass_kg": Field(float, "kg, the heaviest wearer the device is set up for: the strain-gauge rail and jump "
