@@ -345,3 +345,39 @@ def test_the_batched_sweep_cycle_and_the_daemon_agree_on_a_walking_run():
             rms = np.sqrt(np.mean((got - want) ** 2))
             assert rms < 1e-3 * np.ptp(want), (j, name, rms)
         assert np.ptp(run["gait_phase"]) >= 3          # it walked through the phases
+
+
+def test_the_gait_phase_update_keeps_no_memory(walk_cfg):
+    """The daemon's per-cycle call: float temporaries only, across phase changes (a tiny peak)."""
+    import gc
+    import tracemalloc
+
+    from ankle_rt.control import build_controller
+    from ankle_rt.estimation import Estimate
+    from ankle_rt.kinematics import Kinematics
+    from ankle_rt.params import TransmissionParams
+
+    ctl = build_controller(walk_cfg, Kinematics.from_params(TransmissionParams(**walk_cfg["transmission"])),
+                           np.zeros(2))
+    est, out = Estimate(), np.zeros(2)
+    ctl.reset(est)
+    seen = set()
+
+    def cycles(n):
+        for k in range(n):
+            est.sg_torque[0] = -100.0 * (k % 700 > 300) + 0.01 * (k % 7)   # stance and swing loads
+            est.ankle_pos[0] = 0.15 * ((k % 700) / 700)
+            est.motor_vel[0] = 0.3 * ((k % 5) - 2)
+            ctl.update(est, out)
+            seen.add(ctl.phase)
+
+    cycles(3000)
+    gc.collect()
+    tracemalloc.start()
+    try:
+        cycles(2000)
+        current, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert current < 1024 and peak < 4096
+    assert {EARLY_STANCE, EARLY_SWING} <= seen
