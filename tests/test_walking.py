@@ -240,7 +240,10 @@ def test_the_rail_still_catches_a_gauge_at_full_scale_and_fits_the_wearer(tmp_pa
         cfg(sg_rail_nm=260.0)                         # above the gauges' full scale
     assert err.value.key == "safety.sg_rail_nm" and "full scale" in err.value.message
     with pytest.raises(ConfigError) as err:
-        cfg(max_sg_step_nm=1.0)
+        load_config(WALK, {"safety": {"max_sg_step_nm": 1.0}})
+    assert err.value.key == "safety.max_sg_step_nm"
+    with pytest.raises(ConfigError) as err:      # 250 Hz: four times walking's change per sample
+        load_config(WALK, {"controller": {"rate_hz": 250}})
     assert err.value.key == "safety.max_sg_step_nm"
 
 
