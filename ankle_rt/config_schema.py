@@ -126,7 +126,7 @@ TORQUE_LOOP = Section({
 # walking scenario with `ankle-rt bench walk`; sources and tuning rule in docs/daemon.md). Per phase:
 # (stiffness_dp N m/rad, damping_dp N m s/rad, equilibrium_dp rad, stiffness_ie, damping_ie, equilibrium_ie).
 GAIT_PHASE_DEFAULTS = {
-    "early_stance": (400.0, 6.0, -0.02, 100.0, 1.5, 0.0),
+    "early_stance": (400.0, 9.0, -0.02, 100.0, 1.5, 0.0),
     "late_stance": (150.0, 6.0, -0.55, 100.0, 1.5, 0.0),
     "early_swing": (60.0, 8.0, 0.0, 40.0, 1.0, 0.0),
     "late_swing": (100.0, 8.0, 0.0, 40.0, 1.0, 0.0),
