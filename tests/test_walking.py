@@ -384,3 +384,22 @@ def test_the_gait_phase_update_keeps_no_memory(walk_cfg):
         tracemalloc.stop()
     assert current < 1024 and peak < 4096
     assert {EARLY_STANCE, EARLY_SWING} <= seen
+
+
+def test_ctl_gains_with_a_phase_and_bench_walk_json(capsys):
+    import json
+
+    from ankle_rt.cli import build_parser, main
+    from ankle_rt.commands.ctl import request_from_args
+
+    args = build_parser().parse_args(["ctl", "gains", "--phase", "late_stance", "--stiffness-dp", "180",
+                                      "--equilibrium-dp", "-0.5"])
+    assert request_from_args(args) == {"cmd": "set_gains", "stiffness_dp": 180.0, "phase": "late_stance",
+                                       "equilibrium_dp": -0.5}
+    assert main(["bench", "walk", "--masses", "75", "--cadences", "normal", "--strides", "2", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["strides"] == 2 and out["faults"] == 0 and out["push_off_work_j_per_kg"] > 0.0
+    assert 0.0 < out["current_peak_a"] <= 15.0 and 0.0 < out["i2t_headroom_pct"] <= 100.0
+    assert {"moment_rms_error_pct", "angle_rms_error_deg", "current_rms_a"} <= out.keys()
+    with pytest.raises(SystemExit, match="cadences"):
+        main(["bench", "walk", "--cadences", "brisk"])
