@@ -283,7 +283,8 @@ def test_the_closed_loop_update_keeps_no_memory(base):
     temporaries only (no growth in live blocks, a tiny peak)."""
     import gc
     import sys
-    import tracemalloc
+
+    from tests.daemon_helpers import traced_memory
 
     cfg = impedance_cfg(base)
     cfg["controller"]["friction_ff"].update(enabled=True, model="identified")
@@ -300,11 +301,6 @@ def test_the_closed_loop_update_keeps_no_memory(base):
     cycles(500)
     gc.collect()
     blocks = sys.getallocatedblocks()
-    tracemalloc.start()
-    try:
-        cycles(2000)
-        current, peak = tracemalloc.get_traced_memory()
-    finally:
-        tracemalloc.stop()
+    current, peak = traced_memory(lambda: cycles(2000))
     assert sys.getallocatedblocks() - blocks < 20
     assert current < 1024 and peak < 4096

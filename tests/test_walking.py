@@ -15,6 +15,7 @@ from ankle_rt.control.gait_phase import (EARLY_STANCE, EARLY_SWING, LATE_STANCE,
 from ankle_rt.daemon import Daemon
 from ankle_rt.safety import Fault
 from tests.conftest import ROOT
+from tests.daemon_helpers import traced_memory
 
 WALK = ROOT / "config" / "walk.yaml"
 SIM = ROOT / "config" / "sim.yaml"
@@ -353,7 +354,6 @@ def test_the_batched_sweep_cycle_and_the_daemon_agree_on_a_walking_run():
 def test_the_gait_phase_update_keeps_no_memory(walk_cfg):
     """The daemon's per-cycle call: float temporaries only, across phase changes (a tiny peak)."""
     import gc
-    import tracemalloc
 
     from ankle_rt.control import build_controller
     from ankle_rt.estimation import Estimate
@@ -376,12 +376,7 @@ def test_the_gait_phase_update_keeps_no_memory(walk_cfg):
 
     cycles(3000)
     gc.collect()
-    tracemalloc.start()
-    try:
-        cycles(2000)
-        current, peak = tracemalloc.get_traced_memory()
-    finally:
-        tracemalloc.stop()
+    current, peak = traced_memory(lambda: cycles(2000))
     assert current < 1024 and peak < 4096
     assert {EARLY_STANCE, EARLY_SWING} <= seen
 
