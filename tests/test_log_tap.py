@@ -17,8 +17,8 @@ from ankle_rt.safety import Fault, State
 
 
 
-def record(k: int, state: int = State.ACTIVE, fault: int = Fault.NONE) -> tuple:
-    return (k * 1e-3, *[float(k)] * (len(CHANNELS) - 2), k * 1e-3, k, 1000.0, 50.0, 0, state, fault, 0)
+def record(k: int, state: int = State.ACTIVE, fault: int = Fault.NONE, gait_phase: int = 0) -> tuple:
+    return (k * 1e-3, *[float(k)] * (len(CHANNELS) - 2), k * 1e-3, k, 1000.0, 50.0, 0, state, fault, 0, gait_phase)
 
 
 class Collecting:
