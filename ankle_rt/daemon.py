@@ -452,6 +452,7 @@ class Daemon:
     def _lsl_publisher(self, meta: dict[str, Any]) -> "LslPublisher | None":
         """The Lab Streaming Layer publisher the log writer's thread drives, when ``lsl.enabled`` and the
         clock is real (lockstep time is not the lab's clock). Raises ConfigError without pylsl."""
+        from ankle_rt.control.gait_phase import PHASE_NAMES
         from ankle_rt.log.lsl import LslPublisher, LslUnavailable
 
         if not self.cfg["lsl"]["enabled"] or self.clock.simulated:
@@ -460,7 +461,7 @@ class Daemon:
             return LslPublisher(self.cfg["controller"]["rate_hz"], self.cfg["lsl"]["source_id"],
                                 lambda: self.loop.start_ns * 1e-9, meta["states"], meta["faults"],
                                 info={"config": str(meta["config"]), "backend": meta["backend"],
-                                      "controller": self.cfg["controller"]["type"]})
+                                      "controller": self.cfg["controller"]["type"]}, phases=PHASE_NAMES)
         except LslUnavailable as exc:
             raise ConfigError(str(exc), getattr(self.cfg, "source", None), "lsl.enabled") from None
 
