@@ -211,10 +211,15 @@ class AnkleClient:
             fields["ramp"] = float(ramp_s)
         self.request("set_reference", **fields)
 
-    def set_gains(self, **gains: float) -> None:
+    def set_gains(self, phase: str | None = None, **gains: float) -> None:
         """Change the running controller's gains (ramped, bumpless), by name: ``kp``, ``kd``,
-        ``stiffness_dp``, ... (docs/service.md), each within ``controller.gain_limits``."""
-        self.request("set_gains", **{name: float(value) for name, value in gains.items()})
+        ``stiffness_dp``, ... (docs/service.md), each within ``controller.gain_limits``. For the
+        gait-phase controller ``phase`` names the phase whose parameters change (``equilibrium_dp``
+        and ``equilibrium_ie`` rad too)."""
+        fields: dict[str, float | str] = {name: float(value) for name, value in gains.items()}
+        if phase is not None:
+            fields["phase"] = phase
+        self.request("set_gains", **fields)
 
     def gains(self) -> dict[str, float]:
         """The running controller's gains, name -> value (SI)."""

@@ -149,16 +149,64 @@ TORQUE_LOOP = Section({
                                   low=0.0, high=1.0),
 }, optional=True, doc="joint-torque feedback of the impedance controller (docs/daemon.md)")
 
+# The gait-phase controller's shipped parameters, for a 75 kg wearer at normal cadence (tuned on the
+# walking scenario with `ankle-rt bench walk`; sources and tuning rule in docs/daemon.md). Per phase:
+# (stiffness_dp N m/rad, damping_dp N m s/rad, equilibrium_dp rad, stiffness_ie, damping_ie, equilibrium_ie).
+GAIT_PHASE_DEFAULTS = {
+    "early_stance": (400.0, 9.0, -0.02, 100.0, 1.5, 0.0),
+    "late_stance": (150.0, 6.0, -0.55, 100.0, 1.5, 0.0),
+    "early_swing": (60.0, 8.0, 0.0, 40.0, 1.0, 0.0),
+    "late_swing": (100.0, 8.0, 0.0, 40.0, 1.0, 0.0),
+    "safe": (150.0, 6.0, 0.0, 60.0, 1.5, 0.0),
+}
+MAX_EQUILIBRIUM = 0.7   # rad; the configured ankle range bounds it further (40 deg shipped)
+
+
+def _phase_section(name: str, values: tuple[float, ...]) -> Section:
+    k_dp, b_dp, e_dp, k_ie, b_ie, e_ie = values
+    return Section({
+        "stiffness_dp": non_negative("N m/rad at the ankle, DP", default=k_dp, high=MAX_STIFFNESS),
+        "damping_dp": non_negative("N m s/rad, DP", default=b_dp, high=MAX_DAMPING),
+        "equilibrium_dp": Field(float, "rad, DP equilibrium angle (dorsiflexion +)", default=e_dp,
+                                low=-MAX_EQUILIBRIUM, high=MAX_EQUILIBRIUM),
+        "stiffness_ie": non_negative("N m/rad at the ankle, IE", default=k_ie, high=MAX_STIFFNESS),
+        "damping_ie": non_negative("N m s/rad, IE", default=b_ie, high=MAX_DAMPING),
+        "equilibrium_ie": Field(float, "rad, IE equilibrium angle (inversion +)", default=e_ie,
+                                low=-MAX_EQUILIBRIUM, high=MAX_EQUILIBRIUM),
+    }, optional=True, doc=f"impedance of the {name.replace('_', ' ')} phase")
+
+
+GAIT_PHASE = Section({
+    **{name: _phase_section(name, values) for name, values in GAIT_PHASE_DEFAULTS.items()},
+    "load_on_nm": positive("N m of plantarflexor moment (-sg_dp) above which the foot is loaded (heel strike)",
+                           default=15.0, high=300.0),
+    "load_off_nm": Field(float, "N m below which it is unloaded (toe-off); < load_on_nm: the hysteresis",
+                         default=5.0, low=-50.0, high=300.0),
+    "late_stance_angle": Field(float, "rad of dorsiflexion past which early stance becomes late stance",
+                               default=0.08, low=-MAX_EQUILIBRIUM, high=MAX_EQUILIBRIUM),
+    "late_stance_load_nm": non_negative("N m of load also needed for late stance", default=80.0, high=300.0),
+    "late_swing_angle": Field(float, "rad; early swing becomes late swing above this DP angle ...", default=-0.09,
+                              low=-MAX_EQUILIBRIUM, high=MAX_EQUILIBRIUM),
+    "late_swing_velocity": Field(float, "rad/s ... and below this DP rate", default=1.0, low=-20.0, high=20.0),
+    "min_dwell_s": non_negative("s in a phase before any transition", default=0.05, high=1.0),
+    "timeout_s": Field(float, "s in one phase after which the controller falls back to the safe phase",
+                       default=1.5, low=0.1, high=60.0),
+    "blend_s": Field(float, "s, time constant of the blend of K, B and equilibrium towards the phase's values "
+                            "(transitions and live changes: no torque jump)", default=0.02, low=0.001, high=2.0),
+}, optional=True, doc="the gait-phase (finite-state) impedance controller (controller.type: gait_phase; docs/daemon.md)")
+
 CONTROLLER = Section({
     "rate_hz": Field(int, "control loop rate", low=250, high=2000),
     "validation_gains": GAINS,
     "step_gains": GAINS,
-    "type": Field(str, "pd: motor-side PD (paper eq. 11); impedance: ankle stiffness/damping; or the name of "
+    "type": Field(str, "pd: motor-side PD (paper eq. 11); impedance: ankle stiffness/damping; gait_phase: "
+                  "finite-state impedance over the stride; or the name of "
                   "an installed controller plugin (entry-point group ankle_rt.controllers)", default="pd",
                   check=check_controller_name),
     "params": Section({}, "parameters of a plugin controller (the plugin validates them)", optional=True, open=True),
     "pd_gains": Field(str, "which gain set the PD uses", default="step", choices=("step", "validation")),
     "impedance": IMPEDANCE,
+    "gait_phase": GAIT_PHASE,
     "friction_ff": FRICTION_FF,
     "torque_loop": TORQUE_LOOP,
     "gain_limits": GAIN_LIMITS,
@@ -213,7 +261,9 @@ SAFETY = Section({
                                       default=30.0, high=200.0),
     "max_sg_step_nm": positive("N m; a larger strain-gauge change between two samples is a fault", default=20.0,
                                high=500.0),
-    "sg_rail_nm": positive("N m; a strain-gauge torque this large is a sensor at its rail", default=60.0, high=500.0),
+    "sg_rail_nm": positive("N m; a strain-gauge torque this large is a sensor at its rail (0.9 x "
+                           "sensors.strain_gauge_range_nm; above the wearer's walking moment)", default=225.0,
+                           high=500.0),
     "stale_cycles": Field(int, "fault when the sample sequence does not advance for this many cycles",
                           default=5, low=1, high=1000),
     "i2t_peak_duration_s": positive("s the peak current may flow (ESCON 50/5: at most 20 s); sets the I^2 t budget",
@@ -244,7 +294,25 @@ LIMITS = Section({
 
 SENSORS = Section({
     "strain_gauge_noise_rms": non_negative("N m per ankle axis", high=10.0),
+    "strain_gauge_range_nm": positive("N m at the ankle: the strain gauges' full scale (a reading there is a "
+                                      "sensor at its rail); safety.sg_rail_nm lies below it", default=250.0,
+                                      high=1000.0),
 })
+
+# Walking's loads on the ankle, per kg of the wearer (docs/daemon.md "Limits a walker does not trip"):
+# the able-bodied peak plantarflexor moment is 1.5-1.6 N m/kg (Winter 1991); the rendered moment
+# overshoots it (bench walk), so the rail must sit above this ...
+WALKING_PEAK_MOMENT_PER_KG = 2.0   # N m/kg
+# ... and the jump check above the fastest change of the joint torque between two samples (the
+# walking scenario under the gait-phase controller: 0.13 N m/kg per ms at 50 kg fast, 8.6 N m at 100 kg
+# fast; rounded up)
+WALKING_TORQUE_STEP_PER_KG = 0.15  # N m/kg per ms
+
+WEARER = Section({
+    "mass_kg": Field(float, "kg, the heaviest wearer the device is set up for: the strain-gauge rail and jump "
+                            "checks must let this person walk (docs/daemon.md)", default=100.0, low=20.0,
+                     high=150.0),
+}, optional=True)
 
 DISTURBANCE = Section({
     "start": non_negative("s, from the start of the simulation", high=365 * DAY_S),
@@ -257,6 +325,18 @@ EFFECT = Section({
     "type": Field(str, "effect name from sim_backend.effects"),
 }, open=True)
 
+WALKING = Section({
+    "mass_kg": Field(float, "kg, the wearer's body mass (the able-bodied moment scales with it)", default=75.0,
+                     low=30.0, high=150.0),
+    "cadence": Field(str, "slow (87 steps/min), normal (105) or fast (123) level walking (docs/simulator.md)",
+                     default="normal", choices=("slow", "normal", "fast")),
+    "seed": Field(int, "seed of the stride-to-stride variability", default=0, low=0, high=2**63 - 1),
+    "variability": non_negative("scale of the stride-to-stride variability (1 = the documented spread, 0 = none)",
+                                default=1.0, high=5.0),
+    "start_s": non_negative("s of simulator time of the first heel strike (the foot hangs free before)",
+                            default=1.0, high=3600.0),
+}, optional=True, doc="the walking scenario (sim.scenario: walking)")
+
 SIM = Section({
     "friction": Field(bool, "baseline Coulomb friction (actuator.coulomb, tanh-smoothed)", default=True),
     "quantization": Field(bool, "encoder quantisation to 2 pi / counts_per_rev", default=True),
@@ -267,6 +347,10 @@ SIM = Section({
     "cables": Field(bool, "false: motors off the cables (actuator identification)", default=True),
     "effects": ListOf(EFFECT, "extra effects switched on, each {type: NAME, ...parameters}"),
     "disturbances": ListOf(DISTURBANCE, "ankle disturbance torque pulses"),
+    "scenario": Field(str, "none: the foot is free but for sim.disturbances; walking: the wearer's body loads the "
+                           "foot in stance (sim.walking, docs/simulator.md)", default="none",
+                      choices=("none", "walking")),
+    "walking": WALKING,
     "strain_gauge_offset": ListOf(Field(float, low=-200.0, high=200.0), "N m [DP, IE] added to the strain-gauge readings (tared away by the daemon)",
                                   default=[0.0, 0.0], length=2),
     # A busy host stalls a simulated plant, not a device: a real-time run whose plant is simulated in
@@ -427,6 +511,7 @@ SCHEMA = Section({
     "amplifier": AMPLIFIER,
     "controller": CONTROLLER,
     "limits": LIMITS,
+    "wearer": WEARER,
     "sensors": SENSORS,
     "sim": SIM,
     "canopen": CANOPEN,
@@ -463,8 +548,40 @@ def check_consistency(cfg: Mapping[str, Any], origin: Callable[[KeyPath], str]) 
               for set_name in ("validation_gains", "step_gains") for gain in ("kp", "kd")]
     checks += [(("impedance", name), limits[name.split("_")[0]], ctl["impedance"][name])
                for name in ("stiffness_dp", "stiffness_ie", "damping_dp", "damping_ie")]
+    check_walking_limits(cfg, origin)
+    gait = ctl["gait_phase"]
+    if gait["load_off_nm"] >= gait["load_on_nm"]:
+        raise ConfigError(f"must be < controller.gait_phase.load_on_nm ({gait['load_on_nm']:g}): the hysteresis, "
+                          f"got {gait['load_off_nm']:g}", origin(("controller", "gait_phase", "load_off_nm")),
+                          "controller.gait_phase.load_off_nm")
     for (section, name), limit, value in checks:
         if value > limit:
             limit_key = f"controller.gain_limits.{name.split('_')[0]}"
             raise ConfigError(f"must be <= {limit_key} ({limit:g}), got {value:g}",
                               origin(("controller", section, name)), f"controller.{section}.{name}")
+
+
+def check_walking_limits(cfg: Mapping[str, Any], origin: Callable[[KeyPath], str]) -> None:
+    """The strain-gauge checks fit the gauges and the wearer: the rail is below the gauges' full scale
+    (a gauge failed to full scale still trips SG_RAIL) and above the wearer's walking moment, and, on
+    the device or the walking scenario, the jump check above walking's fastest torque change per
+    sample (a walker never trips them)."""
+    safety, mass = cfg["safety"], cfg["wearer"]["mass_kg"]
+    rail, full = safety["sg_rail_nm"], cfg["sensors"]["strain_gauge_range_nm"]
+    where = ("safety", "sg_rail_nm")
+    if rail >= full:
+        raise ConfigError(f"must be below sensors.strain_gauge_range_nm ({full:g} N m): a gauge failed to its "
+                          f"full scale must still read as at its rail, got {rail:g}", origin(where), "safety.sg_rail_nm")
+    need = WALKING_PEAK_MOMENT_PER_KG * mass
+    if rail < need:
+        raise ConfigError(f"must be >= {need:g} N m for a {mass:g} kg wearer (wearer.mass_kg x "
+                          f"{WALKING_PEAK_MOMENT_PER_KG:g} N m/kg, walking's peak moment with margin), got {rail:g}",
+                          origin(where), "safety.sg_rail_nm")
+    # the jump check per sample: a slower loop sees more change per sample. Checked where someone walks:
+    # on the device, or the simulator's walking scenario (a bench config at another rate need not be)
+    walked = cfg["backend"] != "sim" or cfg["sim"]["scenario"] == "walking"
+    step = WALKING_TORQUE_STEP_PER_KG * mass * 1000.0 / cfg["controller"]["rate_hz"]
+    if walked and safety["max_sg_step_nm"] < step:
+        raise ConfigError(f"must be >= {step:.3g} N m for a {mass:g} kg wearer at {cfg['controller']['rate_hz']} Hz "
+                          f"(walking's fastest torque change per sample with margin), got {safety['max_sg_step_nm']:g}",
+                          origin(("safety", "max_sg_step_nm")), "safety.max_sg_step_nm")

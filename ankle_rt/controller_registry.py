@@ -27,6 +27,7 @@ ENTRY_POINT_GROUP = "ankle_rt.controllers"
 BUILTIN_CONTROLLERS: dict[str, str] = {
     "pd": "ankle_rt.control:pd_controller",
     "impedance": "ankle_rt.control:impedance_controller",
+    "gait_phase": "ankle_rt.control:gait_phase_controller",
 }
 
 

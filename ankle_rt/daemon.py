@@ -138,9 +138,23 @@ class Daemon:
                 est.dp, est.ie, ref[0], ref[1], torque[0], torque[1],
                 safety.current[0], safety.current[1],
                 (t_start_ns - loop.start_ns) * 1e-9, frame.seq, loop.last_period_ns * 1e-3, latency_ns * 1e-3,
-                loop.stats.overruns, safety.state, safety.fault, frame.faults)
+                loop.stats.overruns, safety.state, safety.fault, frame.faults, self.gait_phase())
             if self.recorder.failed and self.log_fault and safety.state != FAULT:
                 self._fault(Fault.LOG_FAILED)
+
+    def _gait_phase_status(self) -> dict | None:
+        """The gait-phase controller's phase and per-phase parameters (None for another controller)."""
+        gait = getattr(self.controller, "gait", None)
+        if gait is None or not hasattr(gait, "phase_params"):
+            return None
+        from ankle_rt.control.gait_phase import PHASES
+
+        return {"phase": PHASES[gait.phase], "time_in_phase_s": gait.time, "params": gait.phase_params()}
+
+    def gait_phase(self) -> int:
+        """The log record's gait_phase code: 1 + the gait-phase controller's phase, 0 for any other."""
+        phase = getattr(self.controller, "phase", None)
+        return 0 if phase is None else phase + 1
 
     def _service_tick(self, now: float) -> None:
         service = self.service
@@ -223,6 +237,8 @@ class Daemon:
         if setter is None:
             raise ValueError("this controller has no run-time gains")
         for name, value in gains.items():
+            if name in proto.PHASE_FIELDS:         # the phase and its equilibria: the controller checks them
+                continue
             problem = gain_problem(name, value, self.gain_maxima)
             if problem:
                 raise GainError(name, f"gain {name!r} {problem}")
@@ -397,6 +413,7 @@ class Daemon:
             "sg_torque_nm": est.sg_torque.tolist(), "current_a": list(s.current),
             "controller": self.cfg["controller"]["type"] if self.own_controller else type(self.controller).__name__,
             "gains": gains.as_dict() if hasattr(gains, "as_dict") else None,
+            "gait_phase": self._gait_phase_status(),
             "loop": self.loop.stats.summary(),
             "backend": self.backend.counters(),
             "log": self.recorder.status() if self.recorder is not None else None,
@@ -447,6 +464,7 @@ class Daemon:
     def _lsl_publisher(self, meta: dict[str, Any]) -> "LslPublisher | None":
         """The Lab Streaming Layer publisher the log writer's thread drives, when ``lsl.enabled`` and the
         clock is real (lockstep time is not the lab's clock). Raises ConfigError without pylsl."""
+        from ankle_rt.control.gait_phase import PHASE_NAMES
         from ankle_rt.log.lsl import LslPublisher, LslUnavailable
 
         if not self.cfg["lsl"]["enabled"] or self.clock.simulated:
@@ -455,7 +473,7 @@ class Daemon:
             return LslPublisher(self.cfg["controller"]["rate_hz"], self.cfg["lsl"]["source_id"],
                                 lambda: self.loop.start_ns * 1e-9, meta["states"], meta["faults"],
                                 info={"config": str(meta["config"]), "backend": meta["backend"],
-                                      "controller": self.cfg["controller"]["type"]})
+                                      "controller": self.cfg["controller"]["type"]}, phases=PHASE_NAMES)
         except LslUnavailable as exc:
             raise ConfigError(str(exc), getattr(self.cfg, "source", None), "lsl.enabled") from None
 

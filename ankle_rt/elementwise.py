@@ -83,23 +83,40 @@ def pick(buffer, index):
     return buffer[index]
 
 
-def stack(objects, shared: tuple[str, ...] = (), columns: tuple[str, ...] = ()):
+def lookup(table, position):
+    """Linear interpolation in ``table`` (a 1-D numpy array of samples at 0, 1, 2, ...) at
+    ``position`` (0 <= position < len(table) - 1; an array of positions over a batch)."""
+    if position.__class__ is _ARRAY:
+        i = position.astype(np.intp)
+        lo = table[i]
+        return lo + (position - i) * (table[i + 1] - lo)
+    i = int(position)
+    lo = table.item(i)
+    return lo + (position - i) * (table.item(i + 1) - lo)
+
+
+def stack(objects, shared: tuple[str, ...] = (), columns: tuple[str, ...] = (), tables: tuple[str, ...] = ()):
     """One object of the same class standing for ``objects`` (one per plant of a batch): every
     number becomes an array over the batch; each ``columns`` attribute (a list or tuple of numbers
-    per object, e.g. a matrix's entries) a list or tuple of such arrays; an attribute that is itself
-    stackable (its class has ``stack``) is stacked by it; a flag (bool) stays a plain bool where it
-    is the same on every object (code may branch on it) and becomes a bool array where it differs;
-    anything else must be equal on every object (else ValueError: the caller runs them one by one),
-    except the ``shared`` attributes, which are descriptive only and taken from the first object."""
+    per object, e.g. a matrix's entries) a list or tuple of such arrays; each ``tables`` attribute
+    (a sequence of numbers per object, read with :func:`pick`) a (slots, plants) array; an attribute
+    that is itself stackable (its class has ``stack``) is stacked by it; a flag (bool) stays a plain
+    bool where it is the same on every object (code may branch on it) and becomes a bool array where
+    it differs; anything else must be equal on every object (else ValueError: the caller runs them
+    one by one), except the ``shared`` attributes, which are descriptive only and taken from the
+    first object."""
     first = objects[0]
     out = object.__new__(type(first))
     owner = type(first).__name__
     for name, value in vars(first).items():
         values = [getattr(o, name) for o in objects]
-        if name in columns:
+        if name in columns or name in tables:
             if any(len(v) != len(value) for v in values):
                 raise ValueError(f"{owner}.{name} differs in length between plants")
-            value = type(value)(np.array(column, dtype=float) for column in zip(*values))
+            if name in tables:
+                value = np.stack([np.asarray(v, dtype=float) for v in values], axis=1)
+            else:
+                value = type(value)(np.array(column, dtype=float) for column in zip(*values))
         elif name not in shared:
             value = _stacked(owner, name, values)
         setattr(out, name, value)

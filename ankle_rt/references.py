@@ -138,14 +138,14 @@ GAIT_KEYPOINTS = (
 )
 
 
-def _periodic_table(points: tuple[tuple[float, float, float], ...], n: int) -> tuple[list[float], list[float]]:
-    """Periodic cubic Hermite interpolation (Catmull-Rom tangents) of key points (phase in [0, 1],
-    last point = first) sampled at n+1 phases; returns DP and IE in rad."""
+def periodic_spline(points: Sequence[Sequence[float]], n: int) -> list[list[float]]:
+    """Periodic cubic Hermite interpolation (Catmull-Rom tangents) of key points ``(phase, y1, y2,
+    ...)`` (phase in [0, 1], last point = first) sampled at n+1 phases; one list per column y."""
     pts = list(points[:-1])
     ext = [(pts[-1][0] - 1.0, *pts[-1][1:])] + pts + [(p[0] + 1.0, *p[1:]) for p in pts[:2]]
     x = np.array([p[0] for p in ext])
     out = []
-    for col in (1, 2):
+    for col in range(1, len(points[0])):
         y = np.array([p[col] for p in ext])
         vals = []
         for g in np.arange(n) / n:
@@ -157,8 +157,14 @@ def _periodic_table(points: tuple[tuple[float, float, float], ...], n: int) -> t
             vals.append((2 * u**3 - 3 * u**2 + 1) * y[i] + (u**3 - 2 * u**2 + u) * m0
                         + (-2 * u**3 + 3 * u**2) * y[i + 1] + (u**3 - u**2) * m1)
         vals.append(vals[0])
-        out.append([float(v) * DEG for v in vals])
-    return out[0], out[1]
+        out.append([float(v) for v in vals])
+    return out
+
+
+def _periodic_table(points: tuple[tuple[float, float, float], ...], n: int) -> tuple[list[float], list[float]]:
+    """:func:`periodic_spline` of (phase, DP deg, IE deg) key points; DP and IE in rad."""
+    dp, ie = periodic_spline(points, n)
+    return [v * DEG for v in dp], [v * DEG for v in ie]
 
 
 class Gait(Profile):

@@ -110,6 +110,7 @@ class BatchModel(CompliantModel):
         self._x_next = np.zeros((8, n))
         self.x = self._z[:8]
         self.tau_applied = [np.zeros(n), np.zeros(n)]
+        self.load = None
 
     def reset(self, x0: np.ndarray | None = None) -> None:
         self._z[:] = 0.0
@@ -156,7 +157,7 @@ class BatchPlant:
         """Configs with equal keys can be stepped in one batch."""
         sim = cfg["sim"]
         return (cfg["controller"]["rate_hz"], sim["substeps"], sim["cables"], sim["friction"],
-                tuple(e["type"] for e in sim["effects"]))
+                tuple(e["type"] for e in sim["effects"]), sim["scenario"])
 
     @staticmethod
     def check_config(cfg: Mapping[str, Any]) -> None:
@@ -184,6 +185,11 @@ class BatchPlant:
         for j, p in enumerate(plants):
             for i, d in enumerate(p.disturbances):
                 self._dist[:, i, j] = d["start"], d["stop"], d["torque_dp"], d["torque_ie"]
+        self.walking = None
+        if first.walking is not None:
+            from sim_backend.walking import WalkingScenario
+
+            self.walking = self.model.load = WalkingScenario.stack([p.walking for p in plants])
         self.rngs = [p.rng for p in plants]
         self._noise = np.zeros((NOISE_BLOCK, 2, n))          # read per tick: (2, plants) contiguous
         self._draw = np.empty((n, NOISE_BLOCK, 2))           # each plant's stream drawn as alone
@@ -211,6 +217,8 @@ class BatchPlant:
         i2 = self.amps[1].apply(current_2)
         self.current[0], self.current[1] = i1, i2
         dp, ie = self.disturbance()
+        if self.walking is not None:
+            self.walking.advance(self.t)
         self.model.step(self.kt * i1, self.kt * i2, dp, ie)
         self.ticks += 1
 

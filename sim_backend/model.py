@@ -62,6 +62,9 @@ class CompliantModel:
         self._x_next = np.zeros(N_X)
         self.x = self._z[:N_X]  # a view: the state lives in the first 8 entries of z
         self.tau_applied = [0.0, 0.0]   # N m, motor torque command after command effects (last tick)
+        # an external load on the foot that depends on its state (the walking scenario's body), or
+        # None: ``load.torque(th_dp, th_ie, w_dp, w_ie)`` -> N m [DP, IE], evaluated at every substep
+        self.load = None
 
     # -- state -----------------------------------------------------------------------------------
     def reset(self, x0: np.ndarray | None = None) -> None:
@@ -104,6 +107,10 @@ class CompliantModel:
         maths), so the batch simulator runs this same code on rows of arrays over its plants."""
         f0 = td_dp - self._grav * (sin(s[0]) - s[0])
         f1 = td_ie
+        if self.load is not None:
+            l0, l1 = self.load.torque(s[0], s[1], s[4], s[5])
+            f0 = f0 + l0
+            f1 = f1 + l1
         f2, f3 = tau1, tau2
         d2 = d3 = tc1 = tc2 = 0.0
         if self._cable_fx:

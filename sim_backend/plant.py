@@ -51,6 +51,11 @@ class SimulatedPlant:
         self.extra_disturbance = [0.0, 0.0]  # N m at the ankle [DP, IE], set by tests and tools
         self.current = [0.0, 0.0]            # A actually driven in the last tick
         self.ticks = 0
+        self.walking = None
+        if sim["scenario"] == "walking":
+            from sim_backend.walking import WalkingScenario
+
+            self.walking = self.model.load = WalkingScenario(sim["walking"])
         self.model.set_rest_at((0.0, 0.0))
 
     @property
@@ -75,6 +80,8 @@ class SimulatedPlant:
         self.current[0] = i1
         self.current[1] = i2
         dp, ie = self.disturbance()
+        if self.walking is not None:
+            self.walking.advance(self.t)
         self.model.step(self.kt * i1, self.kt * i2, dp, ie)
         self.ticks += 1
 

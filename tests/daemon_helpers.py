@@ -3,6 +3,7 @@ and running a Daemon cycle by cycle on a SimClock."""
 
 from __future__ import annotations
 
+import tracemalloc
 from typing import Callable
 
 from ankle_rt.backend import Backend, SensorFrame
@@ -11,6 +12,19 @@ from ankle_rt.config import Config
 from ankle_rt.daemon import Daemon
 from ankle_rt.log.memory import MemoryRecorder
 from sim_backend.backend import SimBackend
+
+
+def traced_memory(run: Callable[[], None]) -> tuple[int, int]:
+    """(current, peak) bytes Python allocated while ``run()`` ran (tracemalloc): for the per-cycle
+    code that must allocate nothing but float temporaries."""
+    import tracemalloc
+
+    tracemalloc.start()
+    try:
+        run()
+        return tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
 
 
 def variant(cfg: Config, **sections: dict) -> Config:

@@ -88,6 +88,7 @@ def test_refusals_raise_with_the_field_and_change_nothing(lockstep):
         assert exc.value.field == "cmd" and "ACTIVE" in exc.value.message
         for call, field in ((lambda: ankle.set_reference(1.5, 0.0), "dp"), (lambda: ankle.set_gains(kp=-1.0), "kp"),
                             (lambda: ankle.set_gains(bogus=1.0), "bogus"),
+                            (lambda: ankle.set_gains(phase="late_stance", kp=100.0), "phase"),   # sent; PD has no phases
                             (lambda: ankle.start_profile("sine", frequency_hz=100.0), "params.frequency_hz")):
             with pytest.raises(CommandRefused) as exc:
                 call()

@@ -45,8 +45,8 @@ def test_not_a_log_is_refused_with_the_reason(tmp_path):
 
 def test_writer_thread_writes_everything_and_counts_drops(tmp_path):
     w = LogWriter(tmp_path / "w.arlog", {"rate_hz": 1000}, capacity=256, flush_interval_s=0.01)
-    for k in range(1000):     # 18 float64 fields, seq, period, latency, overruns, state, fault, bits
-        w.append(*([float(k)] * 18 + [k, 0.0, 0.0, 0, 1, 0, 0]))
+    for k in range(1000):     # 18 float64 fields, seq, period, latency, overruns, state, fault, bits, gait phase
+        w.append(*([float(k)] * 18 + [k, 0.0, 0.0, 0, 1, 0, 0, 0]))
         if k % 100 == 0:
             time.sleep(0.03)                 # let the writer catch up now and then
     w.close()
@@ -162,6 +162,6 @@ def test_a_failing_disk_costs_records_not_the_loop(tmp_path):
     with open("/dev/full", "wb") as full:
         os.dup2(full.fileno(), w.fd)                 # every later write fails with ENOSPC
     for k in range(100):
-        w.append(*([float(k)] * 18 + [k, 0.0, 0.0, 0, 1, 0, 0]))
+        w.append(*([float(k)] * 18 + [k, 0.0, 0.0, 0, 1, 0, 0, 0]))
     w.close()
     assert w.dropped == 100 and "No space left" in w.error

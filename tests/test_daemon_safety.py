@@ -44,7 +44,7 @@ CASES = [
     # (name, mutate, expected fault, cycles between the injection and the fault)
     ("motor jump", _add("motor_pos", 0, 0.5), Fault.MOTOR_JUMP, 0),
     ("strain-gauge jump", _add("sg_torque", 1, 25.0), Fault.SG_JUMP, 0),
-    ("strain gauge at rail", _set("sg_torque", 0, 80.0), Fault.SG_RAIL, 0),
+    ("strain gauge at rail", _set("sg_torque", 0, 300.0), Fault.SG_RAIL, 0),   # beyond safety.sg_rail_nm (225)
     ("NaN encoder", _set("motor_pos", 1, math.nan), Fault.SENSOR_INVALID, 0),
     ("amplifier not ready", _set("amp_ready", 0, False), Fault.AMP_NOT_READY, 0),
     ("joint encoder beyond range", _set("ankle_pos", 1, math.radians(45)), Fault.ANKLE_RANGE, 0),

@@ -295,7 +295,8 @@ def test_the_closed_loop_update_keeps_no_memory(base):
     temporaries only (no growth in live blocks, a tiny peak)."""
     import gc
     import sys
-    import tracemalloc
+
+    from tests.daemon_helpers import traced_memory
 
     cfg = impedance_cfg(base)
     cfg["controller"]["friction_ff"].update(enabled=True, model="identified")
@@ -316,12 +317,7 @@ def test_the_closed_loop_update_keeps_no_memory(base):
     cycles(20000)
     # no growth: a block kept per cycle would be 20000; the float free list (100) may fill meanwhile
     assert sys.getallocatedblocks() - blocks < 120
-    tracemalloc.start()
-    try:
-        cycles(2000)
-        current, peak = tracemalloc.get_traced_memory()
-    finally:
-        tracemalloc.stop()
+    current, peak = traced_memory(lambda: cycles(2000))
     assert current < 1024 and peak < 4096
 
 

@@ -20,7 +20,7 @@ from ankle_rt.interchange import read_csv
 from ankle_rt.log.export import csv_columns
 from ankle_rt.log.header import BLOCK_SIZE, HEADER_SIZE, MAGIC_V1, V1_HEADER_SIZE, LogFormatError
 from ankle_rt.log.reader import read_log
-from ankle_rt.log.record import DATA_DTYPE, DATA_STRUCT, FIELDS, RECORD_SIZE
+from ankle_rt.log.record import DATA_DTYPE, DATA_STRUCT, FIELDS, RECORD_DTYPE, RECORD_SIZE
 from ankle_rt.log.summary import format_summary, summarize_log
 from tests.log_fuzz import fuzz_logs, scratch_dir
 
@@ -127,10 +127,39 @@ def test_a_nan_time_in_a_format1_log_spares_its_neighbours_too(clean, tmp_path):
     assert s["cycles"] == N_RECORDS - 2 and "FAULT" not in format_summary(s)
 
 
+def _older(records: np.ndarray, n_fields: int) -> np.ndarray:
+    """``records`` in the packed layout of a log written when the record had ``n_fields`` fields."""
+    from ankle_rt.log.record import layout
+
+    out = np.zeros(len(records), dtype=layout(n_fields, False))
+    for name in out.dtype.names:
+        out[name] = records[name]
+    return out
+
+
 def test_a_format1_log_with_a_damaged_header_still_reads(clean, tmp_path):
+    from ankle_rt.log.header import V1_FIELDS
+
     head = (MAGIC_V1 + b'{"rate_hz": 10\xff00}\n').ljust(V1_HEADER_SIZE, b" ")
-    log = read_log(_write(tmp_path, head + clean[1].tobytes()))
+    log = read_log(_write(tmp_path, head + _older(clean[1], V1_FIELDS).tobytes()))
     assert log.version == 1 and log.meta == {} and len(log) == N_RECORDS and "format 1" in log.header_note
+    assert np.array_equal(log.records["t"], clean[1]["t"]) and not log.records["gait_phase"].any()
+
+
+def test_a_log_written_before_the_gait_phase_field_reads_with_phase_zero(clean, tmp_path):
+    """Fields are only appended: a format-2 log of the older 25-field record (CRC over its 168 data
+    bytes) reads, its records upgraded to this layout with gait_phase 0."""
+    from ankle_rt.log.header import MAGIC, V1_FIELDS
+
+    old = _older(clean[1], V1_FIELDS)
+    meta = {"format": 2, "rate_hz": 1000, "fields": [[n, old.dtype[n].str, ""] for n in old.dtype.names]}
+    block = (MAGIC + json.dumps(meta).encode() + b"\n").ljust(BLOCK_SIZE - 4, b" ")
+    block += struct.pack("<I", zlib.crc32(block))
+    body = b"".join(row + struct.pack("<I", zlib.crc32(row)) for row in (old[i:i + 1].tobytes() for i in range(len(old))))
+    log = read_log(_write(tmp_path, block + block + body))
+    assert log.version == 2 and log.damaged == 0 and len(log) == N_RECORDS
+    assert log.records.dtype == RECORD_DTYPE and not log.records["gait_phase"].any()
+    assert np.array_equal(log.records["sg_torque_dp"], clean[1]["sg_torque_dp"])
 
 
 def test_an_unknown_format_version_is_named(tmp_path):

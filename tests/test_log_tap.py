@@ -1,6 +1,7 @@
 """The log writer's tap (what the Lab Streaming Layer publisher hangs on): it sees every record once,
 in order, across the ring's wrap; a tap that fails is dropped with its reason and the log goes on;
-and the LSL publisher turns state changes and faults into markers (with a real inlet)."""
+and the LSL publisher turns state changes, faults and gait-phase changes into markers (with a real
+inlet)."""
 
 from __future__ import annotations
 
@@ -17,8 +18,8 @@ from ankle_rt.safety import Fault, State
 
 
 
-def record(k: int, state: int = State.ACTIVE, fault: int = Fault.NONE) -> tuple:
-    return (k * 1e-3, *[float(k)] * (len(CHANNELS) - 2), k * 1e-3, k, 1000.0, 50.0, 0, state, fault, 0)
+def record(k: int, state: int = State.ACTIVE, fault: int = Fault.NONE, gait_phase: int = 0) -> tuple:
+    return (k * 1e-3, *[float(k)] * (len(CHANNELS) - 2), k * 1e-3, k, 1000.0, 50.0, 0, state, fault, 0, gait_phase)
 
 
 class Collecting:
@@ -72,13 +73,14 @@ def test_a_failing_tap_is_dropped_and_the_log_goes_on(tmp_path):
     assert len(log) == 300 and writer.status()["state"] == "closed"
 
 
-def test_state_changes_and_faults_become_markers(tmp_path):
+def test_state_changes_faults_and_gait_phases_become_markers(tmp_path):
     pylsl = pytest.importorskip("pylsl", reason="pylsl is not installed (pip install 'ankle-rt[lab]')")
+    from ankle_rt.control.gait_phase import EARLY_STANCE, EARLY_SWING, PHASE_NAMES, SAFE
     from ankle_rt.log.lsl import LslPublisher
 
     source_id = f"ankle-rt-test-{uuid.uuid4().hex[:8]}"
     publisher = LslPublisher(1000.0, source_id, lambda: 100.0, {s.name: int(s) for s in State},
-                             {f.name: int(f) for f in Fault})
+                             {f.name: int(f) for f in Fault}, phases=PHASE_NAMES)
     publisher.open()
     try:
         found = pylsl.resolve_byprop("source_id", source_id + "-events", minimum=1, timeout=30.0)
@@ -87,8 +89,9 @@ def test_state_changes_and_faults_become_markers(tmp_path):
         writer = LogWriter(tmp_path / "c.arlog", {}, capacity=256, flush_interval_s=3600.0)   # its ring only
         states = [State.CONFIGURED] * 3 + [State.ACTIVE] * 5 + [State.FAULT] * 4 + [State.SAFE] * 3
         faults = [Fault.NONE] * 8 + [Fault.MISSED_DEADLINES] * 7
-        for k, (state, fault) in enumerate(zip(states, faults)):
-            writer.append(*record(k, state, fault))
+        phases = [0] * 3 + [1 + SAFE] * 2 + [1 + EARLY_STANCE] * 2 + [1 + EARLY_SWING] * 8   # the log's codes
+        for k, (state, fault, phase) in enumerate(zip(states, faults, phases)):
+            writer.append(*record(k, state, fault, phase))
         half = 6 * RECORD_SIZE
         publisher.publish(writer.ring.view[:half])        # two flushes: a change at the boundary counts too
         publisher.publish(writer.ring.view[half:len(states) * RECORD_SIZE])
@@ -98,13 +101,14 @@ def test_state_changes_and_faults_become_markers(tmp_path):
             got, ts = inlet.pull_chunk(timeout=0.2)
             markers += [m[0] for m in got]
             stamps += ts
-            if len(markers) >= 5:
+            if len(markers) >= 8:
                 break
     finally:
         publisher.close()
-    assert markers == ["state:configured", "state:active", "fault:missed_deadlines", "state:fault", "state:safe"]
-    assert stamps == pytest.approx([100.0, 100.003, 100.008, 100.008, 100.012])
-    assert publisher.samples == len(states) and publisher.events == 5
+    assert markers == ["state:configured", "state:active", "gait_phase:safe", "gait_phase:early_stance",
+                       "gait_phase:early_swing", "fault:missed_deadlines", "state:fault", "state:safe"]
+    assert stamps == pytest.approx([100.0, 100.003, 100.003, 100.005, 100.007, 100.008, 100.008, 100.012])
+    assert publisher.samples == len(states) and publisher.events == 8
 
 
 def test_without_pylsl_the_daemon_refuses_to_start_naming_the_key(sim_cfg, tmp_path, monkeypatch):

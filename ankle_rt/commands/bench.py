@@ -48,6 +48,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     batch.add_argument("--json", action="store_true", help="print one JSON object")
     batch.set_defaults(handler=bench_batch)
     register_impedance(sub)
+    register_walk(sub)
 
 
 def realtime_run(cfg, duration_s: float, log_dir: Path) -> tuple[dict, list[str]]:
@@ -435,4 +436,61 @@ def bench_impedance(args: argparse.Namespace) -> int:
           f"{cycle_s / ref_s:.2f} ref steps of {ref_s * 1e6:.1f} us")
     if note:
         print(note)
+    return 0
+
+
+def register_walk(sub: argparse._SubParsersAction) -> None:
+    from ankle_rt.walk_bench import __doc__ as walk_doc
+
+    p = sub.add_parser("walk", help="strides on the walking scenario for several wearers and cadences",
+                       description=walk_doc, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--config", metavar="FILE", help="configuration (default: the shipped config/walk.yaml, the "
+                                                    "gait-phase controller)")
+    p.add_argument("--masses", default="50,75,100", metavar="KG,KG,...", help="wearer masses (default 50,75,100)")
+    p.add_argument("--cadences", default="slow,normal,fast", metavar="C,C,...",
+                   help="cadences: slow, normal, fast (default all three)")
+    p.add_argument("--strides", type=int, default=12, metavar="N",
+                   help="strides analysed per wearer and cadence, after a warm-up stride (default 12)")
+    p.add_argument("--plot", metavar="PNG", help="ankle moment against angle per phase, with the able-bodied curve")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(handler=bench_walk)
+
+
+def bench_walk(args: argparse.Namespace) -> int:
+    from ankle_rt import jsonout
+    from ankle_rt.progress import Progress
+    from ankle_rt.walk_bench import default_walk_config, plot_walk, walk_bench
+    from ankle_rt.gait_data import CADENCES
+
+    try:
+        masses = [float(m) for m in args.masses.split(",")]
+    except ValueError:
+        raise SystemExit(f"ankle-rt bench walk: --masses: expected numbers in kg, got {args.masses!r}") from None
+    cadences = args.cadences.split(",")
+    bad = [c for c in cadences if c not in CADENCES]
+    if bad:
+        raise SystemExit(f"ankle-rt bench walk: --cadences: unknown {', '.join(bad)} (expected {', '.join(CADENCES)})")
+    if args.strides < 1:
+        raise SystemExit("ankle-rt bench walk: --strides: must be >= 1")
+    bar = Progress("walking", len(masses) * len(cadences))
+    result, runs = walk_bench(args.config or default_walk_config(), masses, cadences, args.strides,
+                              progress=lambda done, total, what: bar.update(done, what))
+    bar.close()
+    result["plot"] = plot_walk(runs, args.plot) if args.plot else ""
+    if args.json:
+        print(jsonout.dumps(result))
+        return 0
+    print(f"{'wearer':>16s} {'strides':>7s} {'moment err %':>12s} {'angle err deg':>13s} {'push-off J/kg':>13s} "
+          f"{'I rms A':>7s} {'M peak / able-bodied N m':>24s}  fault")
+    for w in result["wearers"]:
+        print(f"{w['mass_kg']:6g} kg {w['cadence']:>7s} {w['strides']:7d} {w['moment_rms_error_pct']:12.1f} "
+              f"{w['angle_rms_error_deg']:13.1f} {w['push_off_work_j_per_kg']:13.2f} {w['current_rms_a']:7.2f} "
+              f"{w['moment_peak_nm']:13.0f} / {w['moment_ab_peak_nm']:<8.0f}  {w['fault']}")
+    print(f"strides {result['strides']}, faults {result['faults']}; worst stride: moment RMS error "
+          f"{result['moment_rms_error_pct']:.1f} %, angle RMS error {result['angle_rms_error_deg']:.1f} deg, "
+          f"current RMS {result['current_rms_a']:.2f} A; current peak {result['current_peak_a']:.1f} A; "
+          f"push-off work at normal cadence (smallest wearer mean) {result['push_off_work_j_per_kg']:.2f} J/kg; "
+          f"I2t headroom {result['i2t_headroom_pct']:.1f} %")
+    if result["plot"]:
+        print(result["plot"])
     return 0

@@ -60,6 +60,12 @@ def describe(cfg) -> list[str]:
     elif c["type"] == "impedance":
         controller = "impedance, " + ", ".join(f"{k} {v:g}" if isinstance(v, (int, float)) else f"{k} {v}"
                                              for k, v in c["impedance"].items())
+    elif c["type"] == "gait_phase":
+        g = c["gait_phase"]
+        controller = "gait_phase, " + "; ".join(
+            f"{p.replace('_', ' ')} K {g[p]['stiffness_dp']:g} B {g[p]['damping_dp']:g} theta_0 "
+            f"{math.degrees(g[p]['equilibrium_dp']):.3g} deg" for p in ("early_stance", "late_stance", "early_swing",
+                                                                        "late_swing", "safe")) + " (DP)"
     else:
         controller = f"{c['type']} (plugin), params {dict(c['params'])}"
     if c["friction_ff"]["enabled"]:

@@ -14,7 +14,7 @@ from pathlib import Path
 from ankle_rt.client import AnkleClient, DaemonUnreachable, socket_path_of
 from ankle_rt.command_limits import GAIN_FIELDS
 from ankle_rt.references import angle_params
-from ankle_rt.service.protocol import PROFILE_NAMES, CommandError
+from ankle_rt.service.protocol import GAIT_PHASES, PHASE_FIELDS, PROFILE_NAMES, CommandError
 
 EXIT_REFUSED = 1
 EXIT_UNREACHABLE = 3
@@ -56,6 +56,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     gains = sub.add_parser("gains", help="change controller gains at run time (bumpless, SI units)")
     for name, doc in GAIN_FIELDS.items():
         gains.add_argument("--" + name.replace("_", "-"), dest=name, type=float, help=doc)
+    gains.add_argument("--phase", choices=GAIT_PHASES, help=PHASE_FIELDS["phase"] + "; the other options then "
+                                                               "set that phase's stiffness, damping and equilibrium")
+    for name in ("equilibrium_dp", "equilibrium_ie"):
+        gains.add_argument("--" + name.replace("_", "-"), dest=name, type=float, help=PHASE_FIELDS[name])
     profile = sub.add_parser("profile", help="start a reference profile",
                              description="Start a reference profile. Parameters are KEY=VALUE: angles (dp, ie, "
                                          "amplitude_dp, amplitude_ie, ie_phase) in DEGREES (converted to rad on the "
@@ -88,7 +92,8 @@ def request_from_args(args: argparse.Namespace) -> dict:
             req["ramp"] = args.ramp
         return req
     if name == "gains":
-        return {"cmd": "set_gains", **{k: getattr(args, k) for k in GAIN_FIELDS if getattr(args, k) is not None}}
+        return {"cmd": "set_gains", **{k: getattr(args, k) for k in (*GAIN_FIELDS, *PHASE_FIELDS)
+                                       if getattr(args, k) is not None}}
     if name == "profile":
         params = dict(_param(p) for p in args.params)
         if not args.rad:
@@ -203,6 +208,7 @@ def watch_view(status: dict, path: Path) -> list[str]:
     loop = status.get("loop") or {}
     pe = loop.get("period_error") or {}
     gains = status.get("gains") or {}
+    gait = status.get("gait_phase")
     lines = [f"ankle-rt ctl watch  {path}  t = {_fmt(status.get('t'))} s   (Ctrl-C quits)",
              f"  state: {str(status.get('state', '?')).upper()}   fault: {fault}"
              + (f" ({status.get('fault_description')}, at t = {_fmt(status.get('fault_time_s'))} s)"
@@ -217,6 +223,7 @@ def watch_view(status: dict, path: Path) -> list[str]:
              row("current", status.get("current_a"), "A"),
              f"  controller: {status.get('controller', '-')}   gains: "
              + (", ".join(f"{k} {_fmt(v)}" for k, v in gains.items()) or "-"),
+             *([f"  gait phase: {gait['phase']} for {_fmt(gait.get('time_in_phase_s'))} s"] if gait else []),
              f"  loop: {loop.get('cycles', '-')} cycles, {loop.get('overruns', '-')} overruns, period error p99 "
              f"{_fmt(pe.get('p99_us'))} us"]
     return lines

@@ -90,3 +90,11 @@ def impedance_controller(ctx: "ControllerContext") -> CycleController:
 
     _no_params(ctx, "impedance", "controller.impedance")
     return ImpedanceController.from_config(ctx.cfg, ctx.kin, ctx.ref, friction=ctx.friction)
+
+
+def gait_phase_controller(ctx: "ControllerContext") -> CycleController:
+    """The built-in ``gait_phase``: finite-state impedance over the stride, ``controller.gait_phase``."""
+    from ankle_rt.control.gait_phase import GaitPhaseController
+
+    _no_params(ctx, "gait_phase", "controller.gait_phase")
+    return GaitPhaseController.from_config(ctx.cfg, ctx.kin, ctx.ref, friction=ctx.friction)

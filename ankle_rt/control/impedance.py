@@ -60,19 +60,15 @@ class ImpedanceController(RampedGainController):
         from ankle_rt.config import ConfigError
 
         c = cfg["controller"]
-        dt = 1.0 / c["rate_hz"]
-        loop = limits = None
         joint = uses_joint_encoders(cfg)
         if joint and cfg["backend"] != "sim" and cfg["joint_encoders"]["counts_per_rev"] is None:
             raise ConfigError("angle_source joint_encoders needs joint encoders (joint_encoders.counts_per_rev)",
                               getattr(cfg, "source", None), "controller.impedance.angle_source")
-        if torque_feedback(cfg):
-            loop = JointTorqueLoop(TorqueLoopGains.from_config(c["torque_loop"]), dt, ReflectedActuator.from_config(cfg))
-            limits = ImpedanceLimits.from_config(cfg)
-            friction = friction.without_viscous() if friction is not None else None
+        loop, limits, friction = actuation_from_config(cfg, friction)
         try:
-            return cls(kin, ref, c["impedance"], dt=dt, ramp_s=c["gain_ramp_s"], soft_start_s=c["soft_start_s"],
-                       friction=friction, torque_loop=loop, limits=limits, joint_encoders=joint)
+            return cls(kin, ref, c["impedance"], dt=1.0 / c["rate_hz"], ramp_s=c["gain_ramp_s"],
+                       soft_start_s=c["soft_start_s"], friction=friction, torque_loop=loop, limits=limits,
+                       joint_encoders=joint)
         except GainError as exc:
             raise ConfigError(str(exc), getattr(cfg, "source", None), f"controller.impedance.{exc.gain}") from None
 
@@ -105,11 +101,19 @@ class ImpedanceController(RampedGainController):
         g = self.gains
         g.advance()
         k0, k1, b0, b1 = g.values
-        s = g.scale
-        # the loop's lag on the spring torque (lag_s) is led by K lag_s of damping (JointTorqueLoop.lag_s)
         joint = self.joint_encoders
-        t0 = k0 * (ref_dp - select(joint, est.joint_dp, est.dp)) - (b0 + k0 * self.lead0) * est.dp_vel
-        t1 = k1 * (ref_ie - select(joint, est.joint_ie, est.ie)) - (b1 + k1 * self.lead1) * est.ie_vel
+        return self.actuate(est, k0 * (ref_dp - select(joint, est.joint_dp, est.dp)) - b0 * est.dp_vel,
+                            k1 * (ref_ie - select(joint, est.joint_ie, est.ie)) - b1 * est.ie_vel, k0, k1)
+
+    def actuate(self, est: Estimate, t0: Value, t1: Value, k0: Value, k1: Value) -> tuple[Value, Value]:
+        """Motor torques (N m) rendering the desired joint torques ``t0``, ``t1`` (N m [DP, IE]) of a
+        law with stiffness ``k0``, ``k1`` (N m/rad): the loop's lag on the spring torque (lag_s) led by
+        K lag_s of damping (JointTorqueLoop.lag_s, counted by ImpedanceLimits), the joint-torque loop
+        if closed, R^-T, the friction feed-forward, times the soft-start scale (advanced by the law).
+        Element-wise; every controller on this actuation (impedance, gait phase) calls it once per cycle."""
+        t0 = t0 - k0 * self.lead0 * est.dp_vel
+        t1 = t1 - k1 * self.lead1 * est.ie_vel
+        s = self.gains.scale
         j0, j1 = est.sg_dp, est.sg_ie
         loop = self.torque_loop
         if loop is not None:
@@ -118,3 +122,16 @@ class ImpedanceController(RampedGainController):
         ff = self.friction
         return (s * (RiT[0] * t0 + RiT[1] * t1 + ff.torque(est.mv1, RiT[0] * j0 + RiT[1] * j1)),
                 s * (RiT[2] * t0 + RiT[3] * t1 + ff.torque(est.mv2, RiT[2] * j0 + RiT[3] * j1)))
+
+
+def actuation_from_config(cfg: "Config", friction: FrictionFeedForward | None
+                          ) -> tuple[JointTorqueLoop | None, ImpedanceLimits | None, FrictionFeedForward | None]:
+    """The impedance actuation's pieces from ``cfg``: the joint-torque loop and its stable set when
+    :func:`torque_feedback` says so (the feed-forward's viscous terms then left out), else None, None
+    and ``friction`` as given."""
+    if not torque_feedback(cfg):
+        return None, None, friction
+    c = cfg["controller"]
+    loop = JointTorqueLoop(TorqueLoopGains.from_config(c["torque_loop"]), 1.0 / c["rate_hz"],
+                           ReflectedActuator.from_config(cfg))
+    return loop, ImpedanceLimits.from_config(cfg), friction.without_viscous() if friction is not None else None

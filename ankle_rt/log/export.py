@@ -100,6 +100,7 @@ def _schema() -> dict[str, Any]:
                        "description": field_doc(name) + (" (null: not available)" if kind == "number" else "")}
     props["state_name"] = {"type": "string", "description": "safety.State name of `state`"}
     props["fault_name"] = {"type": "string", "description": "safety.Fault name of `fault`"}
+    props["gait_phase_name"] = {"type": "string", "description": "gait phase of `gait_phase` (none: another controller)"}
     return {"type": "object", "title": MCAP_SCHEMA, "properties": props}
 
 
@@ -128,6 +129,7 @@ def write_mcap(path: str | Path, log: RunLog) -> dict[str, Any]:
     times = start + np.round(rel * 1e9).astype(np.int64)
     state_names = {int(s): s.name for s in State}
     fault_names = {int(f): f.name for f in Fault}
+    from ankle_rt.control.gait_phase import PHASE_NAMES
     names = [name for name, *_ in FIELDS]
     path = Path(path)
     tmp = path.with_name(f".{path.name}.part")
@@ -145,6 +147,8 @@ def write_mcap(path: str | Path, log: RunLog) -> dict[str, Any]:
                     message = {name: columns[name][j] for name in names}
                     message["state_name"] = state_names[message["state"]]
                     message["fault_name"] = fault_names[message["fault"]]
+                    code = message["gait_phase"]
+                    message["gait_phase_name"] = PHASE_NAMES[code] if code < len(PHASE_NAMES) else str(code)
                     i = start + j
                     stamp = int(times[i])
                     writer.add_message(channel, log_time=stamp, publish_time=stamp, sequence=i,

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from ankle_rt.log.record import DATA_DTYPE, FIELDS, RECORD_DTYPE, RECORD_SIZE, field_doc
+from ankle_rt.log.record import FIELDS, RECORD_DTYPE, RECORD_SIZE, field_doc, layout
 
 MAGIC = b"ANKLOG02"
 MAGIC_V1 = b"ANKLOG01"
@@ -25,6 +25,7 @@ BLOCK_SIZE = 8192                    # one header copy (room for large controlle
 HEADER_SIZE = 2 * BLOCK_SIZE         # records start here (format 2)
 V1_HEADER_SIZE = 4096                # format 1: one block, no CRC
 FORMAT_VERSION = 2
+V1_FIELDS = 25                       # the record's fields when format 1 was written (before gait_phase)
 _CRC = struct.Struct("<I")
 
 
@@ -73,14 +74,18 @@ def _json(block: bytes) -> dict[str, Any] | None:
     return meta if isinstance(meta, dict) else None
 
 
-def _check_layout(meta: dict[str, Any], dtype: np.dtype, source: str) -> None:
+def _layout(meta: dict[str, Any], checksummed: bool, source: str) -> np.dtype:
+    """The records' dtype from the header's field list: this version's layout or an older one (fields
+    are only appended, so an older log's fields are a prefix of this version's)."""
     fields = meta.get("fields")
     try:
-        layout = [(str(f[0]), str(f[1])) for f in fields]
+        found = [(str(f[0]), str(f[1])) for f in fields]
     except (TypeError, IndexError, KeyError):
         raise LogFormatError(f"{source}: header has no readable record layout (fields)") from None
-    if layout != [(name, dtype[name].str) for name in dtype.names]:
-        raise LogFormatError(f"{source}: record layout differs from this version's (fields {layout[:3]}...)")
+    dtype = layout(len(found), checksummed) if 0 < len(found) <= len(FIELDS) else None
+    if dtype is None or found != [(name, dtype[name].str) for name in dtype.names]:
+        raise LogFormatError(f"{source}: record layout differs from this version's (fields {found[:3]}...)")
+    return dtype
 
 
 def decode_header(head: bytes, source: str) -> Header:
@@ -95,10 +100,9 @@ def decode_header(head: bytes, source: str) -> Header:
             raise LogFormatError(f"{source}: header truncated ({len(head)} of {V1_HEADER_SIZE} bytes)")
         meta = _json(head[:V1_HEADER_SIZE])
         if meta is None:
-            return Header({}, V1_HEADER_SIZE, DATA_DTYPE, 1, "header damaged (format 1 has no copy): "
-                          "metadata lost, records read with the format-1 layout")
-        _check_layout(meta, DATA_DTYPE, source)
-        return Header(meta, V1_HEADER_SIZE, DATA_DTYPE, 1)
+            return Header({}, V1_HEADER_SIZE, layout(V1_FIELDS, False), 1, "header damaged (format 1 has no "
+                          "copy): metadata lost, records read with the format-1 layout")
+        return Header(meta, V1_HEADER_SIZE, _layout(meta, False, source), 1)
     if not any(c.startswith(MAGIC) for c in copies):
         magic = head[:len(MAGIC)]
         if magic.startswith(MAGIC_PREFIX) and magic[len(MAGIC_PREFIX):].isdigit():
@@ -112,8 +116,7 @@ def decode_header(head: bytes, source: str) -> Header:
                 zlib.crc32(block[:BLOCK_SIZE - _CRC.size]):
             meta = _json(block[:BLOCK_SIZE - _CRC.size])
             if meta is not None:
-                _check_layout(meta, RECORD_DTYPE, source)
-                return Header(meta, HEADER_SIZE, RECORD_DTYPE, FORMAT_VERSION,
+                return Header(meta, HEADER_SIZE, _layout(meta, True, source), FORMAT_VERSION,
                               "first header copy damaged; read the second" if k else "")
     return Header({}, HEADER_SIZE, RECORD_DTYPE, FORMAT_VERSION,
                   "both header copies damaged: metadata lost, records read with the format-2 layout")

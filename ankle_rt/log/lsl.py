@@ -3,7 +3,8 @@
 Two outlets: ``ankle-rt`` (type ``ankle-rt``, one double channel per physical field of the log record,
 :data:`CHANNELS`; labels, units and meanings in the stream's ``desc/channels``; the nominal rate =
 the loop's) and ``ankle-rt-events``
-(type ``Markers``, one string channel: ``state:active``, ``fault:missed_deadlines``, ...). Each
+(type ``Markers``, one string channel: ``state:active``, ``fault:missed_deadlines``, and with the
+gait-phase controller every phase change, ``gait_phase:early_stance``, ...). Each
 sample is stamped with its cycle's start on the loop clock (CLOCK_MONOTONIC, which is LSL's
 ``local_clock()`` on Linux), so LabRecorder aligns it with motion capture, force plates and EMG.
 
@@ -16,7 +17,7 @@ from __future__ import annotations
 
 import importlib.util
 import socket
-from typing import Any, Callable, Mapping
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -44,6 +45,7 @@ state and fault are the marker stream; loop timing and counters stay in the run 
 _LOOP_TIME = CHANNELS.index("loop_time")
 _STATE = RECORD_DTYPE.fields["state"][1]
 _FAULT = RECORD_DTYPE.fields["fault"][1]
+_PHASE = RECORD_DTYPE.fields["gait_phase"][1]
 
 
 class LslUnavailable(RuntimeError):
@@ -57,10 +59,12 @@ def pylsl_available() -> bool:
 
 class LslPublisher:
     """The two outlets of one run. ``origin_s()``: the loop start on the loop clock (s), to which a
-    record's ``loop_time`` is added; ``states`` and ``faults``: code names (the log header's)."""
+    record's ``loop_time`` is added; ``states`` and ``faults``: code names (the log header's);
+    ``phases``: the record's ``gait_phase`` names by code (:data:`ankle_rt.control.gait_phase.PHASE_NAMES`)."""
 
     def __init__(self, rate_hz: float, source_id: str, origin_s: Callable[[], float],
-                 states: Mapping[str, int], faults: Mapping[str, int], info: Mapping[str, str] | None = None):
+                 states: Mapping[str, int], faults: Mapping[str, int], info: Mapping[str, str] | None = None,
+                 phases: Sequence[str] = ()):
         if not pylsl_available():
             raise LslUnavailable("lsl.enabled needs pylsl: pip install 'ankle-rt[lab]' (or pip install pylsl)")
         self.rate_hz = rate_hz
@@ -68,6 +72,7 @@ class LslPublisher:
         self.origin_s = origin_s
         self.state_names = {code: name.lower() for name, code in states.items()}
         self.fault_names = {code: name.lower() for name, code in faults.items()}
+        self.phase_names = dict(enumerate(phases))
         self.info = dict(info or {})
         self.outlet: Any = None
         self.markers: Any = None
@@ -76,6 +81,7 @@ class LslPublisher:
         self.error = ""           # why publishing stopped ("" while it works)
         self._state = -1          # the last record's state and fault codes (-1: none seen yet)
         self._fault = 0
+        self._phase = 0           # the last record's gait_phase code (0: not the gait-phase controller)
 
     def open(self) -> None:
         """Make the outlets (in the log writer's thread, at its normal scheduling)."""
@@ -113,23 +119,30 @@ class LslPublisher:
         self.samples += n
         states = np.ndarray((n,), "u1", chunk, _STATE, (RECORD_SIZE,))
         faults = np.ndarray((n,), "u1", chunk, _FAULT, (RECORD_SIZE,))
-        if states.min() == states.max() == self._state and faults.min() == faults.max() == self._fault:
-            return   # nothing happened (almost every flush)
-        for stamp, marker in self._events(states, faults, stamps):
+        phases = np.ndarray((n,), "u1", chunk, _PHASE, (RECORD_SIZE,))
+        if (states.min() == states.max() == self._state and faults.min() == faults.max() == self._fault
+                and phases.min() == phases.max() == self._phase):
+            return   # nothing happened (almost every flush while standing; a few times a stride walking)
+        for stamp, marker in self._events(states, faults, phases, stamps):
             self.markers.push_sample([marker], stamp)
             self.events += 1
 
-    def _events(self, states: np.ndarray, faults: np.ndarray, stamps: np.ndarray) -> list[tuple[float, str]]:
-        """(time, marker) of every state change and every new fault in these records."""
+    def _events(self, states: np.ndarray, faults: np.ndarray, phases: np.ndarray,
+                stamps: np.ndarray) -> list[tuple[float, str]]:
+        """(time, marker) of every state change, every new fault and every gait-phase change in these
+        records."""
         state = np.concatenate(([self._state], states.astype(np.int64)))
         fault = np.concatenate(([self._fault], faults.astype(np.int64)))
+        phase = np.concatenate(([self._phase], phases.astype(np.int64)))
         out = []
-        for i in np.flatnonzero((state[1:] != state[:-1]) | (fault[1:] != fault[:-1])):
+        for i in np.flatnonzero((state[1:] != state[:-1]) | (fault[1:] != fault[:-1]) | (phase[1:] != phase[:-1])):
             if fault[i + 1] != fault[i] and fault[i + 1] != 0:
                 out.append((float(stamps[i]), f"fault:{self.fault_names.get(int(fault[i + 1]), fault[i + 1])}"))
             if state[i + 1] != state[i]:
                 out.append((float(stamps[i]), f"state:{self.state_names.get(int(state[i + 1]), state[i + 1])}"))
-        self._state, self._fault = int(state[-1]), int(fault[-1])
+            if phase[i + 1] != phase[i]:
+                out.append((float(stamps[i]), f"gait_phase:{self.phase_names.get(int(phase[i + 1]), phase[i + 1])}"))
+        self._state, self._fault, self._phase = int(state[-1]), int(fault[-1]), int(phase[-1])
         return out
 
     def status(self) -> dict[str, Any]:

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from ankle_rt.log.header import HEADER_SIZE, LogFormatError, decode_header
-from ankle_rt.log.record import crc_ok
+from ankle_rt.log.record import crc_ok, upgrade
 from ankle_rt.safety import Fault, State
 from ankle_rt.textfile import TextFileError, open_regular
 
@@ -85,7 +85,7 @@ def read_log(path: str | Path, last: int | None = None) -> RunLog:
     except OSError as exc:
         raise LogFormatError(f"{path}: cannot read: {exc.strerror}") from None
     records, damaged = _intact(raw, header.dtype, checksummed)
-    return RunLog(meta=header.meta, records=records, torn_bytes=body - total * size, source=str(path),
+    return RunLog(meta=header.meta, records=upgrade(records), torn_bytes=body - total * size, source=str(path),
                   total_records=total, first_t=float(first["t"][0]) if len(first) else math.nan,
                   damaged=damaged, header_note=header.note, version=header.version)
 

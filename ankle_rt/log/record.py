@@ -40,6 +40,8 @@ FIELDS: tuple[tuple[str, str, str, str], ...] = (
     ("state", "B", "code", "safety.State code"),
     ("fault", "B", "code", "safety.Fault code (reason of the latest fault)"),
     ("backend_faults", "H", "bits", "BackendFault bits of the sample"),
+    ("gait_phase", "B", "code", "gait phase of the gait_phase controller: 1 + its index in "
+                                "ankle_rt.control.gait_phase.PHASES; 0 = another controller (or a log from before the field)"),
 )
 
 _NUMPY = {"d": "<f8", "q": "<i8", "f": "<f4", "I": "<u4", "H": "<u2", "B": "u1"}
@@ -56,21 +58,21 @@ def field_doc(name: str) -> str:
 
 DATA_STRUCT = struct.Struct("<" + "".join(code for _, code, _, _ in FIELDS))   # the loop packs this
 CRC_STRUCT = struct.Struct("<I")
-_DATA_SIZE = DATA_STRUCT.size                                                 # 168 bytes of data ...
-RECORD_SIZE = _DATA_SIZE + CRC_STRUCT.size                                    # ... + CRC: 172 bytes on disk
+_DATA_SIZE = DATA_STRUCT.size                                                 # 169 bytes of data ...
+RECORD_SIZE = _DATA_SIZE + CRC_STRUCT.size                                    # ... + CRC: 173 bytes on disk
 _SEALED = struct.Struct(f"<{_DATA_SIZE}sI")                                   # packed data + its CRC
 # The data fields at their offsets; the trailing CRC is padding to numpy (itemsize RECORD_SIZE).
 _DATA = np.dtype([(name, _NUMPY[code]) for name, code, _, _ in FIELDS])
 RECORD_DTYPE = np.dtype({"names": list(_DATA.names), "formats": [_DATA[n] for n in _DATA.names],
                          "offsets": [_DATA.fields[n][1] for n in _DATA.names], "itemsize": RECORD_SIZE})
-DATA_DTYPE = _DATA    # the fields packed, no CRC: format 1's record (168 bytes), and for comparing data
+DATA_DTYPE = _DATA    # the fields packed, no CRC: for comparing data (format 1's record had no CRC)
 assert _DATA.itemsize == DATA_STRUCT.size
 
 
 class RecordRing:
     """A preallocated buffer of ``capacity`` record slots that the loop fills one record at a time.
 
-    :meth:`pack` packs the data into a preallocated 168-byte scratch buffer, takes its CRC-32 and
+    :meth:`pack` packs the data into a preallocated 169-byte scratch buffer, takes its CRC-32 and
     stores both in slot ``i`` with one more ``pack_into``: no allocation beyond the CRC's int, and no
     per-slot objects (a ring of any size costs its bytes only)."""
 
@@ -91,8 +93,30 @@ class RecordRing:
 
 
 def crc_ok(raw: np.ndarray) -> np.ndarray:
-    """Per record of ``raw`` (an (n, RECORD_SIZE) uint8 array): True where the stored CRC matches."""
-    stored = raw[:, _DATA_SIZE:].copy().view("<u4").ravel() if len(raw) else np.zeros(0, dtype="<u4")
+    """Per record of ``raw`` (an (n, record size) uint8 array, data then CRC): True where the stored
+    CRC matches."""
+    size = raw.shape[1] - CRC_STRUCT.size
+    stored = raw[:, size:].copy().view("<u4").ravel() if len(raw) else np.zeros(0, dtype="<u4")
     crc32 = zlib.crc32
-    computed = np.fromiter((crc32(row) for row in raw[:, :_DATA_SIZE]), dtype=np.uint32, count=len(raw))
+    computed = np.fromiter((crc32(row) for row in raw[:, :size]), dtype=np.uint32, count=len(raw))
     return computed == stored
+
+
+def layout(n_fields: int, checksummed: bool) -> np.dtype:
+    """The record dtype of a log written when the record had the first ``n_fields`` FIELDS (fields
+    are only ever appended): packed data, plus the CRC's bytes as padding when ``checksummed``."""
+    data = np.dtype([(name, _NUMPY[code]) for name, code, _, _ in FIELDS[:n_fields]])
+    if not checksummed:
+        return data
+    return np.dtype({"names": list(data.names), "formats": [data[n] for n in data.names],
+                     "offsets": [data.fields[n][1] for n in data.names], "itemsize": data.itemsize + CRC_STRUCT.size})
+
+
+def upgrade(records: np.ndarray) -> np.ndarray:
+    """Records of an older layout as RECORD_DTYPE; the fields it lacks are 0 (their "absent" value)."""
+    if records.dtype == RECORD_DTYPE:
+        return records
+    out = np.zeros(len(records), dtype=RECORD_DTYPE)
+    for name in records.dtype.names:
+        out[name] = records[name]
+    return out

@@ -193,6 +193,15 @@ def plot_run(records: np.ndarray, torque_constant: float, out_png: str, what: st
     ax2.set_xlabel("t (s)")
     ax2.legend(fontsize=8)
     ax2.set_title("(b) motor torques (kt x set value)")
+    phase = records["gait_phase"]
+    if phase.any():            # the gait-phase controller ran: its phase on the torque panel
+        from ankle_rt.control.gait_phase import PHASE_NAMES
+
+        ax3 = ax2.twinx()
+        ax3.step(t, phase, "k", where="post", lw=0.6, alpha=0.6)
+        ax3.set_yticks(range(len(PHASE_NAMES)))
+        ax3.set_yticklabels([n.replace("_", " ") for n in PHASE_NAMES], fontsize=7)
+        ax3.set_ylim(-0.5, len(PHASE_NAMES) - 0.5)
     fig.suptitle(f"{what}\n{outcome}" if what else outcome, fontsize=10,
                  color="tab:red" if outcome.startswith("FAULT") else "black")
     fig.tight_layout()

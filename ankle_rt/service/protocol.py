@@ -107,6 +107,17 @@ class SetReference:
     ramp: float | None = None
 
 
+# set_gains for the gait_phase controller: which phase's parameters change, and its equilibrium angles
+PHASE_FIELDS: dict[str, str] = {
+    "phase": "gait phase whose parameters change (gait_phase controller: early_stance, late_stance, "
+             "early_swing, late_swing, safe)",
+    "equilibrium_dp": "rad, the phase's DP equilibrium angle (within the ankle range)",
+    "equilibrium_ie": "rad, the phase's IE equilibrium angle (within the ankle range)",
+}
+GAIT_PHASES = ("early_stance", "late_stance", "early_swing", "late_swing", "safe")
+"""= ankle_rt.control.gait_phase.PHASES (tested)."""
+
+
 @dataclass(frozen=True)
 class SetGains:
     """Change controller gains at run time (bumpless). Only the given fields change (None = keep)."""
@@ -117,10 +128,13 @@ class SetGains:
     stiffness_ie: float | None = None
     damping_dp: float | None = None
     damping_ie: float | None = None
+    phase: str | None = None
+    equilibrium_dp: float | None = None
+    equilibrium_ie: float | None = None
 
-    def given(self) -> dict[str, float]:
+    def given(self) -> dict[str, Any]:
         """The fields the request set, name -> value."""
-        return {name: getattr(self, name) for name in GAIN_FIELDS if getattr(self, name) is not None}
+        return {name: getattr(self, name) for name in (*GAIN_FIELDS, *PHASE_FIELDS) if getattr(self, name) is not None}
 
 
 @dataclass(frozen=True)
@@ -205,8 +219,8 @@ def _set_reference(obj: Mapping[str, Any], limits: CommandLimits) -> SetReferenc
 
 def _set_gains(obj: Mapping[str, Any], limits: CommandLimits) -> SetGains:
     names = tuple(GAIN_FIELDS)
-    _check_keys(obj, names)
-    values = {}
+    _check_keys(obj, names + tuple(PHASE_FIELDS))
+    values: dict[str, Any] = {}
     for name in names:
         if name in obj:
             value = _number(obj, name)
@@ -214,8 +228,17 @@ def _set_gains(obj: Mapping[str, Any], limits: CommandLimits) -> SetGains:
             if problem:
                 raise CommandError(name, problem)
             values[name] = value
+    for name in ("equilibrium_dp", "equilibrium_ie"):
+        if name in obj:
+            values[name] = _angle(obj, name, limits)
     if not values:
-        raise CommandError("cmd", f"set_gains needs at least one of: {', '.join(names)}")
+        raise CommandError("cmd", f"set_gains needs at least one of: {', '.join(names + ('equilibrium_dp', 'equilibrium_ie'))}")
+    if "phase" in obj:
+        if obj["phase"] not in GAIT_PHASES:
+            raise CommandError("phase", f"unknown phase {_short(obj['phase'])} (expected one of: {', '.join(GAIT_PHASES)})")
+        values["phase"] = obj["phase"]
+    elif "equilibrium_dp" in values or "equilibrium_ie" in values:
+        raise CommandError("phase", "equilibrium angles belong to a gait phase: give phase too")
     return SetGains(**values)
 
 

@@ -12,8 +12,8 @@ SimClock: step the plant with the last set values, sample the sensors,
 (:meth:`~ankle_rt.safety.Safety.trip`). This module holds only the stacking and the batch's
 bookkeeping: the trace, the reference tables, which plants are active.
 
-Any :class:`~ankle_rt.control.base.BatchableController` runs here (the built-in ``pd`` and
-``impedance``); a controller that is not one (a plugin) is refused, naming ``controller.type``.
+Any :class:`~ankle_rt.control.base.BatchableController` runs here (the built-in ``pd``,
+``impedance`` and ``gait_phase``); a controller that is not one (a plugin) is refused, naming ``controller.type``.
 Plants of one batch share the controller type and its ``batch_key()`` (:func:`batch_key` groups
 them). ``tests/test_batch_cycle.py`` holds the batch to ``run_lockstep`` run by run. Not modelled
 (no sweep exercises them): run-time gain changes, service commands, backend fault bits, amplifier
@@ -65,7 +65,7 @@ def _parts(cfg: Mapping[str, Any]) -> tuple[Kinematics, Any, BatchableController
     ref = reference_from_config(cfg)
     ctl = build_controller(cfg, kin, ref.ref)
     if not isinstance(ctl, BatchableController):
-        raise ConfigError(f"the batched daemon cycle runs batchable controllers (the built-in pd and impedance), "
+        raise ConfigError(f"the batched daemon cycle runs batchable controllers (the built-in pd, impedance and gait_phase), "
                           f"not {cfg['controller']['type']!r} (a plugin runs in the daemon: ankle-rt run --fast)",
                           getattr(cfg, "source", None), "controller.type")
     return kin, ref, ctl

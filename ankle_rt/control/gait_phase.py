@@ -1,0 +1,234 @@
+"""Finite-state (gait-phase) impedance control of a powered ankle (Sup, Bohara and Goldfarb 2008; the
+Open Source Leg's state machine): per phase of the stride a stiffness, a damping and an equilibrium
+angle per ankle axis, ``tau = K (theta_0 - theta) - B dtheta``.
+
+Phases and transitions (``load`` = the plantarflexor moment the strain gauges measure, ``-sg_dp``;
+``theta``, ``dtheta`` the estimated DP angle and rate, dorsiflexion positive):
+
+- early stance -> late stance: ``theta > late_stance_angle`` and ``load > late_stance_load_nm``
+  (the shank has rolled over the foot; push-off impedance takes over);
+- early or late stance -> early swing: ``load < load_off_nm`` (toe-off);
+- early swing -> late swing: ``theta > late_swing_angle`` and ``dtheta < late_swing_velocity``
+  (the foot is back near neutral and no longer dorsiflexing fast);
+- early or late swing -> early stance: ``load > load_on_nm`` (heel strike);
+- any phase -> safe after ``timeout_s`` in it (a stuck load signal, standing, sitting); safe -> early
+  stance on a fresh heel strike only: the load must have fallen below ``load_off_nm`` while safe
+  (armed) and then risen above ``load_on_nm``. A load stuck high or low keeps the ankle safe.
+
+Hysteresis: ``load_on_nm > load_off_nm``, and phases only move forward through the stride, so an
+angle hovering at a threshold cannot make them chatter. No transition happens before ``min_dwell_s``
+in a phase. The active K, B and K theta_0 move towards the phase's values with a first-order blend of
+time constant ``blend_s``, so neither a transition nor a live parameter change (``ctl gains
+--phase``) makes the torque jump.
+
+:class:`GaitPhaseLaw` is written element-wise (:mod:`ankle_rt.elementwise`): floats for the daemon,
+arrays over a batch after :meth:`GaitPhaseLaw.stack` (per-phase tables become (phases, plants)).
+:class:`GaitPhaseController` is a :class:`~ankle_rt.control.base.BatchableController` (the daemon
+runs it on floats, the batched cycle on arrays): the law's torques go through the impedance
+controller's actuation (:meth:`ImpedanceController.actuate`: the lead on the loop's lag, the
+joint-torque loop, R^-T mapping, friction feed-forward and soft start).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Any, Mapping, Sequence
+
+import numpy as np
+
+from ankle_rt.control.gains import GainError, GainRamp
+from ankle_rt.control.impedance import ImpedanceController, actuation_from_config
+from ankle_rt.control.torque_loop import ImpedanceLimits, JointTorqueLoop
+from ankle_rt.elementwise import Value, pick, select, stack
+from ankle_rt.estimation import Estimate
+from ankle_rt.kinematics import Kinematics
+
+if TYPE_CHECKING:
+    from ankle_rt.config import Config
+    from ankle_rt.control.friction import FrictionFeedForward
+
+PHASES = ("early_stance", "late_stance", "early_swing", "late_swing", "safe")
+EARLY_STANCE, LATE_STANCE, EARLY_SWING, LATE_SWING, SAFE = range(len(PHASES))
+PHASE_NAMES = ("none", *PHASES)    # by the log record's gait_phase code (1 + phase; 0: another controller)
+PARAMS = ("stiffness_dp", "damping_dp", "equilibrium_dp", "stiffness_ie", "damping_ie", "equilibrium_ie")
+TRANSITIONS = ("load_on_nm", "load_off_nm", "late_stance_angle", "late_stance_load_nm", "late_swing_angle",
+               "late_swing_velocity", "min_dwell_s", "timeout_s", "blend_s")
+
+
+class GaitPhaseLaw:
+    """The phase machine and the blended impedance of the module docstring (element-wise)."""
+
+    def __init__(self, phases: Mapping[str, Mapping[str, float]], transitions: Mapping[str, float], dt: float):
+        """``phases``: PHASES name -> PARAMS (N m/rad, N m s/rad, rad); ``transitions``: TRANSITIONS
+        (N m, rad, rad/s, s)."""
+        for name in PARAMS:                     # per parameter, one value per phase (a pick table)
+            setattr(self, name, [float(phases[p][name]) for p in PHASES])
+        self.load_on, self.load_off = float(transitions["load_on_nm"]), float(transitions["load_off_nm"])
+        self.ls_angle, self.ls_load = float(transitions["late_stance_angle"]), float(transitions["late_stance_load_nm"])
+        self.lsw_angle, self.lsw_velocity = float(transitions["late_swing_angle"]), float(transitions["late_swing_velocity"])
+        self.dwell, self.timeout = float(transitions["min_dwell_s"]), float(transitions["timeout_s"])
+        self.dt = dt
+        self.alpha = 1.0 - math.exp(-dt / float(transitions["blend_s"]))
+        self.phase = SAFE
+        self.time = 0.0        # s in the current phase
+        self.armed = 0.0       # 1 once the load fell below load_off while safe
+        # the blended impedance: stiffness K, damping B and spring offset P = K theta_0 per axis (blending
+        # P rather than theta_0 keeps the torque P - K theta linear in what is blended: at a fixed angle
+        # it moves monotonically, by at most the blend's share of the change per cycle)
+        self.k0 = self.b0 = self.p0 = self.k1 = self.b1 = self.p1 = 0.0
+        self.start()
+
+    @classmethod
+    def stack(cls, laws: Sequence["GaitPhaseLaw"]) -> "GaitPhaseLaw":
+        """One law for a batch (one per device): numbers become arrays, per-phase tables (phases, plants)."""
+        out = stack(laws, tables=PARAMS)
+        out.phase = out.phase.astype(np.intp)
+        return out
+
+    def start(self, where: bool | np.ndarray = True) -> None:
+        """Back to the safe phase with its impedance at once (on activation; the soft start ramps the
+        output in); for a batch only where ``where`` holds."""
+        self.phase = select(where, SAFE, self.phase)
+        self.time = select(where, 0.0, self.time)
+        self.armed = select(where, 0.0, self.armed)
+        self.k0 = select(where, pick(self.stiffness_dp, SAFE), self.k0)
+        self.b0 = select(where, pick(self.damping_dp, SAFE), self.b0)
+        self.p0 = select(where, pick(self.stiffness_dp, SAFE) * pick(self.equilibrium_dp, SAFE), self.p0)
+        self.k1 = select(where, pick(self.stiffness_ie, SAFE), self.k1)
+        self.b1 = select(where, pick(self.damping_ie, SAFE), self.b1)
+        self.p1 = select(where, pick(self.stiffness_ie, SAFE) * pick(self.equilibrium_ie, SAFE), self.p1)
+
+    def update(self, load: Value, dp: Value, vdp: Value, ie: Value, vie: Value) -> tuple[Value, Value]:
+        """One cycle: ``load`` N m (plantarflexor moment), DP and IE angles (rad) and rates (rad/s) in;
+        desired joint torques (N m, [DP, IE]) out."""
+        ph = self.phase
+        t = self.time + self.dt
+        ready = t >= self.dwell
+        on, off = load > self.load_on, load < self.load_off
+        nxt = select(ready & (ph == EARLY_STANCE) & (dp > self.ls_angle) & (load > self.ls_load), LATE_STANCE, ph)
+        nxt = select(ready & ((ph == EARLY_STANCE) | (ph == LATE_STANCE)) & off, EARLY_SWING, nxt)
+        nxt = select(ready & (ph == EARLY_SWING) & (dp > self.lsw_angle) & (vdp < self.lsw_velocity), LATE_SWING, nxt)
+        nxt = select(ready & ((ph == EARLY_SWING) | (ph == LATE_SWING)) & on, EARLY_STANCE, nxt)
+        safe = ph == SAFE
+        armed = select(safe & off, 1.0, self.armed)
+        nxt = select(ready & safe & on & (armed > 0.0), EARLY_STANCE, nxt)
+        nxt = select((ph != SAFE) & (t > self.timeout), SAFE, nxt)
+        changed = nxt != ph
+        self.armed = select(changed, 0.0, armed)
+        self.time = select(changed, 0.0, t)
+        self.phase = nxt
+        a = self.alpha
+        k0, k1 = pick(self.stiffness_dp, nxt), pick(self.stiffness_ie, nxt)
+        p0 = self.p0 + a * (k0 * pick(self.equilibrium_dp, nxt) - self.p0)
+        p1 = self.p1 + a * (k1 * pick(self.equilibrium_ie, nxt) - self.p1)
+        k0 = self.k0 + a * (k0 - self.k0)
+        k1 = self.k1 + a * (k1 - self.k1)
+        b0 = self.b0 + a * (pick(self.damping_dp, nxt) - self.b0)
+        b1 = self.b1 + a * (pick(self.damping_ie, nxt) - self.b1)
+        self.k0, self.b0, self.p0, self.k1, self.b1, self.p1 = k0, b0, p0, k1, b1, p1
+        return p0 - k0 * dp - b0 * vdp, p1 - k1 * ie - b1 * vie
+
+    def set_phase_params(self, phase: int, **params: float) -> None:
+        """New parameters of one phase (one device); reached through the blend, no jump."""
+        for name, value in params.items():
+            getattr(self, name)[phase] = float(value)
+
+    def phase_params(self) -> dict[str, dict[str, float]]:
+        """Phase name -> its parameters (for status; allocates)."""
+        return {p: {n: getattr(self, n)[i] for n in PARAMS} for i, p in enumerate(PHASES)}
+
+
+class GaitPhaseController(ImpedanceController):
+    """The built-in ``gait_phase`` controller (``controller.gait_phase``): :class:`GaitPhaseLaw` on the
+    estimated ankle and the strain-gauge load, then the impedance controller's actuation (with the
+    law's blended stiffness for the lead on the loop's lag)."""
+
+    shared = ("ref", "limits", "gain_maxima")
+
+    def __init__(self, kin: Kinematics, law: GaitPhaseLaw, *, dt: float, soft_start_s: float,
+                 ankle_limit: float, gain_maxima: Mapping[str, float],
+                 friction: "FrictionFeedForward | None" = None, torque_loop: JointTorqueLoop | None = None,
+                 limits: ImpedanceLimits | None = None):
+        """``ankle_limit`` rad bounds the equilibria; ``gain_maxima``: ``stiffness`` and ``damping``
+        (controller.gain_limits); ``limits``: the torque loop's stable set, checked per phase."""
+        self.gait = law
+        self.ankle_limit = ankle_limit
+        self.gain_maxima = dict(gain_maxima)
+        super().__init__(kin, np.zeros(2), {"stiffness_dp": 0.0, "stiffness_ie": 0.0, "damping_dp": 0.0,
+                                            "damping_ie": 0.0}, dt=dt, soft_start_s=soft_start_s,
+                         friction=friction, torque_loop=torque_loop, limits=None)
+        self.limits = limits
+        self.gains = GainRamp({}, dt=dt, ramp_s=0.0, soft_start_s=soft_start_s)   # the soft start only: the
+        for i, phase in enumerate(PHASES):                                         # law blends its own parameters
+            self._check_phase(i, {n: getattr(law, n)[i] for n in PARAMS})
+
+    @classmethod
+    def from_config(cls, cfg: "Config", kin: Kinematics, ref: np.ndarray,
+                    friction: "FrictionFeedForward | None") -> "GaitPhaseController":
+        """``controller.gait_phase`` with the joint-torque loop when :func:`torque_feedback` says so.
+        Raises ConfigError naming a parameter outside the limits."""
+        from ankle_rt.config import ConfigError
+
+        c = cfg["controller"]
+        dt = 1.0 / c["rate_hz"]
+        g = c["gait_phase"]
+        loop, limits, friction = actuation_from_config(cfg, friction)
+        law = GaitPhaseLaw({p: g[p] for p in PHASES}, {k: g[k] for k in TRANSITIONS}, dt)
+        try:
+            return cls(kin, law, dt=dt, soft_start_s=c["soft_start_s"],
+                       ankle_limit=math.radians(cfg["limits"]["ankle_range_deg"]),
+                       gain_maxima=c["gain_limits"], friction=friction, torque_loop=loop, limits=limits)
+        except GainError as exc:
+            raise ConfigError(str(exc), getattr(cfg, "source", None), f"controller.gait_phase.{exc.gain}") from None
+
+    @property
+    def phase(self) -> int:
+        """The current gait phase (index into PHASES)."""
+        return self.gait.phase
+
+    def _check_phase(self, phase: int, params: Mapping[str, float]) -> None:
+        name = PHASES[phase]
+        for key, value in params.items():
+            kind = key.split("_")[0]
+            where = f"{name}.{key}"
+            if not (isinstance(value, (int, float)) and math.isfinite(value)):
+                raise GainError(where, f"{where} must be a finite number, got {value!r}")
+            if kind == "equilibrium":
+                if abs(value) > self.ankle_limit:
+                    raise GainError(where, f"{where} {value:g} rad is beyond the ankle range "
+                                           f"+/-{self.ankle_limit:.3g} rad (limits.ankle_range_deg)")
+            elif not 0.0 <= value <= self.gain_maxima[kind]:
+                raise GainError(where, f"{where} must be in [0, {self.gain_maxima[kind]:g}] "
+                                       f"(controller.gain_limits.{kind}), got {value:g}")
+        if self.limits is not None:
+            bad = self.limits.check(params)
+            if bad is not None:
+                raise GainError(f"{name}.{bad[0]}", f"{name}: {bad[1]}")
+
+    def set_gains(self, phase: str | None = None, **gains: float) -> None:
+        """Change one phase's parameters (PARAMS names) at run time; checked against the gain limits,
+        the ankle range and the torque loop's stable set (else GainError, nothing changes), then
+        reached through the blend (no torque jump)."""
+        if phase not in PHASES:
+            raise GainError("phase", f"the gait_phase controller needs a phase (one of: {', '.join(PHASES)}), "
+                                     f"got {phase!r}")
+        i = PHASES.index(phase)
+        for name in gains:
+            if name not in PARAMS:
+                raise GainError(name, f"unknown gait-phase parameter {name!r} (expected one of: {', '.join(PARAMS)})")
+        merged = {n: getattr(self.gait, n)[i] for n in PARAMS}
+        merged.update(gains)
+        self._check_phase(i, merged)
+        self.gait.set_phase_params(i, **gains)
+
+    def start(self, est: Estimate, where: bool | np.ndarray = True) -> None:
+        super().start(est, where)
+        self.gait.start(where)
+
+    def law(self, est: Estimate, ref_dp: Value, ref_ie: Value) -> tuple[Value, Value]:
+        """The phase machine's joint torques through the impedance actuation; the reference is unused
+        (each phase has its own equilibrium)."""
+        self.gains.advance()
+        gait = self.gait
+        t0, t1 = gait.update(-est.sg_dp, est.dp, est.dp_vel, est.ie, est.ie_vel)
+        return self.actuate(est, t0, t1, gait.k0, gait.k1)
