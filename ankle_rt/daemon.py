@@ -70,6 +70,8 @@ class Daemon:
         self.frame = SensorFrame()
         self.est = Estimate()
         self.estimator = Estimator(self.kin, self.dt, est_cfg["velocity_cutoff_hz"], est_cfg["tare_samples"])
+        # the safety layer comes from the validated config before any controller (a plugin) is built
+        self.safety = Safety(cfg, self.dt)
         self.own_controller = controller is None
         self.reference_commanded = False   # a set_reference / start_profile command chose the reference
         if controller is None:
@@ -78,7 +80,6 @@ class Daemon:
         else:   # an experiment brings its own excitation: no reference (logged as NaN)
             self.reference = ReferenceGenerator(Hold(math.nan, math.nan))
             self.controller = controller
-        self.safety = Safety(cfg, self.dt)
         self.max_reference_step = cfg["reference"]["max_rate_rad_s"] * self.dt   # rad per cycle, commanded
         self.gain_maxima = proto.gain_maxima(cfg["controller"]["gain_limits"])
         self.loader = BackgroundLoader()
