@@ -20,9 +20,10 @@ at runtime; plotting lives in :mod:`ankle_rt.commands.analyze`.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Any, Callable, Mapping
 
 import numpy as np
 
@@ -416,8 +417,14 @@ def closed_loop(p: PlantParams, c: ImpedanceLoop, *, foot: str = "free", load_sl
     Ad, Bd = zoh(A, Bm, c.dt)
     lm = LinearModel.from_params(p)
     W, U = _controller(lm.kin, lm.kin.K, c)
-    U = gain * U
-    nx, nw, d = N_X, 8, c.delay_cycles
+    return _assemble(Ad, Bd, Cy, W, gain * U, c.delay_cycles)
+
+
+def _assemble(Ad: np.ndarray, Bd: np.ndarray, Cy: np.ndarray, W: np.ndarray, U: np.ndarray, d: int,
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(T, G, C_tau) of :func:`closed_loop` from the sampled plant (Ad, Bd, Cy), the controller rows
+    (W, U) of :func:`_controller` and ``d`` cycles of delay."""
+    nx, nw = N_X, 8
     n = nx + nw + 2 * d
     # controller rows over z_k and r: [w_{k-1}, y_k = Cy x_k, r]
     Wz, Wr = np.hstack([W[:, 8:12] @ Cy, W[:, 0:8]]), W[:, 12:14]
@@ -511,3 +518,129 @@ def torque_loop_margins(p: PlantParams, c: ImpedanceLoop, *, load_coefficient: f
                     rho = spectral_radius(closed_loop_matrix(pp, c, foot=foot, load_slope=slope))
                     cases.append(MarginCase(kf, vf, slope, foot, gain_margin_db(pp, c, foot=foot, load_slope=slope), rho))
     return cases
+
+
+# -- accepting a gain set: the stated margin over the whole plant range ----------------------------
+REQUIRED_GAIN_MARGIN_DB = 6.0    # every accepted gain set keeps this much over every plant case
+_MARGIN_STEP_DB = 1.5            # the gain grid the check scans (stable at each point up to the margin)
+_MARGIN_CAP_DB = 12.0            # the margin is reported up to here ("at least 12 dB" beyond)
+# The gains of a set (what config keys and set_gains name), with the shipped values the limiting gain
+# is found against (controller.impedance and controller.torque_loop defaults, ankle_rt.config_schema).
+LOOP_GAINS = ("kp_dp", "kp_ie", "ki_dp", "ki_ie", "torque_rate_dp", "torque_rate_ie", "cutoff_hz")
+IMPEDANCE_GAINS = ("stiffness_dp", "stiffness_ie", "damping_dp", "damping_ie")
+
+
+@functools.lru_cache(maxsize=16)
+def _sampled_plants(p: PlantParams, dt: float, load_coefficient: float) -> tuple:
+    """Per case of the margin sweep (STIFFNESS_FACTORS x VISCOUS_FACTORS x load slope x FOOT_CONDITIONS):
+    (Ad, Bd, Cy, kin) of the sampled plant: built once per plant and period, not per gain set tried."""
+    from ankle_rt.discretize import zoh
+
+    out = []
+    for kf in STIFFNESS_FACTORS:
+        for vf in VISCOUS_FACTORS:
+            pp = with_transmission(p, cable_stiffness=p.transmission.cable_stiffness * kf)
+            pp = dataclasses.replace(pp, actuator=dataclasses.replace(pp.actuator, damping=pp.actuator.damping * vf))
+            kin = LinearModel.from_params(pp).kin
+            for slope in sorted({-load_coefficient, 0.0, load_coefficient}):
+                for foot in FOOT_CONDITIONS:
+                    A, Bm, Cy = _plant(pp, foot=foot, load_slope=slope)
+                    out.append((*zoh(A, Bm, dt), Cy, kin))
+    return tuple(out)
+
+
+def _loop_matrices(p: PlantParams, c: ImpedanceLoop, load_coefficient: float) -> tuple[np.ndarray, np.ndarray]:
+    """(T0, Tu), each (cases, n, n): the closed loop of every sweep case is T0 + g Tu with the
+    controller output scaled by g (T is affine in the controller rows U)."""
+    T0, Tu = [], []
+    for Ad, Bd, Cy, kin in _sampled_plants(p, c.dt, load_coefficient):
+        W, U = _controller(kin, kin.K, c)
+        t0 = _assemble(Ad, Bd, Cy, W, 0.0 * U, c.delay_cycles)[0]
+        T0.append(t0)
+        Tu.append(_assemble(Ad, Bd, Cy, W, U, c.delay_cycles)[0] - t0)
+    return np.array(T0), np.array(Tu)
+
+
+def loop_margin_db(p: PlantParams, c: ImpedanceLoop, *, load_coefficient: float = 0.12) -> float:
+    """dB: the least gain margin of the loop over the whole margin sweep (as :func:`torque_loop_margins`),
+    -inf when a case is unstable, at most _MARGIN_CAP_DB. Scans the gain on a 1.5 dB grid (all cases
+    and gains in one batched eigenvalue call) and refines the limiting case by bisection."""
+    T0, Tu = _loop_matrices(p, c, load_coefficient)
+    grid = 10.0 ** (np.arange(0.0, _MARGIN_CAP_DB + 1e-9, _MARGIN_STEP_DB) / 20.0)
+    rho = np.abs(np.linalg.eigvals(T0[None] + grid[:, None, None, None] * Tu[None])).max(axis=-1)  # (grid, cases)
+    unstable = rho >= 1.0
+    if unstable[0].any():
+        return -math.inf
+    first = np.where(unstable.any(axis=0), unstable.argmax(axis=0), len(grid))   # first unstable grid point per case
+    case = int(np.argmin(first))
+    if first[case] == len(grid):
+        return _MARGIN_CAP_DB
+    lo, hi = float(grid[first[case] - 1]), float(grid[first[case]])
+    for _ in range(8):
+        mid = math.sqrt(lo * hi)
+        lo, hi = (mid, hi) if spectral_radius(T0[case] + mid * Tu[case]) < 1.0 else (lo, mid)
+    return 20.0 * math.log10(lo)
+
+
+def gain_set_margin_db(cfg: Mapping[str, Any], gains: Mapping[str, float]) -> tuple[float, str | None]:
+    """The gain margin (dB) of the impedance controller's closed loop with the joint-torque loop, over
+    cable stiffness +-30 %, the friction range and foot free and held, for the config's gains with
+    ``gains`` (names of LOOP_GAINS and IMPEDANCE_GAINS) in their place; and, when it is below
+    REQUIRED_GAIN_MARGIN_DB, the gain that limits it: of the gains away from the shipped values, the
+    one whose shipped value restores the most margin (None when the margin is met)."""
+    from ankle_rt.config_schema import SHIPPED_GAINS
+
+    c = cfg["controller"]
+    merged = {**{k: c["impedance"][k] for k in IMPEDANCE_GAINS}, **{k: c["torque_loop"][k] for k in LOOP_GAINS},
+              **gains}
+    return _margin_and_limit(PlantParams.from_config(cfg), _loop(cfg, merged), _load_coefficient(cfg),
+                             tuple(SHIPPED_GAINS[k] for k in (*LOOP_GAINS, *IMPEDANCE_GAINS)))
+
+
+@functools.lru_cache(maxsize=64)
+def _margin_and_limit(p: PlantParams, loop: ImpedanceLoop, coefficient: float,
+                      shipped: tuple[float, ...]) -> tuple[float, str | None]:
+    """:func:`gain_set_margin_db` for one plant and loop (cached: a config is checked when it is
+    loaded and again when its controller is built)."""
+    margin = loop_margin_db(p, loop, load_coefficient=coefficient)
+    if margin >= REQUIRED_GAIN_MARGIN_DB:
+        return margin, None
+    names = (*LOOP_GAINS, *IMPEDANCE_GAINS)
+    values = dict(zip(names, _gain_values(loop)))
+    moved = [k for k, v in zip(names, shipped) if values[k] != v] or list(LOOP_GAINS)
+    restored = {k: loop_margin_db(p, _with_gain(loop, k, shipped[names.index(k)]), load_coefficient=coefficient)
+                for k in moved}
+    return margin, max(moved, key=lambda k: restored[k])
+
+
+def _gain_values(loop: ImpedanceLoop) -> tuple[float, ...]:
+    """The loop's gains in the order LOOP_GAINS + IMPEDANCE_GAINS."""
+    return (*loop.kp, *loop.ki, *loop.torque_rate_gain, loop.cutoff_hz, *loop.stiffness, *loop.damping)
+
+
+def _with_gain(loop: ImpedanceLoop, name: str, value: float) -> ImpedanceLoop:
+    """``loop`` with the gain ``name`` (of LOOP_GAINS or IMPEDANCE_GAINS) set to ``value``."""
+    if name == "cutoff_hz":
+        return dataclasses.replace(loop, cutoff_hz=value)
+    base, axis = name.rsplit("_", 1)
+    field_name = {"torque_rate": "torque_rate_gain"}.get(base, base)
+    pair = list(getattr(loop, field_name))
+    pair[AXES.index(axis)] = value
+    return dataclasses.replace(loop, **{field_name: tuple(pair)})
+
+
+def _loop(cfg: Mapping[str, Any], g: Mapping[str, float]) -> ImpedanceLoop:
+    """The ImpedanceLoop of ``cfg`` with the full gain set ``g``."""
+    pair = lambda key: (float(g[key + "_dp"]), float(g[key + "_ie"]))  # noqa: E731
+    return ImpedanceLoop(stiffness=pair("stiffness"), damping=pair("damping"), kp=pair("kp"), ki=pair("ki"),
+                         torque_rate_gain=pair("torque_rate"), cutoff_hz=float(g["cutoff_hz"]),
+                         velocity_cutoff_hz=cfg["estimation"]["velocity_cutoff_hz"],
+                         dt=1.0 / cfg["controller"]["rate_hz"])
+
+
+def _load_coefficient(cfg: Mapping[str, Any]) -> float:
+    """The load-dependent friction coefficient of the sweep: the config's sim effect, when it has one
+    larger than the default 0.12 the margins are stated for."""
+    found = [float(e.get("coefficient", 0.0)) for e in cfg["sim"]["effects"]
+             if isinstance(e, Mapping) and e.get("type") == "load_dependent_friction"]
+    return max([0.12, *found])

@@ -187,5 +187,21 @@ def config_from_data(data: dict, origin: Callable[[KeyPath], str], source: str) 
     the file each key came from, for errors; ``source``: the config's name)."""
     cfg = Config(validate(data, SCHEMA, origin))
     check_consistency(cfg, origin)
+    _check_gain_margin(cfg, origin)
     cfg.source = source
     return cfg
+
+
+def _check_gain_margin(cfg: Config, origin: Callable[[KeyPath], str]) -> None:
+    """The impedance controller with the joint-torque loop: its configured gain set must keep the
+    required gain margin over the plant range (ConfigError naming the gain that limits it)."""
+    from ankle_rt.gain_margin import gain_set_refusal, torque_feedback
+
+    ctl = cfg["controller"]
+    if ctl["type"] != "impedance" or not torque_feedback(cfg):
+        return
+    bad = gain_set_refusal(cfg, {})
+    if bad is not None:
+        name, reason = bad
+        section = "torque_loop" if name in ctl["torque_loop"] else "impedance"
+        raise ConfigError(reason, origin(("controller", section, name)), f"controller.{section}.{name}")

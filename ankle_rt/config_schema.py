@@ -88,11 +88,17 @@ CUTOFF_DEFAULT, MAX_CORRECTION_DEFAULT = 80.0, 20.0
 # so a typo or a non-finite value is refused while any tuning a study might try still loads.
 MAX_TORQUE_KP, MAX_TORQUE_KI, MAX_TORQUE_RATE, MAX_CORRECTION = 100.0, 1000.0, 1.0, 100.0
 
+IMPEDANCE_DEFAULTS = {"stiffness_dp": 20.0, "stiffness_ie": 10.0, "damping_dp": 0.5, "damping_ie": 0.25}
+# The shipped gain set (what ankle_rt.analysis.gain_set_margin_db names a limiting gain against).
+SHIPPED_GAINS = {**IMPEDANCE_DEFAULTS, "kp_dp": KP_DEFAULT, "kp_ie": KP_DEFAULT, "ki_dp": KI_DEFAULT,
+                 "ki_ie": KI_DEFAULT, "torque_rate_dp": KD_DP_DEFAULT, "torque_rate_ie": KD_IE_DEFAULT,
+                 "cutoff_hz": CUTOFF_DEFAULT}
+
 IMPEDANCE = Section({
-    "stiffness_dp": non_negative("N m/rad at the ankle", default=20.0, high=MAX_STIFFNESS),
-    "stiffness_ie": non_negative("N m/rad at the ankle", default=10.0, high=MAX_STIFFNESS),
-    "damping_dp": non_negative("N m s/rad at the ankle", default=0.5, high=MAX_DAMPING),
-    "damping_ie": non_negative("N m s/rad at the ankle", default=0.25, high=MAX_DAMPING),
+    "stiffness_dp": non_negative("N m/rad at the ankle", default=IMPEDANCE_DEFAULTS["stiffness_dp"], high=MAX_STIFFNESS),
+    "stiffness_ie": non_negative("N m/rad at the ankle", default=IMPEDANCE_DEFAULTS["stiffness_ie"], high=MAX_STIFFNESS),
+    "damping_dp": non_negative("N m s/rad at the ankle", default=IMPEDANCE_DEFAULTS["damping_dp"], high=MAX_DAMPING),
+    "damping_ie": non_negative("N m s/rad at the ankle", default=IMPEDANCE_DEFAULTS["damping_ie"], high=MAX_DAMPING),
     "torque_feedback": Field(str, "joint-torque loop on the strain gauges (controller.torque_loop): auto = on when "
                                   "strain gauges are configured (simulator, or strain_gauges.matrix); off = open loop",
                              default="auto", choices=("auto", "on", "off")),

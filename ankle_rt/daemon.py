@@ -212,12 +212,42 @@ class Daemon:
         setter = getattr(self.controller, "set_gains", None)
         if setter is None:
             raise ValueError("this controller has no run-time gains")
+        self._check_gain_maxima(gains)
+        setter(**gains)
+
+    def _check_gain_maxima(self, gains: dict[str, float]) -> None:
         for name, value in gains.items():
             limit = self.gain_maxima.get(name, math.inf)
             if not (isinstance(value, (int, float)) and 0.0 <= value <= limit):   # False for NaN
                 raise GainError(name, f"gain {name!r} must be a finite number in [0, {limit:g}] "
                                       f"(controller.gain_limits), got {value!r}")
-        setter(**gains)
+
+    def _set_gains_checked(self, gains: dict[str, float]) -> dict | proto.Pending:
+        """The set_gains command. A controller whose gain check is slow (``check_gains``: the
+        impedance controller's stability margins over the whole ramp) is checked by the background
+        loader, off the loop thread, and the gains applied when the check passes (Pending reply);
+        any other controller's gains are set at once."""
+        check = getattr(self.controller, "check_gains", None)
+        if check is None:
+            self.set_gains(**gains)
+            return {"state": State(self.safety.state).name.lower()}
+        self._check_gain_maxima(gains)
+        running = self.loader.pending()
+        if running is not None:
+            raise proto.CommandError(next(iter(gains), "cmd"), f"busy: still {running.what}")
+        job = self.loader.submit(lambda: check(**gains), "checking a gain change")
+
+        def finish() -> dict | None:
+            if not job.done:
+                return None
+            if isinstance(job.error, GainError):
+                raise proto.CommandError(job.error.gain, str(job.error))
+            if job.error is not None:
+                raise job.error
+            self.controller.apply_gains(**gains)
+            return {"state": State(self.safety.state).name.lower()}
+
+        return proto.Pending(finish)
 
     def _command_reference(self, profile: Profile) -> None:
         """Start a commanded reference; from now on the reference is rate limited."""
@@ -272,7 +302,7 @@ class Daemon:
                                              f"outside the ankle range +/-{limit:.4g} rad")
                 self._command_reference(RampTo(command.dp, command.ie, ramp))
             elif isinstance(command, proto.SetGains):
-                self.set_gains(**command.given())
+                return self._set_gains_checked(command.given())
             elif isinstance(command, proto.StartProfile) and command.name == "csv":
                 return self._start_csv(dict(command.params))
             elif isinstance(command, proto.StartProfile):

@@ -34,6 +34,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 from ankle_rt.elementwise import Value, clip, select, stack
+from ankle_rt.gain_margin import torque_feedback  # noqa: F401  (re-exported: its historical home)
 
 if TYPE_CHECKING:
     import numpy as np
@@ -74,13 +75,20 @@ class JointTorqueLoop:
 
     def __init__(self, gains: TorqueLoopGains, dt: float):
         self.gains = gains
-        self.kp0, self.kp1 = gains.kp
-        self.kidt0, self.kidt1 = gains.ki[0] * dt, gains.ki[1] * dt
-        self.kdr0, self.kdr1 = gains.torque_rate[0] / dt, gains.torque_rate[1] / dt
+        self.dt = dt
+        self.set_gains(*gains.kp, *gains.ki, *gains.torque_rate)
         self.lim0, self.lim1 = gains.max_correction_nm
         self.alpha = 1.0 - math.exp(-2.0 * math.pi * gains.cutoff_hz * dt)
         self.f0 = self.f1 = self.i0 = self.i1 = 0.0
         self.reset_state(0.0, 0.0)
+
+    def set_gains(self, kp0: Value, kp1: Value, ki0: Value, ki1: Value, rate0: Value, rate1: Value) -> None:
+        """Per-axis kp, ki (1/s) and torque-rate gain (s) [DP, IE] from now on (a ramp's point; plain
+        floats, no allocation). ``gains`` keeps the configured set."""
+        dt = self.dt
+        self.kp0, self.kp1 = kp0, kp1
+        self.kidt0, self.kidt1 = ki0 * dt, ki1 * dt
+        self.kdr0, self.kdr1 = rate0 / dt, rate1 / dt
 
     @classmethod
     def stack(cls, loops: Sequence["JointTorqueLoop"]) -> "JointTorqueLoop":
@@ -113,16 +121,6 @@ class JointTorqueLoop:
         c0 = clip(self.kp0 * e0 + i0 - self.kdr0 * (f0 - p0), -lim0, lim0)
         c1 = clip(self.kp1 * e1 + i1 - self.kdr1 * (f1 - p1), -lim1, lim1)
         return tau_dp + c0, tau_ie + c1
-
-
-def torque_feedback(cfg: "Config") -> bool:
-    """Whether the impedance controller closes the joint-torque loop: ``controller.impedance.
-    torque_feedback`` on/off, or auto = when strain gauges are configured (the simulator's always
-    are; on hardware ``strain_gauges.matrix`` is given)."""
-    mode = cfg["controller"]["impedance"]["torque_feedback"]
-    if mode != "auto":
-        return mode == "on"
-    return cfg["backend"] == "sim" or cfg["strain_gauges"]["matrix"] is not None
 
 
 @dataclass(frozen=True)
@@ -178,3 +176,4 @@ class ImpedanceLimits:
                 return (f"damping_{name}", f"damping_{name} {b:g} N m s/rad is below {need:.3g}, the least the "
                         f"joint-torque loop needs with stiffness_{name} {k:g} (docs/daemon.md)")
         return None
+

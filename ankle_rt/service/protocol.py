@@ -26,6 +26,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping, Union
 
+from ankle_rt.config_schema import MAX_TORQUE_KI, MAX_TORQUE_KP, MAX_TORQUE_RATE
 from ankle_rt.jsonout import finite_or_none
 
 MAX_LINE_BYTES = 4096
@@ -65,7 +66,8 @@ class CommandLimits:
 def gain_maxima(gain_limits: Mapping[str, float]) -> dict[str, float]:
     """The largest value of each GAIN_FIELDS name, from a config's ``controller.gain_limits``
     (``stiffness`` and ``damping`` bound both axes)."""
-    return {name: float(gain_limits[name.split("_")[0]]) for name in GAIN_FIELDS}
+    return {name: float(TORQUE_LOOP_MAX_GAINS[name] if name in TORQUE_LOOP_MAX_GAINS else gain_limits[name.split("_")[0]])
+            for name in GAIN_FIELDS}
 
 
 class Pending:
@@ -118,10 +120,20 @@ GAIN_FIELDS: dict[str, str] = {
     "stiffness_ie": "N m/rad, ankle impedance stiffness in IE",
     "damping_dp": "N m s/rad, ankle impedance damping in DP",
     "damping_ie": "N m s/rad, ankle impedance damping in IE",
+    "kp_dp": "N m per N m, joint-torque loop proportional gain in DP",
+    "kp_ie": "N m per N m, joint-torque loop proportional gain in IE",
+    "ki_dp": "1/s, joint-torque loop integral gain in DP",
+    "ki_ie": "1/s, joint-torque loop integral gain in IE",
+    "torque_rate_dp": "s, joint-torque loop gain on the measured torque's rate in DP",
+    "torque_rate_ie": "s, joint-torque loop gain on the measured torque's rate in IE",
 }
 
+# The joint-torque loop's gains are bounded by their config ceilings (controller.torque_loop) and,
+# in the daemon, by the loop's stability margin (ankle_rt.analysis.gain_set_margin_db).
+TORQUE_LOOP_MAX_GAINS = {"kp_dp": MAX_TORQUE_KP, "kp_ie": MAX_TORQUE_KP, "ki_dp": MAX_TORQUE_KI, "ki_ie": MAX_TORQUE_KI,
+                         "torque_rate_dp": MAX_TORQUE_RATE, "torque_rate_ie": MAX_TORQUE_RATE}
 DEFAULT_MAX_GAINS = {"kp": 500.0, "kd": 10.0, "stiffness_dp": 200.0, "stiffness_ie": 200.0, "damping_dp": 5.0,
-                     "damping_ie": 5.0}
+                     "damping_ie": 5.0, **TORQUE_LOOP_MAX_GAINS}
 """= the defaults of controller.gain_limits (tested), for limits made without a config."""
 
 
@@ -135,6 +147,12 @@ class SetGains:
     stiffness_ie: float | None = None
     damping_dp: float | None = None
     damping_ie: float | None = None
+    kp_dp: float | None = None
+    kp_ie: float | None = None
+    ki_dp: float | None = None
+    ki_ie: float | None = None
+    torque_rate_dp: float | None = None
+    torque_rate_ie: float | None = None
 
     def given(self) -> dict[str, float]:
         """The fields the request set, name -> value."""
