@@ -197,6 +197,10 @@ SAFETY = Section({
                           default=5, low=1, high=1000),
     "i2t_peak_duration_s": positive("s the peak current may flow (ESCON 50/5: at most 20 s); sets the I^2 t budget",
                                     default=20.0, high=ESCON_PEAK_S),
+    "oscillation_rms_a": positive("A; a set value's RMS above 20 Hz (either motor) beyond this for "
+                                  "safety.oscillation_hold_s is an oscillation fault", default=1.0, high=5.0),
+    "oscillation_hold_s": positive("s the band RMS must stay above safety.oscillation_rms_a to fault", default=0.25,
+                                   high=2.0),
 }, optional=True)
 
 LOGGING = Section({

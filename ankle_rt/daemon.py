@@ -118,6 +118,8 @@ class Daemon:
                 self.controller.update(est, torque)
                 code = safety.limit_currents(torque[0] * self.inv_kt, torque[1] * self.inv_kt)
                 if code == 0:
+                    code = safety.check_gauges(est)
+                if code == 0:
                     backend.write(safety.current[0], safety.current[1])
             if code != 0:
                 self._fault(code)
@@ -175,9 +177,8 @@ class Daemon:
             self.reference.ref[:] = ankle
             self.reference.start(RampTo(hold.dp, hold.ie, self.cfg["reference"]["ramp_s"]))
         self.backend.activate()
-        s.current[0] = s.current[1] = 0.0
+        s.activated(self.est)
         self.controller.reset(self.est)
-        s.state = State.ACTIVE
         self.activations += 1
         if self.service is not None:
             self.service.mark_command_channel(self.clock.now_ns() * 1e-9)

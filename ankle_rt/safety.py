@@ -29,6 +29,10 @@ from typing import Any, Mapping
 from ankle_rt.backend import BackendFault, SensorFrame
 from ankle_rt.config_schema import ESCON_CONTINUOUS_A, ESCON_PEAK_A, ESCON_PEAK_S
 from ankle_rt.estimation import Estimate
+from ankle_rt.gauge_check import GaugeCrossCheck
+from ankle_rt.kinematics import Kinematics
+from ankle_rt.oscillation import OscillationDetector
+from ankle_rt.params import TransmissionParams
 from ankle_rt.schema import ConfigError
 
 
@@ -58,6 +62,8 @@ class Fault(enum.IntEnum):
     OUTPUT_INVALID = 15      # the controller produced a NaN/inf torque
     REFERENCE_INVALID = 16   # the ankle reference is NaN/inf
     LOG_FAILED = 17          # a run log write failed (disk full) and logging.fault_on_error is set
+    OSCILLATION = 18         # a set value oscillated above 20 Hz beyond safety.oscillation_rms_a for oscillation_hold_s
+    SG_MISMATCH = 19         # strain-gauge torque disagrees with the torque the motors deliver (ankle_rt.gauge_check)
 
     @property
     def description(self) -> str:
@@ -83,6 +89,8 @@ _DESCRIPTIONS = {
     Fault.OUTPUT_INVALID: "controller output not finite",
     Fault.REFERENCE_INVALID: "ankle reference not finite",
     Fault.LOG_FAILED: "run log write failed (logging.fault_on_error)",
+    Fault.OSCILLATION: "sustained current oscillation above 20 Hz (an unstable loop)",
+    Fault.SG_MISMATCH: "strain-gauge torque disagrees with the motors (stuck, drifting, sign-flipped or stepped gauge)",
 }
 
 # BackendFault bits that stop the device, in priority order. CRC errors and sequence gaps are
@@ -105,7 +113,7 @@ _ACTIVE = int(State.ACTIVE)
 _AMP_NOT_READY, _SENSOR_INVALID, _SG_RAIL = int(Fault.AMP_NOT_READY), int(Fault.SENSOR_INVALID), int(Fault.SG_RAIL)
 _SENSOR_STALE, _MOTOR_JUMP, _SG_JUMP = int(Fault.SENSOR_STALE), int(Fault.MOTOR_JUMP), int(Fault.SG_JUMP)
 _ANKLE_RANGE, _OVERCURRENT, _OUTPUT_INVALID = int(Fault.ANKLE_RANGE), int(Fault.OVERCURRENT), int(Fault.OUTPUT_INVALID)
-_REFERENCE_INVALID = int(Fault.REFERENCE_INVALID)
+_REFERENCE_INVALID, _OSCILLATION, _SG_MISMATCH = int(Fault.REFERENCE_INVALID), int(Fault.OSCILLATION), int(Fault.SG_MISMATCH)
 
 
 def _limit(value: Any, key: str, low: float, high: float, low_open: bool = True) -> float:
@@ -141,6 +149,16 @@ class Safety:
         self.i_cont2 = i_cont ** 2
         peak_s = _limit(s["i2t_peak_duration_s"], "safety.i2t_peak_duration_s", 0.0, ESCON_PEAK_S)
         self.i2t_budget = (self.i_peak ** 2 - self.i_cont2) * peak_s  # A^2 s
+        self.oscillation = OscillationDetector(
+            self.dt, _limit(s["oscillation_rms_a"], "safety.oscillation_rms_a", 0.0, 5.0),
+            _limit(s["oscillation_hold_s"], "safety.oscillation_hold_s", 0.0, 2.0))
+        # The gauges are cross-checked where there are gauges and cables between motors and ankle.
+        a = cfg["actuator"]
+        self.kt = float(a["torque_constant"])
+        self.gauges = None
+        if self.check_estimated_ankle and (cfg["backend"] == "sim" or cfg["strain_gauges"]["matrix"] is not None):
+            R = Kinematics.from_params(TransmissionParams(**cfg["transmission"])).R
+            self.gauges = GaugeCrossCheck(self.dt, R.tolist(), a["inertia"], a["damping"], a["coulomb"])
         self.state = State.CONFIGURED
         self.fault = Fault.NONE
         self.fault_time = math.nan
@@ -169,6 +187,26 @@ class Safety:
         self.fault_time = math.nan
         self._have_last = False
         self._stale = 0
+        self.oscillation.reset()
+
+    def activated(self, est: Estimate) -> None:
+        """CONFIGURED/SAFE -> ACTIVE (the daemon's activate): set values restart from zero."""
+        self.current[0] = self.current[1] = 0.0
+        self.oscillation.reset()
+        if self.gauges is not None:
+            self.gauges.reset(est.motor_vel.item(0), est.motor_vel.item(1))
+        self.state = State.ACTIVE
+
+    def check_gauges(self, est: Estimate) -> int:
+        """SG_MISMATCH once the strain-gauge torques have disagreed with the torques the motors deliver
+        (this cycle's set values, :mod:`ankle_rt.gauge_check`); 0 otherwise or without gauges."""
+        g = self.gauges
+        if g is None:
+            return 0
+        kt, cur, v, sg = self.kt, self.current, est.motor_vel, est.sg_torque
+        if g.update(kt * cur[0], kt * cur[1], v.item(0), v.item(1), sg.item(0), sg.item(1)):
+            return _SG_MISMATCH
+        return 0
 
     # -- per cycle -------------------------------------------------------------------------------
     def check_sensors(self, frame: SensorFrame, est: Estimate) -> int:
@@ -223,7 +261,8 @@ class Safety:
 
     def limit_currents(self, i1: float, i2: float) -> int:
         """Clamp set values (A) to the peak current into ``self.current`` and update the I^2 t
-        estimate; return OVERCURRENT once the peak budget is spent, OUTPUT_INVALID for NaN."""
+        estimate; return OVERCURRENT once the peak budget is spent, OUTPUT_INVALID for NaN,
+        OSCILLATION once the clamped set values have oscillated (:mod:`ankle_rt.oscillation`)."""
         cur = self.current
         if not math.isfinite(i1 + i2):
             cur[0] = cur[1] = 0.0
@@ -242,4 +281,6 @@ class Safety:
         q[1] = q1 if q1 > 0.0 else 0.0
         if q0 > self.i2t_budget or q1 > self.i2t_budget:
             return _OVERCURRENT
+        if self.oscillation.update(i1, i2):
+            return _OSCILLATION
         return 0
