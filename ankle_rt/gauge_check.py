@@ -27,8 +27,8 @@ CUTOFF_HZ = 5.0            # residual low-pass
 TOLERANCE_NM = 6.0         # N m at the ankle, above the motors' Coulomb friction on the axis
 TOLERANCE_FRACTION = 0.3   # of |c|: load-dependent cable friction (0.12 identified) and model errors
 HOLD_S = 0.05              # s the residual must stay beyond the tolerance
-FAST_CUTOFF_HZ = 50.0      # the fast residual: a gauge stepped far off trips at once (no hold)
-FAST_TOLERANCE_NM = 20.0   # N m above the slow residual's tolerance
+FAST_CUTOFF_HZ = 20.0      # the fast residual: a gauge stepped far off trips at once (no hold)
+FAST_TOLERANCE_NM = 16.0   # N m above the slow residual's tolerance
 
 
 class GaugeCrossCheck:

@@ -53,6 +53,10 @@ class OscillationDetector:
         g0, g1 = h0 - m0, h1 - m1                      # second stage
         self.e0 = e0 = self.e0 + b * (g0 * g0 - self.e0)
         self.e1 = e1 = self.e1 + b * (g1 * g1 - self.e1)
-        over = positive_part(e0 - self.limit2) + positive_part(e1 - self.limit2) > 0.0
-        self.above = above = select(over, self.above + self.dt, 0.0)
+        self.above = above = select(self.band_above(), self.above + self.dt, 0.0)
         return above >= self.hold
+
+    def band_above(self) -> Value:
+        """True (per device) while either motor's band RMS is above the limit (no hold): the
+        safety layer names a fault OSCILLATION rather than a sensor's when it coincides with this."""
+        return positive_part(self.e0 - self.limit2) + positive_part(self.e1 - self.limit2) > 0.0

@@ -199,13 +199,15 @@ class Safety:
 
     def check_gauges(self, est: Estimate) -> int:
         """SG_MISMATCH once the strain-gauge torques have disagreed with the torques the motors deliver
-        (this cycle's set values, :mod:`ankle_rt.gauge_check`); 0 otherwise or without gauges."""
+        (this cycle's set values, :mod:`ankle_rt.gauge_check`), OSCILLATION instead when the set values
+        oscillate at that moment; 0 otherwise or without gauges."""
         g = self.gauges
         if g is None:
             return 0
         kt, cur, v, sg = self.kt, self.current, est.motor_vel, est.sg_torque
         if g.update(kt * cur[0], kt * cur[1], v.item(0), v.item(1), sg.item(0), sg.item(1)):
-            return _SG_MISMATCH
+            # while the set values oscillate the cable modes part gauge and motors: the loop is the cause
+            return _OSCILLATION if self.oscillation.band_above() else _SG_MISMATCH
         return 0
 
     # -- per cycle -------------------------------------------------------------------------------
