@@ -28,23 +28,26 @@ TOLERANCE_NM = 6.0         # N m at the ankle, above the motors' Coulomb frictio
 TOLERANCE_FRACTION = 0.3   # of |c|: load-dependent cable friction (0.12 identified) and model errors
 HOLD_S = 0.05              # s the residual must stay beyond the tolerance
 FAST_CUTOFF_HZ = 20.0      # the fast residual: a gauge stepped far off trips at once (no hold)
-FAST_TOLERANCE_NM = 16.0   # N m above the slow residual's tolerance
+FAST_TOLERANCE_NM = 12.0   # N m above the slow residual's tolerance
 
 
 class GaugeCrossCheck:
     """The residual of the module docstring for both ankle axes [DP, IE]."""
 
-    def __init__(self, dt: float, R: Sequence[Sequence[float]], inertia: float, viscous: float, coulomb: float, *,
-                 cutoff_hz: float = CUTOFF_HZ, tolerance_nm: float = TOLERANCE_NM,
+    def __init__(self, dt: float, R: Sequence[Sequence[float]], inertia: float, viscous: float, coulomb: float,
+                 velocity_cutoff_hz: float, *, cutoff_hz: float = CUTOFF_HZ, tolerance_nm: float = TOLERANCE_NM,
                  tolerance_fraction: float = TOLERANCE_FRACTION, hold_s: float = HOLD_S):
         """``R``: theta_m = R theta (2x2); ``inertia`` (kg m^2), ``viscous`` (N m s/rad), ``coulomb``
-        (N m): one motor's, at the gearbox output."""
+        (N m): one motor's, at the gearbox output. ``velocity_cutoff_hz``: the estimator's motor
+        velocity low-pass, which the motor torque goes through too (the same lag on both sides of
+        ``c = tau_m - J a - D v``: a torque step is not read as a mismatch while a lags)."""
         self.dt = dt
         self.r00, self.r01, self.r10, self.r11 = float(R[0][0]), float(R[0][1]), float(R[1][0]), float(R[1][1])
         self.inertia_dt = inertia / dt
         self.viscous = viscous
         self.a = 1.0 - math.exp(-2.0 * math.pi * cutoff_hz * dt)
         self.af = 1.0 - math.exp(-2.0 * math.pi * FAST_CUTOFF_HZ * dt)
+        self.av = 1.0 - math.exp(-2.0 * math.pi * velocity_cutoff_hz * dt)
         # |R| maps per-motor torque magnitudes to what they can do on each axis
         self.q00, self.q01, self.q10, self.q11 = abs(self.r00), abs(self.r01), abs(self.r10), abs(self.r11)
         # the motors' Coulomb friction as seen on each axis (|R|^T kc), plus the margin
@@ -57,17 +60,24 @@ class GaugeCrossCheck:
     def reset(self, v0: Value, v1: Value) -> None:
         """Start over (on activation) from the motor velocities (rad/s) of this cycle."""
         self.v0, self.v1 = v0, v1
+        self.u0 = self.u1 = 0.0          # N m, motor torques low-passed like the velocity
+        self.p0 = self.p1 = 0.0          # N m, the motor torques of the previous cycle
         self.r0 = self.r1 = 0.0          # N m, low-passed residual [DP, IE]
         self.f0 = self.f1 = 0.0          # N m, the fast residual [DP, IE]
         self.c0 = self.c1 = 0.0          # N m, low-passed cable torque of each motor
         self.beyond = 0.0                # s the residual has been beyond the tolerance
 
     def update(self, tau_m0: Value, tau_m1: Value, v0: Value, v1: Value, sg_dp: Value, sg_ie: Value) -> Value:
-        """Motor torques (N m, what was applied), motor velocities (rad/s) and gauge torques (N m
-        [DP, IE]) of one cycle; True (per device) once the gauge has disagreed for ``hold_s``."""
+        """This cycle's motor torques (N m, set values x torque constant), motor velocities (rad/s)
+        and gauge torques (N m [DP, IE]); True (per device) once the gauge has disagreed for
+        ``hold_s`` or far off at once. The velocities show the torques of the previous cycle."""
+        av = self.av
+        self.u0 = u0 = self.u0 + av * (self.p0 - self.u0)
+        self.u1 = u1 = self.u1 + av * (self.p1 - self.u1)
+        self.p0, self.p1 = tau_m0, tau_m1
         jdt, d = self.inertia_dt, self.viscous
-        c0 = tau_m0 - jdt * (v0 - self.v0) - d * v0
-        c1 = tau_m1 - jdt * (v1 - self.v1) - d * v1
+        c0 = u0 - jdt * (v0 - self.v0) - d * v0
+        c1 = u1 - jdt * (v1 - self.v1) - d * v1
         self.v0, self.v1 = v0, v1
         a = self.a
         d0 = sg_dp - (self.r00 * c0 + self.r10 * c1)
@@ -77,8 +87,8 @@ class GaugeCrossCheck:
         af = self.af
         self.f0 = f0 = self.f0 + af * (d0 - self.f0)
         self.f1 = f1 = self.f1 + af * (d1 - self.f1)
-        self.c0 = m0 = self.c0 + a * (c0 - self.c0)
-        self.c1 = m1 = self.c1 + a * (c1 - self.c1)
+        self.c0 = m0 = self.c0 + af * (c0 - self.c0)
+        self.c1 = m1 = self.c1 + af * (c1 - self.c1)
         m0, m1 = abs(m0), abs(m1)                  # abs: floats and arrays alike
         f = self.fraction
         tol0 = self.base0 + f * (self.q00 * m0 + self.q10 * m1)

@@ -158,7 +158,8 @@ class Safety:
         self.gauges = None
         if self.check_estimated_ankle and (cfg["backend"] == "sim" or cfg["strain_gauges"]["matrix"] is not None):
             R = Kinematics.from_params(TransmissionParams(**cfg["transmission"])).R
-            self.gauges = GaugeCrossCheck(self.dt, R.tolist(), a["inertia"], a["damping"], a["coulomb"])
+            self.gauges = GaugeCrossCheck(self.dt, R.tolist(), a["inertia"], a["damping"], a["coulomb"],
+                                          cfg["estimation"]["velocity_cutoff_hz"])
         self.state = State.CONFIGURED
         self.fault = Fault.NONE
         self.fault_time = math.nan

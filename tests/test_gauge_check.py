@@ -113,8 +113,8 @@ def test_healthy_gauges_do_not_fault_free_pushed_or_walking(cfg):
 def test_the_check_runs_element_wise_on_a_batch():
     """The same update on floats (the daemon) and on arrays over a batch agrees device by device."""
     R = [[4.5, 2.5], [4.5, -2.5]]
-    one = [GaugeCrossCheck(1e-3, R, 0.048, 0.112, 0.28) for _ in range(3)]
-    batch = GaugeCrossCheck(1e-3, R, 0.048, 0.112, 0.28)
+    one = [GaugeCrossCheck(1e-3, R, 0.048, 0.112, 0.28, 100.0) for _ in range(3)]
+    batch = GaugeCrossCheck(1e-3, R, 0.048, 0.112, 0.28, 100.0)
     batch.reset(np.zeros(3), np.zeros(3))
     rng = np.random.default_rng(1)
     for _ in range(300):
