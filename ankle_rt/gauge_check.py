@@ -29,6 +29,8 @@ TOLERANCE_FRACTION = 0.3   # of |c|: load-dependent cable friction (0.12 identif
 HOLD_S = 0.05              # s the residual must stay beyond the tolerance
 FAST_CUTOFF_HZ = 20.0      # the fast residual: a gauge stepped far off trips at once (no hold)
 FAST_TOLERANCE_NM = 12.0   # N m above the slow residual's tolerance
+FAST_HOLD_S = 0.04         # s the fast residual must stay beyond it (an unmodelled actuation delay of a
+                           # few ms makes a torque step look like a mismatch for about that long)
 
 
 class GaugeCrossCheck:
@@ -66,6 +68,7 @@ class GaugeCrossCheck:
         self.f0 = self.f1 = 0.0          # N m, the fast residual [DP, IE]
         self.c0 = self.c1 = 0.0          # N m, low-passed cable torque of each motor
         self.beyond = 0.0                # s the residual has been beyond the tolerance
+        self.fast_beyond = 0.0           # s the fast residual has been beyond its tolerance
 
     def update(self, tau_m0: Value, tau_m1: Value, v0: Value, v1: Value, sg_dp: Value, sg_ie: Value) -> Value:
         """This cycle's motor torques (N m, set values x torque constant), motor velocities (rad/s)
@@ -96,4 +99,5 @@ class GaugeCrossCheck:
         off = positive_part(abs(r0) - tol0) + positive_part(abs(r1) - tol1)
         self.beyond = beyond = select(off > 0.0, self.beyond + self.dt, 0.0)
         fast = positive_part(abs(f0) - tol0 - FAST_TOLERANCE_NM) + positive_part(abs(f1) - tol1 - FAST_TOLERANCE_NM)
-        return (beyond >= self.hold) | (fast > 0.0)
+        self.fast_beyond = fast_beyond = select(fast > 0.0, self.fast_beyond + self.dt, 0.0)
+        return (beyond >= self.hold) | (fast_beyond >= FAST_HOLD_S)
