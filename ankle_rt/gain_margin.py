@@ -31,9 +31,18 @@ def gain_set_refusal(cfg: Mapping[str, Any], gains: Mapping[str, float]) -> tupl
     """(gain name, reason) when the closed loop with ``gains`` in place of the config's keeps less than
     the required gain margin over the plant range (:func:`ankle_rt.analysis.gain_set_margin_db`);
     None when it keeps it."""
+    import numpy as np
+
     from ankle_rt.analysis import REQUIRED_GAIN_MARGIN_DB, gain_set_margin_db
 
-    margin, name = gain_set_margin_db(cfg, gains)
+    try:
+        with np.errstate(all="ignore"):
+            margin, name = gain_set_margin_db(cfg, gains)
+    except (np.linalg.LinAlgError, ValueError, ZeroDivisionError, OverflowError) as exc:
+        # degenerate physical parameters (a cable stiffness or lever of 1e-300): not provably stable
+        name = next(iter(gains), "kp_dp")
+        return name, (f"{name}: the gain set cannot be shown stable: the closed-loop model of this plant "
+                      f"fails ({type(exc).__name__}: {exc}); check the physical parameters")
     if name is None:
         return None
     c = cfg["controller"]

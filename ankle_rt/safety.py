@@ -30,7 +30,7 @@ from ankle_rt.backend import BackendFault, SensorFrame
 from ankle_rt.config_schema import ESCON_CONTINUOUS_A, ESCON_PEAK_A, ESCON_PEAK_S
 from ankle_rt.estimation import Estimate
 from ankle_rt.gauge_check import GaugeCrossCheck
-from ankle_rt.kinematics import Kinematics
+from ankle_rt.kinematics import motor_ratio
 from ankle_rt.oscillation import OscillationDetector
 from ankle_rt.params import TransmissionParams
 from ankle_rt.schema import ConfigError
@@ -157,7 +157,7 @@ class Safety:
         self.kt = float(a["torque_constant"])
         self.gauges = None
         if self.check_estimated_ankle and (cfg["backend"] == "sim" or cfg["strain_gauges"]["matrix"] is not None):
-            R = Kinematics.from_params(TransmissionParams(**cfg["transmission"])).R
+            R = motor_ratio(TransmissionParams(**cfg["transmission"]))
             self.gauges = GaugeCrossCheck(self.dt, R.tolist(), a["inertia"], a["damping"], a["coulomb"],
                                           cfg["estimation"]["velocity_cutoff_hz"])
         self.state = State.CONFIGURED
