@@ -363,6 +363,8 @@ def test_set_gains_refuses_an_oscillating_torque_loop_and_applies_a_stable_chang
         assert cerr.value.field == "kp_dp"
         assert daemon.controller.gains.as_dict()["kp_dp"] == 6.0
         reply(daemon.handle(SetGains(kp_dp=4.0, stiffness_dp=60.0)))
+        with pytest.raises(CommandError, match="busy: the previous gain ramp"):   # its path was not checked
+            reply(daemon.handle(SetGains(kp_dp=5.0)))
         run_cycles(daemon, 400)                               # past controller.gain_ramp_s
         assert daemon.controller.gains.as_dict()["kp_dp"] == 4.0
         assert daemon.controller.torque_loop.kp0 == 4.0      # the loop runs with the ramped gain
