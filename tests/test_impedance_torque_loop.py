@@ -433,3 +433,22 @@ def test_the_gain_set_margin_is_the_least_margin_of_the_loop_the_daemon_runs(bas
     least = min(m.gain_margin_db for m in torque_loop_margins(p, c, load_coefficient=_load_coefficient(cfg)))
     margin, _ = gain_set_margin_db(cfg, {})
     assert margin == pytest.approx(min(least, _MARGIN_CAP_DB), abs=0.05)
+
+
+def test_switching_to_a_torque_loop_without_margin_at_run_time_is_refused_naming_the_gain(base):
+    """set_controller builds the controller from the config: at 250 Hz the shipped joint-torque loop has
+    no gain margin, so the switch is refused naming the gain and the running controller stays."""
+    from ankle_rt.service.protocol import CommandError, SetController
+    from tests.daemon_helpers import lockstep_daemon, reply
+
+    cfg = base.deep_copy()
+    cfg["controller"]["rate_hz"] = 250
+    daemon = lockstep_daemon(cfg)
+    try:
+        before = daemon.controller
+        with pytest.raises(CommandError) as err:
+            reply(daemon.handle(SetController("impedance", {})))
+        assert err.value.field == "torque_loop.kp_dp" and "unstable" in err.value.message
+        assert daemon.controller is before
+    finally:
+        daemon.close()
