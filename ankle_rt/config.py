@@ -9,7 +9,10 @@ expected. Physical parameters never get silent defaults; only software options d
 
 Files are read as regular files only (a FIFO or ``/dev/zero`` named by ``include:`` fails at once),
 at most :data:`MAX_CONFIG_BYTES` each and :data:`MAX_CONFIG_FILES` in all, as UTF-8 text; nesting is
-bounded by :data:`MAX_CONFIG_DEPTH`. Every such problem is a ConfigError naming the file.
+bounded by :data:`MAX_CONFIG_DEPTH`. YAML aliases and anchors are refused (an alias bomb would expand
+a small file past any size limit), as are duplicate keys (YAML keeps the last silently) and files of
+more than :data:`MAX_CONFIG_NODES` nodes, all before anything is built from the document. Every such
+problem is a ConfigError naming the file (and the key and line where there is one).
 """
 
 from __future__ import annotations
@@ -32,6 +35,8 @@ MAX_CONFIG_DEPTH = 16
 """Deepest nesting of mappings and lists accepted (the schema needs 4)."""
 MAX_CONFIG_FILES = 32
 """Most files one config may pull in through ``include:`` (nested includes counted)."""
+MAX_CONFIG_NODES = 100_000
+"""Most YAML nodes (keys, values, list items) in one config file (the shipped ones have a few hundred)."""
 
 
 _LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)   # libyaml when present: the same documents, faster
@@ -50,6 +55,7 @@ def parse_yaml(text: str, source: str) -> dict:
     """A config document's text as a mapping (``{}`` when empty); ConfigError naming ``source`` when
     it is not valid YAML or not a mapping."""
     try:
+        _check_nodes(yaml.compose(text, Loader=_LOADER), source)
         data = yaml.load(text, Loader=_LOADER)
     except yaml.YAMLError as exc:
         raise ConfigError(f"not valid YAML: {exc}", source) from None
@@ -62,6 +68,34 @@ def parse_yaml(text: str, source: str) -> dict:
     if _depth(data) > MAX_CONFIG_DEPTH:
         raise ConfigError(f"nested deeper than {MAX_CONFIG_DEPTH} levels", source)
     return data
+
+
+def _check_nodes(root: yaml.Node | None, source: str) -> None:
+    """Refuse, before anything is built from it, a document with a YAML alias (``*name``: an alias
+    bomb expands a few hundred bytes into gigabytes), a mapping with a duplicate key (YAML keeps the
+    last one silently) or more than MAX_CONFIG_NODES nodes. ConfigError naming the key and line."""
+    seen: set[int] = set()
+    stack = [] if root is None else [root]
+    while stack:
+        node = stack.pop()
+        if id(node) in seen:     # the composer shares an anchored node wherever it is aliased
+            raise ConfigError(f"the value on line {node.start_mark.line + 1} is used again through a YAML "
+                              "alias (*name, <<): aliases are not accepted in a config; write the values out", source)
+        seen.add(id(node))
+        if len(seen) > MAX_CONFIG_NODES:
+            raise ConfigError(f"more than {MAX_CONFIG_NODES} YAML nodes", source)
+        if isinstance(node, yaml.MappingNode):
+            keys: dict[str, int] = {}
+            for key, value in node.value:
+                if isinstance(key, yaml.ScalarNode):
+                    line = key.start_mark.line + 1
+                    if key.value in keys:
+                        raise ConfigError(f"line {line}: duplicate key {key.value!r} (first on line "
+                                          f"{keys[key.value]}); YAML would keep only the last", source)
+                    keys[key.value] = line
+                stack.extend((key, value))
+        elif isinstance(node, yaml.SequenceNode):
+            stack.extend(node.value)
 
 
 def _depth(data: object) -> int:
@@ -160,5 +194,22 @@ def config_from_data(data: dict, origin: Callable[[KeyPath], str], source: str) 
     the file each key came from, for errors; ``source``: the config's name)."""
     cfg = Config(validate(data, SCHEMA, origin))
     check_consistency(cfg, origin)
+    _check_gain_margin(cfg, origin)
     cfg.source = source
     return cfg
+
+
+def _check_gain_margin(cfg: Config, origin: Callable[[KeyPath], str]) -> None:
+    """The impedance controller with the joint-torque loop: its configured gain set must keep the
+    required gain margin over the plant range (ConfigError naming the gain that limits it)."""
+    from ankle_rt.gain_margin import gain_set_refusal
+    from ankle_rt.loop_setup import torque_feedback
+
+    ctl = cfg["controller"]
+    if ctl["type"] != "impedance" or not torque_feedback(cfg):
+        return
+    bad = gain_set_refusal(cfg, {})
+    if bad is not None:
+        name, reason = bad
+        section = "torque_loop" if name in ctl["torque_loop"] else "impedance"
+        raise ConfigError(reason, origin(("controller", section, name)), f"controller.{section}.{name}")

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from typing import Any, Callable, Mapping
 
+from ankle_rt.command_limits import MAX_TORQUE_KI, MAX_TORQUE_KP, MAX_TORQUE_RATE
 from ankle_rt.controller_registry import check_controller_name
 from ankle_rt.references import PROFILE_PARAMS
 from ankle_rt.schema import ConfigError, Field, KeyPath, ListOf, Section, non_negative, positive
@@ -86,19 +87,28 @@ KP_DEFAULT, KI_DEFAULT, KD_DP_DEFAULT, KD_IE_DEFAULT = 6.0, 10.0, 0.03, 0.06
 # DP max correction 30 N m: the reflected motor inertia of a 15 N m, 2 Hz push at K_dp 200 needs ~23 N m of
 # correction (20 clamped it: 9 N m/rad rendered); it is also what a wrong torque reading can add (docs/daemon.md)
 CUTOFF_DEFAULT, MAX_CORRECTION_DP_DEFAULT, MAX_CORRECTION_IE_DEFAULT = 80.0, 30.0, 20.0
-# Plausible ceilings of the torque loop's gains: far beyond what the loop's margins allow (docs/daemon.md),
-# so a typo or a non-finite value is refused while any tuning a study might try still loads.
-MAX_TORQUE_KP, MAX_TORQUE_KI, MAX_TORQUE_RATE, MAX_CORRECTION = 100.0, 1000.0, 1.0, 100.0
+# The torque loop's gain ceilings (MAX_TORQUE_KP/KI/RATE) are ankle_rt.command_limits' (set_gains
+# checks them too): far beyond what the loop's margins allow, so a typo or a non-finite value is refused.
+MAX_CORRECTION = 100.0
 # The disturbance observer and its energy tank (ankle_rt/control/torque_loop.py): shipped values and ceilings.
 DOB_HZ_DEFAULT, DOB_INERTIA_DEFAULT, MAX_OBSERVER_DEFAULT = 0.0, 1.0, 20.0
 TANK_J_DEFAULT, TANK_CREDIT_DEFAULT = 0.5, 0.8
 MAX_DOB_HZ, MAX_OBSERVER, MAX_TANK_J = 200.0, 100.0, 10.0
 
+IMPEDANCE_DEFAULTS = {"stiffness_dp": 20.0, "stiffness_ie": 10.0, "damping_dp": 0.5, "damping_ie": 0.25}
+# The gains of a set (what ankle_rt.analysis.gain_set_margin_db checks and set_gains names) and the
+# shipped set (what a limiting gain is found against).
+IMPEDANCE_GAINS = tuple(IMPEDANCE_DEFAULTS)
+LOOP_GAINS = ("kp_dp", "kp_ie", "ki_dp", "ki_ie", "torque_rate_dp", "torque_rate_ie", "cutoff_hz")
+SHIPPED_GAINS = {**IMPEDANCE_DEFAULTS, "kp_dp": KP_DEFAULT, "kp_ie": KP_DEFAULT, "ki_dp": KI_DEFAULT,
+                 "ki_ie": KI_DEFAULT, "torque_rate_dp": KD_DP_DEFAULT, "torque_rate_ie": KD_IE_DEFAULT,
+                 "cutoff_hz": CUTOFF_DEFAULT}
+
 IMPEDANCE = Section({
-    "stiffness_dp": non_negative("N m/rad at the ankle", default=20.0, high=MAX_STIFFNESS),
-    "stiffness_ie": non_negative("N m/rad at the ankle", default=10.0, high=MAX_STIFFNESS),
-    "damping_dp": non_negative("N m s/rad at the ankle", default=0.5, high=MAX_DAMPING),
-    "damping_ie": non_negative("N m s/rad at the ankle", default=0.25, high=MAX_DAMPING),
+    "stiffness_dp": non_negative("N m/rad at the ankle", default=IMPEDANCE_DEFAULTS["stiffness_dp"], high=MAX_STIFFNESS),
+    "stiffness_ie": non_negative("N m/rad at the ankle", default=IMPEDANCE_DEFAULTS["stiffness_ie"], high=MAX_STIFFNESS),
+    "damping_dp": non_negative("N m s/rad at the ankle", default=IMPEDANCE_DEFAULTS["damping_dp"], high=MAX_DAMPING),
+    "damping_ie": non_negative("N m s/rad at the ankle", default=IMPEDANCE_DEFAULTS["damping_ie"], high=MAX_DAMPING),
     "torque_feedback": Field(str, "joint-torque loop on the strain gauges (controller.torque_loop): auto = on when "
                                   "strain gauges are configured (simulator, or strain_gauges.matrix); off = open loop",
                              default="auto", choices=("auto", "on", "off")),
@@ -268,6 +278,10 @@ SAFETY = Section({
                           default=5, low=1, high=1000),
     "i2t_peak_duration_s": positive("s the peak current may flow (ESCON 50/5: at most 20 s); sets the I^2 t budget",
                                     default=20.0, high=ESCON_PEAK_S),
+    "oscillation_rms_a": positive("A; a set value's RMS above 20 Hz (either motor) beyond this for "
+                                  "safety.oscillation_hold_s is an oscillation fault", default=1.0, high=5.0),
+    "oscillation_hold_s": positive("s the band RMS must stay above safety.oscillation_rms_a to fault", default=0.25,
+                                   high=2.0),
 }, optional=True)
 
 LOGGING = Section({

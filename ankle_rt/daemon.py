@@ -72,6 +72,8 @@ class Daemon:
         self.frame = SensorFrame()
         self.est = Estimate()
         self.estimator = Estimator(self.kin, self.dt, est_cfg["velocity_cutoff_hz"], est_cfg["tare_samples"])
+        # the safety layer comes from the validated config before any controller (a plugin) is built
+        self.safety = Safety(cfg, self.dt)
         self.own_controller = controller is None
         self.reference_commanded = False   # a set_reference / start_profile command chose the reference
         if controller is None:
@@ -80,7 +82,6 @@ class Daemon:
         else:   # an experiment brings its own excitation: no reference (logged as NaN)
             self.reference = ReferenceGenerator(Hold(math.nan, math.nan))
             self.controller = controller
-        self.safety = Safety(cfg, self.dt)
         self.max_reference_step = cfg["reference"]["max_rate_rad_s"] * self.dt   # rad per cycle, commanded
         self.gain_maxima = gain_maxima(cfg["controller"]["gain_limits"])
         self.loader = BackgroundLoader()
@@ -123,6 +124,8 @@ class Daemon:
             if code == 0 and state == ACTIVE:
                 self.controller.update(est, torque)
                 code = safety.limit_currents(torque.item(0) * self.inv_kt, torque.item(1) * self.inv_kt)
+                if code == 0:
+                    code = safety.check_gauges(est)
                 if code == 0:
                     backend.write(safety.current[0], safety.current[1])
             if code != 0:
@@ -199,9 +202,8 @@ class Daemon:
             self.reference.ref[:] = ankle
             self.reference.start(RampTo(hold.dp, hold.ie, self.cfg["reference"]["ramp_s"]))
         self.backend.activate()
-        s.current[0] = s.current[1] = 0.0
+        s.activated(self.est)
         self.controller.reset(self.est)
-        s.state = State.ACTIVE
         self.activations += 1
         if self.service is not None:
             self.service.mark_command_channel(self.clock.now_ns() * 1e-9)
@@ -236,13 +238,44 @@ class Daemon:
         setter = getattr(self.controller, "set_gains", None)
         if setter is None:
             raise ValueError("this controller has no run-time gains")
+        self._check_gain_maxima(gains)
+        setter(**gains)
+
+    def _check_gain_maxima(self, gains: dict[str, float]) -> None:
         for name, value in gains.items():
             if name in proto.PHASE_FIELDS:         # the phase and its equilibria: the controller checks them
                 continue
             problem = gain_problem(name, value, self.gain_maxima)
             if problem:
                 raise GainError(name, f"gain {name!r} {problem}")
-        setter(**gains)
+
+    def _set_gains_checked(self, gains: dict[str, float]) -> dict | proto.Pending:
+        """The set_gains command. A controller whose gain check is slow (``check_gains``: the
+        impedance controller's stability margins over the whole ramp) is checked by the background
+        loader, off the loop thread, and the gains applied when the check passes (Pending reply);
+        any other controller's gains are set at once."""
+        check = getattr(self.controller, "check_gains", None)
+        if check is None:
+            self.set_gains(**gains)
+            return {"state": State(self.safety.state).name.lower()}
+        self._check_gain_maxima(gains)
+        controller = self.controller
+        job = self._in_background(lambda: check(**gains), "a gain change check", next(iter(gains), "cmd"))
+
+        def finish() -> dict | None:
+            if not job.done:
+                return None
+            if isinstance(job.error, GainError):
+                raise proto.CommandError(job.error.gain, str(job.error))
+            if job.error is not None:
+                raise job.error
+            if self.controller is not controller:   # swapped meanwhile: the check was not for this one
+                raise proto.CommandError("cmd", "the controller changed while its gains were checked; "
+                                                "nothing changed")
+            controller.apply_gains(**gains)
+            return {"state": State(self.safety.state).name.lower()}
+
+        return proto.Pending(finish)
 
     def _command_reference(self, profile: Profile) -> None:
         """Start a commanded reference; from now on the reference is rate limited."""
@@ -297,7 +330,7 @@ class Daemon:
                         raise proto.CommandError(key, problem)
                 self._command_reference(RampTo(command.dp, command.ie, ramp))
             elif isinstance(command, proto.SetGains):
-                self.set_gains(**command.given())
+                return self._set_gains_checked(command.given())
             elif isinstance(command, proto.StartProfile) and command.name == "csv":
                 return self._start_csv(dict(command.params))
             elif isinstance(command, proto.StartProfile):

@@ -25,8 +25,7 @@ class Kinematics:
 
     @classmethod
     def from_params(cls, p: TransmissionParams) -> "Kinematics":
-        r = p.pulley_radius
-        R = np.array([[p.lever_dp, p.lever_ie], [p.lever_dp, -p.lever_ie]]) / r
+        R = motor_ratio(p)
         R_inv = np.linalg.inv(R)
         K = np.diag([2.0 * p.cable_stiffness * p.lever_dp ** 2, p.cable_stiffness * p.lever_ie ** 2])
         return cls(R=R, R_inv=R_inv, R_inv_T=R_inv.T.copy(), K=K, K_inv=np.linalg.inv(K))
@@ -54,3 +53,9 @@ class Kinematics:
     def ankle_from_motor_and_torque(self, theta_m: np.ndarray, tau_j: np.ndarray) -> np.ndarray:
         """rad: ankle angles from motor angles and the measured joint torque, theta = R^-1 theta_m - K^-1 tau_j."""
         return self.R_inv @ theta_m - self.K_inv @ tau_j
+
+
+def motor_ratio(p: TransmissionParams) -> np.ndarray:
+    """R (theta_m = R theta) alone: what needs no inversion (the safety layer's gauge check builds
+    from it even for parameters whose stiffness matrix would be singular)."""
+    return np.array([[p.lever_dp, p.lever_ie], [p.lever_dp, -p.lever_ie]]) / p.pulley_radius

@@ -32,6 +32,10 @@ from ankle_rt.backend import BackendFault, SensorFrame
 from ankle_rt.config_schema import SCHEMA
 from ankle_rt.elementwise import Value, any_true, clip, positive_part, select, stack
 from ankle_rt.estimation import Estimate
+from ankle_rt.gauge_check import GaugeCrossCheck
+from ankle_rt.kinematics import motor_ratio
+from ankle_rt.oscillation import OscillationDetector
+from ankle_rt.params import TransmissionParams
 from ankle_rt.schema import ConfigError
 
 
@@ -61,6 +65,8 @@ class Fault(enum.IntEnum):
     OUTPUT_INVALID = 15      # the controller produced a NaN/inf torque
     REFERENCE_INVALID = 16   # the ankle reference is NaN/inf
     LOG_FAILED = 17          # a run log write failed (disk full) and logging.fault_on_error is set
+    OSCILLATION = 18         # a set value oscillated above 20 Hz beyond safety.oscillation_rms_a for oscillation_hold_s
+    SG_MISMATCH = 19         # strain-gauge torque disagrees with the torque the motors deliver (ankle_rt.gauge_check)
 
     @property
     def description(self) -> str:
@@ -86,6 +92,8 @@ _DESCRIPTIONS = {
     Fault.OUTPUT_INVALID: "controller output not finite",
     Fault.REFERENCE_INVALID: "ankle reference not finite",
     Fault.LOG_FAILED: "run log write failed (logging.fault_on_error)",
+    Fault.OSCILLATION: "sustained current oscillation above 20 Hz (an unstable loop)",
+    Fault.SG_MISMATCH: "strain-gauge torque disagrees with the motors (stuck, drifting, sign-flipped or stepped gauge)",
 }
 
 # BackendFault bits that stop the device, in priority order. CRC errors and sequence gaps are
@@ -108,7 +116,7 @@ _ACTIVE, _FAULT = int(State.ACTIVE), int(State.FAULT)
 _AMP_NOT_READY, _SENSOR_INVALID, _SG_RAIL = int(Fault.AMP_NOT_READY), int(Fault.SENSOR_INVALID), int(Fault.SG_RAIL)
 _SENSOR_STALE, _MOTOR_JUMP, _SG_JUMP = int(Fault.SENSOR_STALE), int(Fault.MOTOR_JUMP), int(Fault.SG_JUMP)
 _ANKLE_RANGE, _OVERCURRENT, _OUTPUT_INVALID = int(Fault.ANKLE_RANGE), int(Fault.OVERCURRENT), int(Fault.OUTPUT_INVALID)
-_REFERENCE_INVALID = int(Fault.REFERENCE_INVALID)
+_REFERENCE_INVALID, _OSCILLATION, _SG_MISMATCH = int(Fault.REFERENCE_INVALID), int(Fault.OSCILLATION), int(Fault.SG_MISMATCH)
 
 
 def _limit(value: Any, key: str, low: float, high: float | None, low_open: bool = True) -> float:
@@ -154,6 +162,16 @@ class Safety:
         self.i_cont2 = i_cont ** 2
         peak_s = _configured(cfg, "safety.i2t_peak_duration_s")
         self.i2t_budget = (self.i_peak ** 2 - self.i_cont2) * peak_s  # A^2 s
+        self.oscillation = OscillationDetector(self.dt, _configured(cfg, "safety.oscillation_rms_a"),
+                                               _configured(cfg, "safety.oscillation_hold_s"))
+        # The gauges are cross-checked where there are gauges and cables between motors and ankle.
+        a = cfg["actuator"]
+        self.kt = float(a["torque_constant"])
+        self.gauges = None
+        if self.check_estimated_ankle and (cfg["backend"] == "sim" or cfg["strain_gauges"]["matrix"] is not None):
+            R = motor_ratio(TransmissionParams(**cfg["transmission"]))
+            self.gauges = GaugeCrossCheck(self.dt, R.tolist(), a["inertia"], a["damping"], a["coulomb"],
+                                          cfg["estimation"]["velocity_cutoff_hz"])
         self.state = State.CONFIGURED
         self.fault = Fault.NONE
         self.fault_time = math.nan
@@ -183,6 +201,33 @@ class Safety:
         self.fault_time = math.nan
         self._have_last = False
         self._stale = 0
+        self.oscillation.reset()
+
+    def activated(self, est: Estimate, where: bool | np.ndarray = True) -> None:
+        """CONFIGURED/SAFE -> ACTIVE (the daemon's activate; for a batch, where ``where`` holds): set
+        values restart from zero, and with them the oscillation detector and the gauge cross-check."""
+        cur = self.current
+        cur[0] = select(where, 0.0, cur[0])
+        cur[1] = select(where, 0.0, cur[1])
+        self.oscillation.reset(where)
+        if self.gauges is not None:
+            self.gauges.reset(est.mv1, est.mv2, where)
+        self.state = select(where, State.ACTIVE, self.state)
+
+    def check_gauges(self, est: Estimate) -> Value:
+        """SG_MISMATCH once the strain-gauge torques have disagreed with the torques the motors deliver
+        (this cycle's set values, :mod:`ankle_rt.gauge_check`), OSCILLATION instead when the set values
+        oscillate at that moment; 0 otherwise or without gauges. Element-wise (a code per device on a
+        :meth:`stack`; the caller keeps the codes of the devices it drives this cycle)."""
+        g = self.gauges
+        if g is None:
+            return 0
+        kt, cur = self.kt, self.current
+        off = g.update(kt * cur[0], kt * cur[1], est.mv1, est.mv2, est.sg_dp, est.sg_ie)
+        if not any_true(off):
+            return 0 * off
+        # while the set values oscillate the cable modes part gauge and motors: the loop is the cause
+        return select(off, select(self.oscillation.band_above(), _OSCILLATION, _SG_MISMATCH), 0)
 
     # -- per cycle -------------------------------------------------------------------------------
     def check_sensors(self, frame: SensorFrame, est: Estimate) -> int:
@@ -242,7 +287,8 @@ class Safety:
 
     def limit_currents(self, i1: Value, i2: Value, where: bool | np.ndarray = True) -> Value:
         """Clamp set values (A) to the peak current into ``self.current`` and update the I^2 t
-        estimate; return OVERCURRENT once the peak budget is spent, OUTPUT_INVALID for NaN.
+        estimate; return OVERCURRENT once the peak budget is spent, OUTPUT_INVALID for NaN,
+        OSCILLATION once the clamped set values have oscillated (:mod:`ankle_rt.oscillation`).
         Element-wise; on a :meth:`stack` only the devices ``where`` holds count (saturation, I^2 t,
         faults): the others are not driven this cycle."""
         cur, pk = self.current, self.i_peak
@@ -259,7 +305,10 @@ class Safety:
         q[0] = select(counted, positive_part(q0), q[0])
         q[1] = select(counted, positive_part(q1), q[1])
         over = counted & ((q0 > self.i2t_budget) | (q1 > self.i2t_budget))
-        return select(over, _OVERCURRENT, select(valid | (where ^ True), 0, _OUTPUT_INVALID))
+        # the detector's state matters only while driven: it restarts at every activation (activated)
+        oscillating = counted & self.oscillation.update(cur[0], cur[1])
+        return select(over, _OVERCURRENT, select(valid | (where ^ True), select(oscillating, _OSCILLATION, 0),
+                                                 _OUTPUT_INVALID))
 
     @classmethod
     def stack(cls, layers: Sequence["Safety"]) -> "Safety":

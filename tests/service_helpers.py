@@ -20,7 +20,7 @@ SIM_CONFIG = Path(__file__).resolve().parent.parent / "config" / "sim.yaml"
 
 DAEMON_CONFIG = """\
 include: [{sim}]
-controller: {{rate_hz: 250}}
+controller: {{rate_hz: 250, impedance: {{torque_feedback: "off"}}}}   # the joint-torque loop needs 1 kHz (no margin at 250 Hz)
 safety: {{auto_activate: false}}        # stays configured (amplifiers off) until told
 reference: {{profile: hold}}            # activation holds the ankle at 0
 sim: {{disturbances: []}}               # nothing else may move the ankle

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from ankle_rt.config import ConfigError
-from ankle_rt.control.torque_loop import torque_feedback
+from ankle_rt.loop_setup import torque_feedback
 from ankle_rt.controller_registry import BUILTIN_CONTROLLERS
 from ankle_rt.daemon import run_lockstep
 from ankle_rt.safety import Fault
@@ -181,3 +181,17 @@ def test_stacking_keeps_shared_flags_and_stacks_numbers_lists_and_parts():
         stack([Law(1.0, True, True, [1.0], "a"), Law(1.0, True, True, [1.0], "b")])
     with pytest.raises(ValueError, match="Law.rows differs"):
         stack([Law(1.0, True, True, [1.0], "a"), Law(1.0, True, True, [2.0], "a")])
+
+
+def test_the_batch_runs_the_gauge_cross_check_and_the_oscillation_detector(sim_cfg):
+    """SG_MISMATCH (a motor torque the model does not know, 6 N m on motor 1, parts the gauge torque
+    from the motors'; 1 N m stays inside the tolerance) and OSCILLATION (the detector set low enough
+    for the step's ringing) fault in the batch as in the daemon: the same Safety code on arrays."""
+    cfgs = [sim_cfg.deep_copy() for _ in range(2)]
+    for cfg, torque in zip(cfgs, (1.0, 6.0)):
+        cfg["sim"]["effects"] = [*cfg["sim"]["effects"], {"type": "torque_offset", "torque_1": torque}]
+    assert _compare(cfgs) == [0, Fault.SG_MISMATCH]
+    cfgs = [sim_cfg.deep_copy() for _ in range(2)]
+    cfgs[0]["safety"]["oscillation_rms_a"] = 0.1
+    cfgs[0]["safety"]["oscillation_hold_s"] = 0.02
+    assert _compare(cfgs) == [Fault.OSCILLATION, 0]

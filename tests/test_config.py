@@ -109,3 +109,40 @@ def test_config_data_validates_again_to_the_same_config():
 
 def _leaves(data: dict) -> list:
     return [v for value in data.values() for v in (_leaves(value) if isinstance(value, dict) else [value])]
+
+
+def _config_text(tmp_path: Path, body: str) -> Path:
+    path = tmp_path / "c.yaml"
+    path.write_text(f"include: [{SIM_CONFIG}]\n" + body)
+    return path
+
+
+def test_duplicate_keys_are_refused_naming_the_key_and_line(tmp_path):
+    path = _config_text(tmp_path, "amplifier:\n  current_limit_peak: 5\n  current_limit_peak: 15\n")
+    with pytest.raises(ConfigError) as err:
+        load_config(path)
+    msg = str(err.value)
+    assert "duplicate key 'current_limit_peak'" in msg and "line 4" in msg and "line 3" in msg
+
+
+def test_a_yaml_alias_bomb_is_refused_before_it_expands(tmp_path):
+    lines = ["a0: &a0 [x, x, x, x, x, x, x, x, x, x]"]
+    lines += [f"a{i}: &a{i} [" + ", ".join([f"*a{i - 1}"] * 10) + "]" for i in range(1, 9)]   # 10^9 strings
+    path = _config_text(tmp_path, "controller:\n  params:\n" + "".join(f"    {line}\n" for line in lines))
+    with pytest.raises(ConfigError, match="alias"):
+        load_config(path)
+
+
+def test_a_plain_alias_is_refused_too(tmp_path):
+    path = _config_text(tmp_path, "limits: &l {ankle_range_deg: 20}\ncontroller: {params: {copy: *l}}\n")
+    with pytest.raises(ConfigError, match="line 2.*alias"):
+        load_config(path)
+
+
+def test_a_config_of_too_many_nodes_is_refused(tmp_path, monkeypatch):
+    import ankle_rt.config as config
+
+    monkeypatch.setattr(config, "MAX_CONFIG_NODES", 50)
+    path = _config_text(tmp_path, "controller:\n  params: {xs: [" + ", ".join(["1"] * 60) + "]}\n")
+    with pytest.raises(ConfigError, match="more than 50 YAML nodes"):
+        load_config(path)

@@ -48,6 +48,21 @@ class RaisesInUpdate(Controller):
         raise ZeroDivisionError("plugin bug")
 
 
+class RaisesTheCurrentLimit(Controller):
+    """A hostile plugin: writes amplifier.current_limit_peak = 15 A, then asks for 1e9 A."""
+
+    def __init__(self, context):
+        super().__init__(context)
+        try:
+            context.cfg["amplifier"]["current_limit_peak"] = 15.0
+        except TypeError as exc:
+            type(self).refused = str(exc)
+
+    def update(self, est, out_torque):
+        out_torque[0] = 1e9 * self.context.torque_constant
+        out_torque[1] = 0.0
+
+
 def raising_factory(ctx):
     raise RuntimeError("cannot build")
 
@@ -75,6 +90,7 @@ def plugins(tmp_path, monkeypatch):
         "load_stiffening": "ankle_rt_example_controller:LoadStiffening",
         "huge_current": "tests.test_controller_plugins:HugeCurrent",
         "not_a_number": "tests.test_controller_plugins:NotANumber",
+        "raises_limit": "tests.test_controller_plugins:RaisesTheCurrentLimit",
         "missing_module": "no_such_module_xyz:Controller",
     }))
 
@@ -134,6 +150,15 @@ def test_safety_clamps_a_plugin_asking_for_1e9_amperes(plugins, tmp_path):
     assert rec.summary["fault"] != "NONE"          # the first check it breaks (I2t, ankle range, motor speed) stops it
     after = rec["state"] == State.FAULT
     assert after.any() and np.all(rec["current_cmd_1"][after] == 0.0)
+
+
+def test_a_plugin_cannot_raise_the_current_limit_through_the_config(plugins, tmp_path):
+    cfg = load_config(plugin_config(tmp_path, "controller: {type: raises_limit}\namplifier: {current_limit_peak: 8.0}\n"))
+    rec = run_lockstep(cfg, 0.3)
+    assert rec["torque_cmd_1"].max() > 1e8                     # it asked for far more than 8 A
+    assert np.max(np.abs(rec["current_cmd_1"])) == pytest.approx(8.0)   # the configured clamp held
+    assert cfg["amplifier"]["current_limit_peak"] == 8.0
+    assert "read-only" in RaisesTheCurrentLimit.refused and "current_limit_peak" in RaisesTheCurrentLimit.refused
 
 
 def test_safety_faults_a_plugin_returning_nan(plugins, tmp_path):

@@ -8,7 +8,8 @@ from __future__ import annotations
 import pytest
 
 from ankle_rt.config import load_config
-from ankle_rt.control.torque_loop import JointTorqueLoop, ReflectedActuator, TorqueLoopGains
+from ankle_rt.control.torque_loop import JointTorqueLoop, TorqueLoopGains
+from ankle_rt.loop_setup import ReflectedActuator
 from ankle_rt.bench.impedance import Experiment, bench_config, run_impedance
 from ankle_rt.paths import default_config_path
 

@@ -14,10 +14,11 @@ from ankle_rt.backend import BackendFault, open_backend
 from ankle_rt.clock import SimClock
 from ankle_rt.config import ConfigError, load_config
 from ankle_rt.control import build_controller
-from ankle_rt.control.torque_loop import torque_feedback
+from ankle_rt.loop_setup import torque_feedback
 from ankle_rt.control.impedance import ImpedanceController
 from ankle_rt.control.gains import GainError
-from ankle_rt.control.torque_loop import ImpedanceLimits, JointTorqueLoop, ReflectedActuator, TorqueLoopGains
+from ankle_rt.control.torque_loop import ImpedanceLimits, JointTorqueLoop, TorqueLoopGains
+from ankle_rt.loop_setup import ReflectedActuator
 from ankle_rt.daemon import run_lockstep
 from ankle_rt.estimation import Estimate
 from ankle_rt.bench.impedance import Experiment, TorqueProgramBackend, bench_config, run_impedance
@@ -336,3 +337,115 @@ def test_the_loop_is_built_twice_per_margin_not_once_per_gain(base, monkeypatch)
     monkeypatch.setattr(analysis, "closed_loop", lambda *a, **k: builds.append(k.get("gain")) or real(*a, **k))
     assert 0.0 < analysis.gain_margin_db(p, c) < 60.0
     assert builds == [0.0, 1.0]
+
+
+OSCILLATING_LOOPS = [   # issue 19: both passed `config check` and oscillate at ~80 Hz on the simulator
+    "{kp_dp: 100, kp_ie: 100, max_correction_dp: 100, max_correction_ie: 100}",
+    "{kp_dp: 100, kp_ie: 100}",
+]
+
+
+@pytest.mark.parametrize("loop", OSCILLATING_LOOPS)
+def test_config_check_refuses_an_oscillating_torque_loop_naming_the_gain(tmp_path, capsys, loop):
+    from ankle_rt.cli import main
+
+    path = tmp_path / "hot.yaml"
+    path.write_text(f"include: [{default_config_path()}]\ncontroller: {{type: impedance, torque_loop: {loop}}}\n")
+    assert main(["config", "check", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "controller.torque_loop.kp_dp: kp_dp 100: the closed loop is unstable" in err and "6 dB" in err
+
+
+def test_the_shipped_impedance_gains_keep_the_stated_margin(base):
+    from ankle_rt.analysis import REQUIRED_GAIN_MARGIN_DB, gain_set_margin_db
+
+    for k_dp in (20.0, 50.0, 200.0):
+        margin, name = gain_set_margin_db(impedance_cfg(base, k_dp), {})
+        assert margin >= REQUIRED_GAIN_MARGIN_DB and name is None, k_dp
+    margin, name = gain_set_margin_db(impedance_cfg(base), {"torque_rate_dp": 0.0})   # the cable mode undamped
+    assert margin < REQUIRED_GAIN_MARGIN_DB and name == "torque_rate_dp"
+
+
+def _impedance_daemon(base):
+    from tests.daemon_helpers import lockstep_daemon
+
+    cfg = impedance_cfg(base)
+    cfg["controller"]["type"] = "impedance"
+    cfg["sim"]["disturbances"] = []
+    return lockstep_daemon(cfg)
+
+
+def test_set_gains_refuses_an_oscillating_torque_loop_and_applies_a_stable_change(base):
+    from ankle_rt.service.protocol import CommandError, Pending, SetGains
+    from tests.daemon_helpers import reply, run_cycles
+
+    daemon = _impedance_daemon(base)
+    try:
+        run_cycles(daemon, 300)
+        with pytest.raises(GainError) as err:
+            daemon.set_gains(kp_dp=100.0, kp_ie=100.0)
+        assert err.value.gain == "kp_dp" and "unstable" in str(err.value)
+        pending = daemon.handle(SetGains(kp_dp=100.0))      # the command: checked off the loop thread
+        assert isinstance(pending, Pending)
+        with pytest.raises(CommandError) as cerr:
+            reply(pending)
+        assert cerr.value.field == "kp_dp"
+        assert daemon.controller.gains.as_dict()["kp_dp"] == 6.0
+        reply(daemon.handle(SetGains(kp_dp=4.0, stiffness_dp=60.0)))
+        with pytest.raises(CommandError, match="busy: the previous gain ramp"):   # its path was not checked
+            reply(daemon.handle(SetGains(kp_dp=5.0)))
+        run_cycles(daemon, 400)                               # past controller.gain_ramp_s
+        assert daemon.controller.gains.as_dict()["kp_dp"] == 4.0
+        assert daemon.controller.torque_loop.kp0 == 4.0      # the loop runs with the ramped gain
+    finally:
+        daemon.close()
+
+
+def test_a_ramp_is_checked_along_its_path_not_only_at_its_ends(base, monkeypatch):
+    from ankle_rt import gain_margin as torque_loop
+
+    seen = []
+
+    def spy(cfg, gains):
+        seen.append(gains["kp_dp"])
+        return ("kp_dp", "refused in the middle") if 7.0 < gains["kp_dp"] < 9.0 else None
+    monkeypatch.setattr(torque_loop, "gain_set_refusal", spy)
+    start, end = {"kp_dp": 6.0}, {"kp_dp": 10.0}
+    bad = torque_loop.ramp_refusal(base, start, end)
+    assert bad is not None and bad[0] == "kp_dp" and "of the ramp" in bad[1]
+    assert len(set(seen)) >= 3 and max(seen) == 10.0
+
+
+@pytest.mark.parametrize("loop, law", [({}, {}), ({"dob_hz": 30.0}, {"angle_source": "estimated"})])
+def test_the_gain_set_margin_is_the_least_margin_of_the_loop_the_daemon_runs(base, loop, law):
+    """gain_set_margin_db's batched scan over the cached sampled plants gives the least margin of
+    torque_loop_margins (case by case) for the loop as configured: lead, observer, angle source."""
+    from ankle_rt.analysis import _MARGIN_CAP_DB, _load_coefficient, gain_set_margin_db, torque_loop_margins
+
+    cfg = impedance_cfg(base)
+    cfg["controller"]["torque_loop"].update(loop)
+    cfg["controller"]["impedance"].update(law)
+    p, c = PlantParams.from_config(cfg), ImpedanceLoop.from_config(cfg, closed=True)
+    assert (c.dob_hz > 0.0) == bool(loop) and c.joint_encoders == (not law)
+    least = min(m.gain_margin_db for m in torque_loop_margins(p, c, load_coefficient=_load_coefficient(cfg)))
+    margin, _ = gain_set_margin_db(cfg, {})
+    assert margin == pytest.approx(min(least, _MARGIN_CAP_DB), abs=0.05)
+
+
+def test_switching_to_a_torque_loop_without_margin_at_run_time_is_refused_naming_the_gain(base):
+    """set_controller builds the controller from the config: at 250 Hz the shipped joint-torque loop has
+    no gain margin, so the switch is refused naming the gain and the running controller stays."""
+    from ankle_rt.service.protocol import CommandError, SetController
+    from tests.daemon_helpers import lockstep_daemon, reply
+
+    cfg = base.deep_copy()
+    cfg["controller"]["rate_hz"] = 250
+    daemon = lockstep_daemon(cfg)
+    try:
+        before = daemon.controller
+        with pytest.raises(CommandError) as err:
+            reply(daemon.handle(SetController("impedance", {})))
+        assert err.value.field == "torque_loop.kp_dp" and "unstable" in err.value.message
+        assert daemon.controller is before
+    finally:
+        daemon.close()

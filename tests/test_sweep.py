@@ -277,3 +277,15 @@ def test_a_spec_that_is_not_a_text_file_is_refused_by_name(tmp_path, capsys, con
         spec.write_bytes(content)
     assert main(["sweep", str(spec), "--out", str(tmp_path / "out")]) == 2
     assert reason in capsys.readouterr().err
+
+
+def test_a_spec_with_a_yaml_alias_or_a_duplicate_key_is_refused(tmp_path):
+    bomb = tmp_path / "bomb.yaml"
+    bomb.write_text("a: &a [x, x, x, x, x, x, x, x, x, x]\nb: &b [*a, *a, *a, *a, *a, *a, *a, *a, *a, *a]\n"
+                    "duration_s: 1.0\n")
+    with pytest.raises(SpecError, match="alias"):
+        load_study(bomb)
+    twice = tmp_path / "twice.yaml"
+    twice.write_text("duration_s: 1.0\nduration_s: 2.0\n")
+    with pytest.raises(SpecError, match="duplicate key 'duration_s'"):
+        load_study(twice)

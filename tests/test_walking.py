@@ -15,7 +15,7 @@ from ankle_rt.control.gait_phase import (EARLY_STANCE, EARLY_SWING, LATE_STANCE,
 from ankle_rt.daemon import Daemon
 from ankle_rt.safety import Fault
 from tests.conftest import ROOT
-from tests.daemon_helpers import traced_memory
+from tests.daemon_helpers import reply, traced_memory
 
 WALK = ROOT / "config" / "walk.yaml"
 SIM = ROOT / "config" / "sim.yaml"
@@ -318,7 +318,7 @@ def test_the_phase_reaches_the_log_status_and_ctl_gains(tmp_path):
         limits = proto.CommandLimits.from_config(cfg)
         cmd = proto.parse_command(b'{"cmd": "set_gains", "phase": "late_swing", "stiffness_dp": 80, '
                                   b'"equilibrium_dp": 0.05}', limits)
-        daemon.handle(cmd)
+        reply(daemon.handle(cmd))        # checked off the loop thread (the gain margin), then applied
         assert daemon.status()["gait_phase"]["params"]["late_swing"]["equilibrium_dp"] == 0.05
         for line, field in [(b'{"cmd": "set_gains", "phase": "stance", "kp": 1}', "phase"),
                             (b'{"cmd": "set_gains", "equilibrium_dp": 0.1}', "phase"),
@@ -327,7 +327,7 @@ def test_the_phase_reaches_the_log_status_and_ctl_gains(tmp_path):
                 proto.parse_command(line, limits)
             assert err.value.field == field
         with pytest.raises(proto.CommandError) as err:     # kp is no gait-phase parameter
-            daemon.handle(proto.parse_command(b'{"cmd": "set_gains", "phase": "safe", "kp": 1}', limits))
+            reply(daemon.handle(proto.parse_command(b'{"cmd": "set_gains", "phase": "safe", "kp": 1}', limits)))
         assert err.value.field == "kp"
     finally:
         daemon.close()
@@ -402,3 +402,30 @@ def test_ctl_gains_with_a_phase_and_bench_walk_json(capsys):
     assert {"moment_rms_error_pct", "angle_rms_error_deg", "current_rms_a"} <= out.keys()
     with pytest.raises(SystemExit, match="cadences"):
         main(["bench", "walk", "--cadences", "brisk"])
+
+
+def test_a_phase_whose_gains_lose_the_gain_margin_is_refused_naming_it(monkeypatch):
+    """Each phase's (K, B) goes through the same gain-margin check as the impedance controller's gains
+    (the plant range, the closed torque loop): here a stand-in check refusing K_dp 123 alone."""
+    import ankle_rt.control.gait_phase as gp
+    from ankle_rt.control import build_controller
+    from ankle_rt.control.gains import GainError
+    from ankle_rt.kinematics import Kinematics
+    from ankle_rt.params import TransmissionParams
+
+    seen = []
+
+    def refusal(cfg, gains):
+        seen.append(dict(gains))
+        return ("stiffness_dp", "loses the margin") if gains["stiffness_dp"] == 123.0 else None
+
+    monkeypatch.setattr(gp, "gain_set_refusal", refusal)
+    cfg = load_config(WALK)
+    kin = Kinematics.from_params(TransmissionParams(**cfg["transmission"]))
+    ctl = build_controller(cfg, kin, np.zeros(2))
+    assert ctl.margin_cfg is not None and len(seen) >= len(PHASES)    # every shipped phase checked
+    ctl.set_gains(phase="late_swing", stiffness_dp=80.0)
+    with pytest.raises(GainError) as err:
+        ctl.set_gains(phase="late_swing", stiffness_dp=123.0)
+    assert err.value.gain == "late_swing.stiffness_dp"
+    assert seen[-1]["stiffness_dp"] == 123.0

@@ -295,7 +295,7 @@ def impedance_variant(cfg, stiffness: list[float], stiffness_ie: float | None, d
                       keep_loops: bool = False) -> dict:
     """Run the bench for one controller variant over the commanded stiffnesses; its summary and runs."""
     from ankle_rt.analysis import ImpedanceLoop, torque_loop_margins
-    from ankle_rt.control.torque_loop import torque_feedback
+    from ankle_rt.loop_setup import torque_feedback
     from ankle_rt.bench.impedance import bench_config, run_impedance
     from ankle_rt.params import PlantParams
 

@@ -49,8 +49,8 @@ class ControllerContext:
     raises ValueError naming the key on bad input). The limits are those the safety layer enforces.
     """
 
-    cfg: "Config"               # the whole validated configuration
-    params: dict[str, Any]      # controller.params
+    cfg: "Config"               # the whole validated configuration, read-only (ankle_rt.readonly)
+    params: dict[str, Any]      # controller.params (the controller's own copy)
     kin: Kinematics             # R (theta_m = R theta), R_inv, R_inv_T (tau_m = R^-T tau_ankle), K (N m/rad)
     ref: np.ndarray             # rad (2,) [DP, IE], refreshed in place every cycle
     dt: float                   # s, the control period
@@ -61,10 +61,13 @@ class ControllerContext:
 
     @classmethod
     def from_config(cls, cfg: "Config", kin: Kinematics, ref: np.ndarray) -> "ControllerContext":
+        import copy
         import math
 
+        from ankle_rt.readonly import read_only
+
         c, kt = cfg["controller"], cfg["actuator"]["torque_constant"]
-        return cls(cfg=cfg, params=dict(c["params"]), kin=kin, ref=ref, dt=1.0 / c["rate_hz"],
+        return cls(cfg=read_only(cfg), params=copy.deepcopy(dict(c["params"])), kin=kin, ref=ref, dt=1.0 / c["rate_hz"],
                    torque_constant=kt, torque_limit=kt * cfg["amplifier"]["current_limit_peak"],
                    ankle_limit=math.radians(cfg["limits"]["ankle_range_deg"]),
                    friction=FrictionFeedForward.from_config(cfg))

@@ -52,16 +52,20 @@ class GainRamp:
 
     def set_targets(self, **gains: float) -> None:
         """Ramp the named gains to new values. Raises GainError naming an unknown or bad gain."""
-        for name, value in gains.items():
-            if name not in self.names:
-                raise GainError(name, f"unknown gain {name!r} (expected one of: {', '.join(self.names)})")
-            if not (isinstance(value, (int, float)) and value >= 0.0 and value < float("inf")):
-                raise GainError(name, f"gain {name!r} must be a finite number >= 0, got {value!r}")
+        self.check(**gains)
         for name, value in gains.items():
             i = self.names.index(name)
             self.targets[i] = float(value)
             self.steps[i] = (self.targets[i] - self.values[i]) / self.cycles_per_ramp
         self.ramping = True
+
+    def check(self, **gains: float) -> None:
+        """Raise GainError naming an unknown gain or one that is not a finite number >= 0."""
+        for name, value in gains.items():
+            if name not in self.names:
+                raise GainError(name, f"unknown gain {name!r} (expected one of: {', '.join(self.names)})")
+            if not (isinstance(value, (int, float)) and value >= 0.0 and value < float("inf")):
+                raise GainError(name, f"gain {name!r} must be a finite number >= 0, got {value!r}")
 
     def start(self, where: bool | np.ndarray = True) -> None:
         """Begin the soft start (for a batch: where ``where`` holds): the output scale restarts from

@@ -36,11 +36,13 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 import numpy as np
 
+from ankle_rt.config_schema import IMPEDANCE_GAINS
 from ankle_rt.control.gains import GainError, GainRamp
 from ankle_rt.control.impedance import ImpedanceController, actuation_from_config
 from ankle_rt.control.torque_loop import ImpedanceLimits, JointTorqueLoop
 from ankle_rt.elementwise import Value, pick, select, stack
 from ankle_rt.estimation import Estimate
+from ankle_rt.gain_margin import gain_set_refusal
 from ankle_rt.kinematics import Kinematics
 
 if TYPE_CHECKING:
@@ -143,14 +145,16 @@ class GaitPhaseController(ImpedanceController):
     estimated ankle and the strain-gauge load, then the impedance controller's actuation (with the
     law's blended stiffness for the lead on the loop's lag)."""
 
-    shared = ("ref", "limits", "gain_maxima")
+    shared = ("ref", "limits", "gain_maxima", "margin_cfg")
 
     def __init__(self, kin: Kinematics, law: GaitPhaseLaw, *, dt: float, soft_start_s: float,
                  ankle_limit: float, gain_maxima: Mapping[str, float],
                  friction: "FrictionFeedForward | None" = None, torque_loop: JointTorqueLoop | None = None,
-                 limits: ImpedanceLimits | None = None):
+                 limits: ImpedanceLimits | None = None, margin_cfg: Mapping | None = None):
         """``ankle_limit`` rad bounds the equilibria; ``gain_maxima``: ``stiffness`` and ``damping``
-        (controller.gain_limits); ``limits``: the torque loop's stable set, checked per phase."""
+        (controller.gain_limits); ``limits``: the torque loop's stable set, checked per phase;
+        ``margin_cfg``: the config whose plant and loop every phase's (K, B) must keep the required gain
+        margin on (:func:`ankle_rt.gain_margin.gain_set_refusal`), as the impedance controller's gains."""
         self.gait = law
         self.ankle_limit = ankle_limit
         self.gain_maxima = dict(gain_maxima)
@@ -158,6 +162,7 @@ class GaitPhaseController(ImpedanceController):
                                             "damping_ie": 0.0}, dt=dt, soft_start_s=soft_start_s,
                          friction=friction, torque_loop=torque_loop, limits=None)
         self.limits = limits
+        self.margin_cfg = margin_cfg
         self.gains = GainRamp({}, dt=dt, ramp_s=0.0, soft_start_s=soft_start_s)   # the soft start only: the
         for i, phase in enumerate(PHASES):                                         # law blends its own parameters
             self._check_phase(i, {n: getattr(law, n)[i] for n in PARAMS})
@@ -177,7 +182,8 @@ class GaitPhaseController(ImpedanceController):
         try:
             return cls(kin, law, dt=dt, soft_start_s=c["soft_start_s"],
                        ankle_limit=math.radians(cfg["limits"]["ankle_range_deg"]),
-                       gain_maxima=c["gain_limits"], friction=friction, torque_loop=loop, limits=limits)
+                       gain_maxima=c["gain_limits"], friction=friction, torque_loop=loop, limits=limits,
+                       margin_cfg=cfg if loop else None)
         except GainError as exc:
             raise ConfigError(str(exc), getattr(cfg, "source", None), f"controller.gait_phase.{exc.gain}") from None
 
@@ -200,15 +206,16 @@ class GaitPhaseController(ImpedanceController):
             elif not 0.0 <= value <= self.gain_maxima[kind]:
                 raise GainError(where, f"{where} must be in [0, {self.gain_maxima[kind]:g}] "
                                        f"(controller.gain_limits.{kind}), got {value:g}")
-        if self.limits is not None:
-            bad = self.limits.check(params)
+        for bad in (self.limits.check(params) if self.limits is not None else None,
+                    gain_set_refusal(self.margin_cfg, {k: params[k] for k in IMPEDANCE_GAINS})
+                    if self.margin_cfg is not None else None):
             if bad is not None:
                 raise GainError(f"{name}.{bad[0]}", f"{name}: {bad[1]}")
 
-    def set_gains(self, phase: str | None = None, **gains: float) -> None:
-        """Change one phase's parameters (PARAMS names) at run time; checked against the gain limits,
-        the ankle range and the torque loop's stable set (else GainError, nothing changes), then
-        reached through the blend (no torque jump)."""
+    def check_gains(self, phase: str | None = None, **gains: float) -> None:
+        """Raise GainError naming the parameter unless one phase's new parameters (PARAMS names) keep
+        the gain limits, the ankle range, the torque loop's stable set and its gain margin. Slow with
+        the margin (~0.05 s): the daemon runs it off the loop thread, then :meth:`apply_gains`."""
         if phase not in PHASES:
             raise GainError("phase", f"the gait_phase controller needs a phase (one of: {', '.join(PHASES)}), "
                                      f"got {phase!r}")
@@ -219,7 +226,15 @@ class GaitPhaseController(ImpedanceController):
         merged = {n: getattr(self.gait, n)[i] for n in PARAMS}
         merged.update(gains)
         self._check_phase(i, merged)
-        self.gait.set_phase_params(i, **gains)
+
+    def apply_gains(self, phase: str | None = None, **gains: float) -> None:
+        """Start the blend to parameters :meth:`check_gains` accepted (no torque jump)."""
+        self.gait.set_phase_params(PHASES.index(phase), **gains)
+
+    def set_gains(self, phase: str | None = None, **gains: float) -> None:
+        """:meth:`check_gains`, then :meth:`apply_gains` (GainError and nothing changes if refused)."""
+        self.check_gains(phase, **gains)
+        self.apply_gains(phase, **gains)
 
     def start(self, est: Estimate, where: bool | np.ndarray = True) -> None:
         super().start(est, where)

@@ -21,28 +21,41 @@ import numpy as np
 
 from ankle_rt.control.friction import FrictionFeedForward
 from ankle_rt.control.gains import GainError, RampedGainController
-from ankle_rt.control.torque_loop import (ImpedanceLimits, JointTorqueLoop, ReflectedActuator, TorqueLoopGains,
-                                         torque_feedback, uses_joint_encoders)
+from ankle_rt.control.torque_loop import ImpedanceLimits, JointTorqueLoop, TorqueLoopGains
+from ankle_rt.config_schema import IMPEDANCE_GAINS, LOOP_GAINS
 from ankle_rt.elementwise import Value, select
+from ankle_rt.gain_margin import gain_set_refusal, ramp_refusal
 from ankle_rt.estimation import Estimate
 from ankle_rt.kinematics import Kinematics
+from ankle_rt.loop_setup import ReflectedActuator, torque_feedback, uses_joint_encoders
 
 if TYPE_CHECKING:
     from ankle_rt.config import Config
+
+
+RUNTIME_LOOP_GAINS = LOOP_GAINS[:6]    # kp, ki, torque_rate [DP, IE]: the torque loop's gains set_gains ramps
 
 
 class ImpedanceController(RampedGainController):
     def __init__(self, kin: Kinematics, ref: np.ndarray, gains: Mapping[str, float], *, dt: float,
                  ramp_s: float = 0.0, soft_start_s: float = 0.0, friction: FrictionFeedForward | None = None,
                  torque_loop: JointTorqueLoop | None = None, limits: ImpedanceLimits | None = None,
-                 joint_encoders: bool = False):
+                 joint_encoders: bool = False, margin_cfg: Mapping | None = None):
         """``gains``: stiffness_dp/ie (N m/rad), damping_dp/ie (N m s/rad). ``ref``: rad [DP, IE].
         ``torque_loop``: closes the joint-torque loop on the strain gauges; None: open loop.
         ``joint_encoders``: the stiffness acts on the joint encoders' angles (else the estimated ones).
-        ``limits``: gains outside them are refused (GainError), here and in :meth:`set_gains`."""
+        ``limits``: gains outside them are refused (GainError), here and in :meth:`set_gains`.
+        ``margin_cfg``: the config whose plant and torque-loop gains every gain set (and every point of
+        a ramp) must keep the required gain margin with (:func:`gain_set_refusal`); None: not checked."""
         if limits is not None:
             self._check(limits, gains)
-        super().__init__({k: gains[k] for k in ("stiffness_dp", "stiffness_ie", "damping_dp", "damping_ie")},
+        if margin_cfg is not None:
+            self._raise(gain_set_refusal(margin_cfg, {k: gains[k] for k in IMPEDANCE_GAINS}))
+        ramped = {k: gains[k] for k in IMPEDANCE_GAINS}
+        if torque_loop is not None:   # the loop's gains ramp too (set_gains), from the configured ones
+            g = torque_loop.gains
+            ramped.update(zip(RUNTIME_LOOP_GAINS, (*g.kp, *g.ki, *g.torque_rate)))
+        super().__init__(ramped,
                          dt=dt, ramp_s=ramp_s, soft_start_s=soft_start_s, friction=friction)
         self.RiT = kin.R_inv_T.ravel().tolist()
         self.ref = ref
@@ -50,6 +63,7 @@ class ImpedanceController(RampedGainController):
         self.limits = limits
         self.joint_encoders = joint_encoders
         self.lead0, self.lead1 = torque_loop.lag_s if torque_loop is not None else (0.0, 0.0)
+        self.margin_cfg = margin_cfg
 
     @classmethod
     def from_config(cls, cfg: "Config", kin: Kinematics, ref: np.ndarray,
@@ -68,25 +82,47 @@ class ImpedanceController(RampedGainController):
         try:
             return cls(kin, ref, c["impedance"], dt=1.0 / c["rate_hz"], ramp_s=c["gain_ramp_s"],
                        soft_start_s=c["soft_start_s"], friction=friction, torque_loop=loop, limits=limits,
-                       joint_encoders=joint)
+                       joint_encoders=joint, margin_cfg=cfg if loop else None)
         except GainError as exc:
-            raise ConfigError(str(exc), getattr(cfg, "source", None), f"controller.impedance.{exc.gain}") from None
+            section = "torque_loop" if exc.gain in c["torque_loop"] else "impedance"
+            raise ConfigError(str(exc), getattr(cfg, "source", None), f"controller.{section}.{exc.gain}") from None
 
     @staticmethod
     def _check(limits: ImpedanceLimits, gains: Mapping[str, float]) -> None:
-        bad = limits.check(gains)
+        ImpedanceController._raise(limits.check(gains))
+
+    @staticmethod
+    def _raise(bad: tuple[str, str] | None) -> None:
         if bad is not None:
             raise GainError(*bad)
 
-    def set_gains(self, **gains: float) -> None:
-        """Ramp to new gains; with limits, the resulting set must lie inside them (else GainError)."""
+    def check_gains(self, **gains: float) -> None:
+        """Raise GainError naming the gain unless the ramp to ``gains`` stays stable: the target inside
+        the limits and, at every checked point of the ramp from the present gains, the required
+        gain margin. Slow (~0.1-0.5 s): the daemon runs it off the loop thread. Refused while a ramp
+        runs (its path would then no longer be the one checked)."""
+        self.gains.check(**gains)
+        values = dict(zip(self.gains.names, self.gains.values))
+        targets = dict(zip(self.gains.names, self.gains.targets))
+        targets.update({k: v for k, v in gains.items() if k in targets})
         if self.limits is not None:
-            targets = dict(zip(self.gains.names, self.gains.targets))
-            targets.update({k: v for k, v in gains.items() if k in targets})
             self._check(self.limits, targets)
+        if self.margin_cfg is not None:
+            if self.gains.ramping:
+                name = next(iter(gains), "cmd")
+                raise GainError(name, "busy: the previous gain ramp is still running (controller.gain_ramp_s)")
+            self._raise(ramp_refusal(self.margin_cfg, values, targets))
+
+    def set_gains(self, **gains: float) -> None:
+        """Ramp to new gains after :meth:`check_gains` (else GainError)."""
+        self.check_gains(**gains)
+        self.apply_gains(**gains)
+
+    def apply_gains(self, **gains: float) -> None:
+        """Ramp to gains :meth:`check_gains` accepted (the daemon's second half of a checked change)."""
         super().set_gains(**gains)
 
-    shared = ("ref", "limits")
+    shared = ("ref", "limits", "margin_cfg")
     columns = ("RiT",)
 
     def batch_key(self) -> tuple[tuple[str, bool], ...]:
@@ -99,8 +135,14 @@ class ImpedanceController(RampedGainController):
 
     def law(self, est: Estimate, ref_dp: Value, ref_ie: Value) -> tuple[Value, Value]:
         g = self.gains
+        ramping = g.ramping
         g.advance()
-        k0, k1, b0, b1 = g.values
+        v = g.values
+        k0, k1, b0, b1 = v[0], v[1], v[2], v[3]
+        loop = self.torque_loop
+        if ramping and loop is not None:      # the loop's gains ramp too, and the lead on its lag with them
+            loop.set_gains(v[4], v[5], v[6], v[7], v[8], v[9])
+            self.lead0, self.lead1 = loop.lag_s
         joint = self.joint_encoders
         return self.actuate(est, k0 * (ref_dp - select(joint, est.joint_dp, est.dp)) - b0 * est.dp_vel,
                             k1 * (ref_ie - select(joint, est.joint_ie, est.ie)) - b1 * est.ie_vel, k0, k1)

@@ -52,6 +52,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 from ankle_rt.elementwise import Value, clip, select, stack
+from ankle_rt.loop_setup import ReflectedActuator
 
 if TYPE_CHECKING:
     import numpy as np
@@ -90,29 +91,6 @@ class TorqueLoopGains:
                    tank_j=float(c["tank_j"]), tank_friction_credit=float(c["tank_friction_credit"]))
 
 
-@dataclass(frozen=True)
-class ReflectedActuator:
-    """The motor side seen at the ankle, per axis [DP, IE]: the diagonal of R^T J R, R^T D R and the
-    Coulomb friction kc (|R| column norm): what the observer's nominal inertia and the tank's credit
-    are built from."""
-
-    inertia: tuple[float, float]     # kg m^2
-    viscous: tuple[float, float]     # N m s/rad
-    coulomb: tuple[float, float]     # N m
-
-    @classmethod
-    def from_config(cls, cfg: Mapping[str, Any]) -> "ReflectedActuator":
-        from ankle_rt.kinematics import Kinematics
-        from ankle_rt.params import TransmissionParams
-
-        kin = Kinematics.from_params(TransmissionParams(**cfg["transmission"]))
-        col = [float(kin.R[0, a] ** 2 + kin.R[1, a] ** 2) for a in (0, 1)]
-        a = cfg["actuator"]
-        return cls(inertia=(a["inertia"] * col[0], a["inertia"] * col[1]),
-                   viscous=(a["damping"] * col[0], a["damping"] * col[1]),
-                   coulomb=(a["coulomb"] * math.sqrt(col[0]), a["coulomb"] * math.sqrt(col[1])))
-
-
 class JointTorqueLoop:
     """The loop of the module docstring for both ankle axes.
 
@@ -124,9 +102,7 @@ class JointTorqueLoop:
         """``actuator``: needed with the observer (``gains.dob_hz`` > 0)."""
         self.gains = gains
         self.dt = dt
-        self.kp0, self.kp1 = gains.kp
-        self.kidt0, self.kidt1 = gains.ki[0] * dt, gains.ki[1] * dt
-        self.kdr0, self.kdr1 = gains.torque_rate[0] / dt, gains.torque_rate[1] / dt
+        self.set_gains(*gains.kp, *gains.ki, *gains.torque_rate)
         self.lim0, self.lim1 = gains.max_correction_nm
         self.alpha = 1.0 - math.exp(-2.0 * math.pi * gains.cutoff_hz * dt)
         on = gains.dob_hz > 0.0
@@ -145,6 +121,14 @@ class JointTorqueLoop:
         self.d0 = self.d1 = self.u0 = self.u1 = self.w0 = self.w1 = 0.0
         self.e0 = self.e1 = 0.0
         self.reset_state(0.0, 0.0)
+
+    def set_gains(self, kp0: Value, kp1: Value, ki0: Value, ki1: Value, rate0: Value, rate1: Value) -> None:
+        """Per-axis kp, ki (1/s) and torque-rate gain (s) [DP, IE] from now on (a ramp's point; plain
+        floats, no allocation). ``gains`` keeps the configured set."""
+        dt = self.dt
+        self.kp0, self.kp1 = kp0, kp1
+        self.kidt0, self.kidt1 = ki0 * dt, ki1 * dt
+        self.kdr0, self.kdr1 = rate0 / dt, rate1 / dt
 
     @property
     def lag_s(self) -> tuple[Value, Value]:
@@ -225,26 +209,6 @@ class JointTorqueLoop:
         else:
             self.d1, self.w1, self.e1 = d, w, tank
         return out
-
-
-def uses_joint_encoders(cfg: Mapping[str, Any]) -> bool:
-    """Whether the impedance law takes the ankle angle from joint encoders: ``controller.impedance.
-    angle_source`` joint_encoders/estimated, or auto = when joint encoders are configured (the
-    simulator's always are: the true joint angle; on hardware ``joint_encoders.counts_per_rev``)."""
-    mode = cfg["controller"]["impedance"]["angle_source"]
-    if mode != "auto":
-        return mode == "joint_encoders"
-    return cfg["backend"] == "sim" or cfg["joint_encoders"]["counts_per_rev"] is not None
-
-
-def torque_feedback(cfg: "Config") -> bool:
-    """Whether the impedance controller closes the joint-torque loop: ``controller.impedance.
-    torque_feedback`` on/off, or auto = when strain gauges are configured (the simulator's always
-    are; on hardware ``strain_gauges.matrix`` is given)."""
-    mode = cfg["controller"]["impedance"]["torque_feedback"]
-    if mode != "auto":
-        return mode == "on"
-    return cfg["backend"] == "sim" or cfg["strain_gauges"]["matrix"] is not None
 
 
 @dataclass(frozen=True)

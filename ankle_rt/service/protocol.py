@@ -128,6 +128,12 @@ class SetGains:
     stiffness_ie: float | None = None
     damping_dp: float | None = None
     damping_ie: float | None = None
+    kp_dp: float | None = None
+    kp_ie: float | None = None
+    ki_dp: float | None = None
+    ki_ie: float | None = None
+    torque_rate_dp: float | None = None
+    torque_rate_ie: float | None = None
     phase: str | None = None
     equilibrium_dp: float | None = None
     equilibrium_ie: float | None = None

@@ -8,7 +8,8 @@ SimClock: step the plant with the last set values, sample the sensors,
 :meth:`~ankle_rt.estimation.Estimator.estimate`, the reference,
 :meth:`~ankle_rt.safety.Safety.check_values`, auto-activation (the controller's ``start``),
 :meth:`~ankle_rt.safety.Safety.check_reference`, the controller's ``law``,
-:meth:`~ankle_rt.safety.Safety.limit_currents` (clamp and I^2 t) and the fault latch
+:meth:`~ankle_rt.safety.Safety.limit_currents` (clamp, I^2 t and the oscillation detector),
+:meth:`~ankle_rt.safety.Safety.check_gauges` (the strain-gauge cross-check) and the fault latch
 (:meth:`~ankle_rt.safety.Safety.trip`). This module holds only the stacking and the batch's
 bookkeeping: the trace, the reference tables, which plants are active.
 
@@ -184,7 +185,7 @@ class BatchRun:
             starting = live & (safety.state == CONFIGURED) & (code == 0) & self.auto_activate & est.tared \
                 if waiting else None
             if waiting and starting.any():
-                safety.state = np.where(starting, ACTIVE, safety.state)
+                safety.activated(est, starting)
                 trace.activation_time[starting] = t
                 hs = starting & self.hold
                 if hs.any():
@@ -201,6 +202,7 @@ class BatchRun:
             controlling = active & (code == 0)
             tq1, tq2 = ctl.law(est, r0, r1)
             code = select(controlling, safety.limit_currents(tq1 * inv_kt, tq2 * inv_kt, controlling), code)
+            code = select(controlling & (code == 0), safety.check_gauges(est), code)
             # -- faults latch, set values reach the amplifiers only while active and fault-free
             safety.trip(code, t)
             ok = safety.state == ACTIVE

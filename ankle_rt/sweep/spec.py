@@ -29,9 +29,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
-from ankle_rt.config import Config, ConfigError, config_from_data, merge, read_with_includes
+from ankle_rt.config import Config, ConfigError, config_from_data, merge, parse_yaml, read_with_includes
 
 DISTRIBUTIONS = ("uniform", "normal", "log-uniform", "choice")
 METHODS = ("lhs", "sobol", "random", "grid")
@@ -256,13 +255,11 @@ def load_study(path: str | Path, *, runs: int | None = None, scheduler: str | No
     path = Path(path)
     from ankle_rt.textfile import TextFileError, read_text
     try:
-        raw = yaml.safe_load(read_text(path, MAX_SPEC_BYTES))
+        raw = parse_yaml(read_text(path, MAX_SPEC_BYTES), str(path))   # no duplicate keys, no aliases
     except TextFileError as exc:
         raise SpecError("spec", f"cannot read {path}: {exc}") from None
-    except yaml.YAMLError as exc:
-        raise SpecError("spec", f"{path} is not valid YAML: {exc}") from None
-    if not isinstance(raw, dict):
-        raise SpecError("spec", "expected a mapping at the top level")
+    except ConfigError as exc:
+        raise SpecError("spec", f"{path}: {exc.message}") from None
     known = {"base", "duration_s", "sampling", "parameters", "overrides", "scenarios", "criteria", "dask",
              "batch_size", "metrics"}
     unknown = sorted(set(raw) - known)

@@ -1,0 +1,55 @@
+"""What the impedance controller's loop is made of, read from the config: whether it closes the
+joint-torque loop (:func:`torque_feedback`), which ankle angle its law uses
+(:func:`uses_joint_encoders`) and the motor side seen at the ankle (:class:`ReflectedActuator`).
+Outside :mod:`ankle_rt.control` so the config loader and :mod:`ankle_rt.analysis` (the loop's linear
+model) use them without an import circle.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+
+def torque_feedback(cfg: Mapping[str, Any]) -> bool:
+    """Whether the impedance controller closes the joint-torque loop: ``controller.impedance.
+    torque_feedback`` on/off, or auto = when strain gauges are configured (the simulator's always
+    are; on hardware ``strain_gauges.matrix`` is given)."""
+    mode = cfg["controller"]["impedance"]["torque_feedback"]
+    if mode != "auto":
+        return mode == "on"
+    return cfg["backend"] == "sim" or cfg["strain_gauges"]["matrix"] is not None
+
+
+def uses_joint_encoders(cfg: Mapping[str, Any]) -> bool:
+    """Whether the impedance law takes the ankle angle from joint encoders: ``controller.impedance.
+    angle_source`` joint_encoders/estimated, or auto = when joint encoders are configured (the
+    simulator's always are: the true joint angle; on hardware ``joint_encoders.counts_per_rev``)."""
+    mode = cfg["controller"]["impedance"]["angle_source"]
+    if mode != "auto":
+        return mode == "joint_encoders"
+    return cfg["backend"] == "sim" or cfg["joint_encoders"]["counts_per_rev"] is not None
+
+
+@dataclass(frozen=True)
+class ReflectedActuator:
+    """The motor side seen at the ankle, per axis [DP, IE]: the diagonal of R^T J R, R^T D R and the
+    Coulomb friction kc (|R| column norm): what the observer's nominal inertia and the tank's credit
+    are built from."""
+
+    inertia: tuple[float, float]     # kg m^2
+    viscous: tuple[float, float]     # N m s/rad
+    coulomb: tuple[float, float]     # N m
+
+    @classmethod
+    def from_config(cls, cfg: Mapping[str, Any]) -> "ReflectedActuator":
+        from ankle_rt.kinematics import Kinematics
+        from ankle_rt.params import TransmissionParams
+
+        kin = Kinematics.from_params(TransmissionParams(**cfg["transmission"]))
+        col = [float(kin.R[0, a] ** 2 + kin.R[1, a] ** 2) for a in (0, 1)]
+        a = cfg["actuator"]
+        return cls(inertia=(a["inertia"] * col[0], a["inertia"] * col[1]),
+                   viscous=(a["damping"] * col[0], a["damping"] * col[1]),
+                   coulomb=(a["coulomb"] * math.sqrt(col[0]), a["coulomb"] * math.sqrt(col[1])))

@@ -1,0 +1,125 @@
+"""Issue 19 item 3: strain gauges cross-checked against the motors (ankle_rt.gauge_check), in lockstep
+on the simulator with the impedance controller and the joint-torque loop (K_dp 50): stuck, drifting,
+sign-flipped and step-built gauge readings fault SG_MISMATCH within the stated times; a walking-like
+run with stance moments up to 150 N m (1.5 N m/kg x 100 kg) and a free foot in swing does not."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from ankle_rt.backend import open_backend
+from ankle_rt.clock import SimClock
+from ankle_rt.config import load_config
+from ankle_rt.daemon import run_lockstep
+from ankle_rt.gauge_check import GaugeCrossCheck
+from ankle_rt.impedance_bench import TorqueProgramBackend, bench_config
+from ankle_rt.paths import default_config_path
+from ankle_rt.safety import Fault, State
+
+T_FAULT = 1.0      # s, when the gauge goes bad
+
+
+class BadGauge(TorqueProgramBackend):
+    """The simulator with an ankle torque programme and a DP gauge that goes bad at T_FAULT: ``kind``
+    stuck (reads +15 N m), drift (+5 N m/s), flip (sign of its calibration flipped) or steps (+19 N m
+    per sample up to +57 N m, held ``hold_ms``, then back in 19 N m steps)."""
+
+    def __init__(self, cfg, torque, kind=None, hold_ms=20):
+        super().__init__(open_backend(cfg, SimClock()), torque)
+        self.kind, self.hold = kind, hold_ms
+
+    def read(self, frame):
+        super().read(frame)
+        t = frame.t - T_FAULT
+        if self.kind is None or t < 0.0:
+            return
+        sg = frame.sg_torque
+        if self.kind == "stuck":
+            sg[0] = 15.0
+        elif self.kind == "drift":
+            sg[0] += 5.0 * t
+        elif self.kind == "flip":
+            sg[0] = -sg[0]
+        elif self.kind == "steps":
+            k = round(t / 0.001)
+            sg[0] += 19.0 * max(0, min(k + 1, 3, 3 + self.hold - k))
+
+
+def free(t, x):
+    return 0.0, 0.0
+
+
+def push(t, x):
+    """The wearer pushes the foot with 6 N m DP from 1 s to 3 s."""
+    return (6.0 if 1.0 <= t < 3.0 else 0.0), 0.0
+
+
+def walking(t, x):
+    """1.1 s gait cycles from 1 s: stance 0.65 s (heel strike: 20 N m plantarflexion for 40 ms, then
+    a half-sine dorsiflexion moment up to 150 N m with 10 N m IE), swing 0.45 s with the foot free."""
+    if t < 1.0:
+        return 0.0, 0.0
+    ph = (t - 1.0) % 1.1
+    if ph < 0.04:
+        return -20.0, 3.0
+    if ph < 0.65:
+        return 150.0 * math.sin(math.pi * (ph - 0.04) / 0.61), 10.0 * math.sin(2.0 * math.pi * ph / 0.65)
+    return 0.0, 0.0
+
+
+@pytest.fixture(scope="module")
+def cfg():
+    c = bench_config(load_config(default_config_path()), stiffness=(50.0, 25.0), damping=(0.5, 0.25),
+                     torque_feedback="auto", friction_ff=None,
+                     effects=[{"type": "load_dependent_friction", "coefficient": 0.12},
+                              {"type": "stribeck", "static_excess": 0.15, "stribeck_velocity": 0.1}])
+    c["sim"]["disturbances"] = []
+    return c
+
+
+def fault_after(cfg, torque, kind=None, duration=4.0, **kw):
+    """(fault name, s from T_FAULT to the fault or None) of a lockstep run."""
+    rec = run_lockstep(cfg, duration, backend=BadGauge(cfg, torque, kind, **kw))
+    faulted = np.flatnonzero(rec["state"] == int(State.FAULT))
+    return rec.summary["fault"], (rec["t"][faulted[0]] - T_FAULT if faulted.size else None)
+
+
+@pytest.mark.parametrize("kind, torque, within_s", [
+    ("stuck", free, 0.15),       # +15 N m on a free foot (drove it to 20.8 deg before)
+    ("flip", push, 0.15),        # sign flipped under a 6 N m push (8 deg instead of 1 before)
+    ("steps", free, 0.07),       # 19 N m steps to 57 N m held 20 ms, under the jump and rail limits
+    ("drift", free, 2.5),        # +5 N m/s (12 s to the rail before)
+])
+def test_a_bad_gauge_faults_within_the_stated_time(cfg, kind, torque, within_s):
+    fault, after = fault_after(cfg, torque, kind)
+    assert fault == Fault.SG_MISMATCH.name and 0.0 <= after <= within_s, (fault, after)
+
+
+def test_healthy_gauges_do_not_fault_free_pushed_or_walking(cfg):
+    assert fault_after(cfg, free) == ("NONE", None)
+    assert fault_after(cfg, push) == ("NONE", None)
+    walk = bench_config(cfg, stiffness=(400.0, 50.0), damping=(3.0, 1.0), torque_feedback="auto", friction_ff=None,
+                        effects=cfg["sim"]["effects"])
+    walk["sim"]["disturbances"] = []
+    walk["safety"]["sg_rail_nm"] = 200.0         # stance moments beyond the default 60 N m rail
+    rec = run_lockstep(walk, 5.5, backend=BadGauge(walk, walking))
+    assert rec.summary["fault"] == "NONE"
+    assert np.max(np.abs(rec["sg_torque_dp"])) > 140.0      # the stance moment went through the gauge
+
+
+def test_the_check_runs_element_wise_on_a_batch():
+    """The same update on floats (the daemon) and on arrays over a batch agrees device by device."""
+    R = [[4.5, 2.5], [4.5, -2.5]]
+    one = [GaugeCrossCheck(1e-3, R, 0.048, 0.112, 0.28, 100.0) for _ in range(3)]
+    batch = GaugeCrossCheck(1e-3, R, 0.048, 0.112, 0.28, 100.0)
+    batch.reset(np.zeros(3), np.zeros(3))
+    rng = np.random.default_rng(1)
+    for _ in range(300):
+        x = rng.normal(size=(6, 3)) * [[1.0], [1.0], [0.1], [0.1], [5.0], [5.0]]
+        x[4, 2] += 40.0                                          # device 2: a gauge far off
+        out = batch.update(*x)
+        assert list(out) == [g.update(*x[:, i]) for i, g in enumerate(one)]
+    assert list(out) == [False, False, True]
