@@ -79,6 +79,12 @@ class Backend(ABC):
 
     name: ClassVar[str] = ""
 
+    @property
+    def simulated_plant(self) -> bool:
+        """True only when what this backend drives is simulated in this process (nothing physical
+        moves). False unless a backend says otherwise: an unknown backend counts as hardware."""
+        return False
+
     def __init__(self, cfg: "Config", clock: "Clock"):
         """Configure: open the transport and check the settings. Amplifiers stay disabled."""
         self.cfg = cfg
@@ -140,6 +146,10 @@ class ForwardingBackend(Backend):
 
     def counters(self) -> dict[str, int]:
         return self.inner.counters()
+
+    @property
+    def simulated_plant(self) -> bool:
+        return self.inner.simulated_plant
 
 
 BATCH_PLANTS: dict[str, str] = {

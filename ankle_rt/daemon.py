@@ -86,10 +86,6 @@ class Daemon:
         self.gain_maxima = gain_maxima(cfg["controller"]["gain_limits"])
         self.loader = BackgroundLoader()
         self.torque = np.zeros(2)
-        limits = self.overrun_limits
-        self.loop = FixedRateLoop(clock, self.period_ns, limits["max_consecutive_overruns"],
-                                  on_overrun_limit=self._missed_deadlines,
-                                  max_stall_ns=round(limits["max_stall_s"] * 1e9))
         self.recorder = recorder
         self.lsl: "LslPublisher | None" = None   # set by open_log when lsl.enabled
         self.log_fault = cfg["logging"]["fault_on_error"]
@@ -98,6 +94,10 @@ class Daemon:
         self.activations = 0
         self.owns_backend = backend is None
         self.backend = backend if backend is not None else open_backend(cfg, clock)
+        limits = self.overrun_limits   # asks the opened backend too
+        self.loop = FixedRateLoop(clock, self.period_ns, limits["max_consecutive_overruns"],
+                                  on_overrun_limit=self._missed_deadlines,
+                                  max_stall_ns=round(limits["max_stall_s"] * 1e9))
 
     # -- the cycle (hot path: no allocation beyond float temporaries, no I/O) -----------------------
     def cycle(self, t_start_ns: int) -> None:
@@ -513,9 +513,12 @@ class Daemon:
     @property
     def simulated_plant(self) -> bool:
         """True when the plant is simulated in this process (the sim backend, or a transport's lockstep
-        emulator): nothing physical moves."""
+        emulator): nothing physical moves. Both the config and the opened backend must say so (a
+        backend handed in, or a transport given its own bus or port, counts as hardware unless it
+        says otherwise: :attr:`Backend.simulated_plant`)."""
         backend = self.cfg["backend"]
-        return backend == "sim" or self.cfg.get(backend, {}).get("emulator") == "lockstep"
+        configured = backend == "sim" or self.cfg.get(backend, {}).get("emulator") == "lockstep"
+        return configured and self.backend.simulated_plant
 
     @property
     def overrun_limits(self) -> Mapping[str, Any]:

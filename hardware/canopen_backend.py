@@ -76,6 +76,11 @@ def configured_bus_load(cfg: Config, layout: NodeLayout | None = None) -> BusLoa
 class CanopenBackend(Backend):
     name = "canopen"
 
+    @property
+    def simulated_plant(self) -> bool:
+        """True only with the in-process lockstep emulator this backend started itself."""
+        return self.emulator is not None
+
     def __init__(self, cfg: Config, clock: Clock, *, bus: can.BusABC | None = None):
         """Configure: check the bus load, open the bus (or use ``bus``), set the node up, go operational."""
         super().__init__(cfg, clock)

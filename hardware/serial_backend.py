@@ -72,6 +72,11 @@ class SerialPort(Protocol):
 class SerialBackend(Backend):
     name = "serial"
 
+    @property
+    def simulated_plant(self) -> bool:
+        """True only with the in-process lockstep emulator this backend started itself."""
+        return self.emulator is not None
+
     def __init__(self, cfg: Config, clock: Clock, port: SerialPort | None = None):
         """``port``: an open pyserial-like port (tests); default: ``serial.port``, or the in-process
         lockstep emulator when ``serial.emulator`` is ``lockstep``."""

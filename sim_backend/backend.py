@@ -19,6 +19,7 @@ MAX_CATCH_UP_TICKS = 1000
 
 class SimBackend(Backend):
     name = "sim"
+    simulated_plant = True
 
     def __init__(self, cfg: Config, clock: Clock):
         super().__init__(cfg, clock)

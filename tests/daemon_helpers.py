@@ -40,6 +40,7 @@ class InjectingBackend(Backend):
     Records the cycles in which deactivate() was called."""
 
     name = "inject"
+    simulated_plant = True   # the simulator behind it
 
     def __init__(self, cfg: Config, clock: SimClock, at: int = 10**9,
                  mutate: Callable[[SensorFrame, int], None] | None = None):

@@ -92,6 +92,35 @@ def on_hardware(cfg):
     return hw
 
 
+class DeviceBackend(InjectingBackend):
+    """A backend that does not say its plant is simulated (a real device, as the daemon must see it)."""
+
+    simulated_plant = False
+
+
+def test_sim_overrun_limits_need_the_backend_to_say_its_plant_is_simulated(sim_cfg):
+    # the config says sim (hw-*.yaml include sim.yaml), but the backend handed in drives a device
+    daemon = lockstep_daemon(sim_cfg, backend=DeviceBackend(sim_cfg, WallLikeClock()))
+    assert not daemon.simulated_plant
+    assert daemon.overrun_limits is sim_cfg["loop"]
+    assert daemon.loop.max_consecutive == sim_cfg["loop"]["max_consecutive_overruns"]
+    assert daemon.log_metadata()["sim_disturbances"] is None
+    daemon.close()
+
+
+def test_transports_count_as_hardware_unless_they_started_their_own_emulator(sim_cfg):
+    from ankle_rt.backend import ForwardingBackend
+    from hardware.serial_backend import SerialBackend
+    from sim_backend.backend import SimBackend
+
+    clock = SimClock()
+    assert SimBackend(sim_cfg, clock).simulated_plant
+    assert ForwardingBackend(SimBackend(sim_cfg, clock)).simulated_plant
+    serial = SerialBackend.__new__(SerialBackend)   # only the attribute the property reads
+    serial.emulator = None
+    assert not serial.simulated_plant
+
+
 @pytest.mark.parametrize("where", ["simulated plant, real time", "simulated plant, lockstep", "hardware, real time"])
 def test_a_busy_host_stalls_a_simulated_real_time_run_without_a_fault_but_never_the_hardware(sim_cfg, where):
     cfg = on_hardware(sim_cfg) if where.startswith("hardware") else sim_cfg
