@@ -336,8 +336,7 @@ class Daemon:
             elif isinstance(command, proto.StartProfile):
                 params = dict(command.params)
                 if command.name == "hold":   # "hold here": an axis not given stays where the ankle is
-                    params.setdefault("dp", self.est.dp)
-                    params.setdefault("ie", self.est.ie)
+                    self._hold_here(params)
                 profile = make_profile(command.name, params)
                 self._check_reach(profile)
                 self._command_reference(profile)
@@ -420,6 +419,19 @@ class Daemon:
 
         cfg = config_from_data(data, lambda key: "the set_controller command", getattr(self.cfg, "source", "<memory>"))
         return cfg, build_controller(cfg, self.kin, self.reference.ref)
+
+    def _hold_here(self, params: dict) -> None:
+        """Fill the axes ``params`` does not give with the estimated ankle angles; refused (naming the
+        axis) while the estimate is not valid: gauges not tared yet (the angle still moves with the
+        tare), or not finite (a sensor fault)."""
+        for key, value in (("dp", self.est.dp), ("ie", self.est.ie)):
+            if key in params:
+                continue
+            if not self.est.tared or not math.isfinite(value):
+                why = "the strain gauges are not tared yet" if not self.est.tared else f"it is {value!r}"
+                raise proto.CommandError(f"params.{key}", f"hold here needs the ankle estimate, and {why}: "
+                                                          f"give params.{key} in rad")
+            params[key] = value
 
     def _check_reach(self, profile: Profile) -> None:
         """Refuse (before it starts) a profile that would take the reference beyond the ankle range."""

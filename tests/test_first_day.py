@@ -180,6 +180,28 @@ def test_profile_hold_without_angles_holds_the_ankle_where_it_is(sim_cfg):
     daemon.close()
 
 
+def test_hold_here_is_refused_while_the_ankle_estimate_is_not_valid(sim_cfg):
+    from ankle_rt.service import protocol as proto
+
+    cfg = sim_cfg.deep_copy()
+    cfg["safety"]["auto_activate"] = False
+    cfg["estimation"]["tare_samples"] = 50
+    daemon = lockstep_daemon(cfg)
+    run_cycles(daemon, 10)                       # still taring
+    assert not daemon.est.tared
+    hold = proto.parse_command(b'{"cmd": "start_profile", "name": "hold"}')
+    with pytest.raises(proto.CommandError) as err:
+        daemon.handle(hold)
+    assert err.value.field == "params.dp" and "tared" in str(err.value)
+    daemon.handle(proto.parse_command(b'{"cmd": "start_profile", "name": "hold", "params": {"dp": 0.0, "ie": 0.0}}'))
+    run_cycles(daemon, 50)
+    daemon.est.ie = math.nan                     # a broken reading
+    with pytest.raises(proto.CommandError) as err:
+        daemon.handle(proto.parse_command(b'{"cmd": "start_profile", "name": "hold", "params": {"dp": 0.0}}'))
+    assert err.value.field == "params.ie" and "nan" in str(err.value)
+    daemon.close()
+
+
 class RepeatsTwoSamples(InjectingBackend):
     """The simulator, except that cycles 300 and 500 read the previous sample again (a late wake-up)."""
 
