@@ -174,3 +174,31 @@ def test_the_example_experiment_runs_against_a_real_time_daemon(daemon, tmp_path
     with AnkleClient(path, 30.0) as ankle:
         status = ankle.status()
     assert status["state"] == "safe" and status["gains"] == {"kp": 120.0, "kd": 5.0}
+
+
+def test_a_switch_while_a_fault_is_latched_keeps_the_fault_and_the_current_limits(sim_cfg):
+    from ankle_rt.safety import Fault
+    from ankle_rt.service import protocol as proto
+
+    cfg = variant(sim_cfg, reference={"profile": "hold"}, sim={"disturbances": []}, safety={"auto_activate": False})
+    d = lockstep_daemon(cfg)
+    run_cycles(d, 200)
+    d._fault(Fault.COMMAND_LOST)
+    pending = d.handle(proto.parse_command(b'{"cmd": "set_controller", "type": "impedance"}'))
+    end = time.monotonic() + 30.0                 # a guard, not an assertion
+    while (reply := pending.poll()) is None and time.monotonic() < end:
+        run_cycles(d, 1)
+    assert reply["controller"] == "impedance" and reply["state"] == "fault"
+    assert d.safety.state == State.FAULT and d.safety.fault == Fault.COMMAND_LOST   # still latched
+    with pytest.raises(CommandError, match="reset the fault first"):
+        d.handle(proto.parse_command(b'{"cmd": "activate"}'))
+    run_cycles(d, 50)
+    assert np.all(d.recorder.records[-50:]["current_cmd_1"] == 0.0)      # no output while latched
+    d.reset_fault()
+    d.activate()
+    run_cycles(d, 500)
+    cur = d.recorder.records[-500:]
+    peak = d.safety.i_peak
+    assert np.all(np.abs(cur["current_cmd_1"]) <= peak) and np.all(np.abs(cur["current_cmd_2"]) <= peak)
+    assert type(d.controller).__name__ == "ImpedanceController" and d.safety.state == State.ACTIVE
+    d.close()
