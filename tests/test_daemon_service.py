@@ -97,13 +97,19 @@ def test_watchdog_pings_while_healthy_and_status_reports_a_fault(sim_cfg, tmp_pa
     assert d.safety.fault == Fault.DEVICE_FAULT
 
 
-@pytest.mark.parametrize("controller", ["pd", "impedance"])
+@pytest.mark.parametrize("controller", ["pd", "impedance", "impedance+observer"])
 def test_cycles_keep_no_memory(sim_cfg, controller):
     """2000 cycles after warm-up: no growth in live allocations, and a peak of a few kB of
     temporaries (floats and tuples of the plant and the cycle; no arrays, lists or dicts kept),
-    under each built-in controller (impedance: with the joint-torque loop)."""
-    sim_cfg["controller"]["type"] = controller
+    under each built-in controller (impedance: with the joint-torque loop; +observer: with the
+    disturbance observer and its energy tank)."""
+    sim_cfg["controller"]["type"] = controller.split("+")[0]
+    if controller.endswith("+observer"):
+        sim_cfg["controller"]["torque_loop"]["dob_hz"] = 20.0
+        sim_cfg["controller"]["impedance"].update(damping_dp=1.0, damping_ie=1.0)   # the least the observer allows
     d = lockstep_daemon(sim_cfg, capacity=4000)
+    if controller.endswith("+observer"):
+        assert d.controller.torque_loop.observer
     run_cycles(d, 600)
     gc.collect()
     blocks = sys.getallocatedblocks()
