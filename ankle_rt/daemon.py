@@ -25,6 +25,7 @@ from ankle_rt.command_limits import gain_maxima, gain_problem, reference_problem
 from ankle_rt.config import Config, ConfigError, config_data
 from ankle_rt.control import CycleController, build_controller
 from ankle_rt.control.gains import GainError
+from ankle_rt.control.gait_phase import PHASES, GaitPhaseController
 from ankle_rt.estimation import Estimate, Estimator
 from ankle_rt.interchange import InterchangeError
 from ankle_rt.kinematics import Kinematics
@@ -145,19 +146,28 @@ class Daemon:
             if self.recorder.failed and self.log_fault and safety.state != FAULT:
                 self._fault(Fault.LOG_FAILED)
 
+    @property
+    def controller(self) -> CycleController:
+        return self._controller
+
+    @controller.setter
+    def controller(self, controller: CycleController) -> None:
+        """Set the controller; the gait-phase law is found here, once (a plugin's own ``phase`` or
+        ``gait`` attribute, of any type, never reaches the log record's one-byte code)."""
+        self._controller = controller
+        self._gait = controller.gait if isinstance(controller, GaitPhaseController) else None
+
     def _gait_phase_status(self) -> dict | None:
         """The gait-phase controller's phase and per-phase parameters (None for another controller)."""
-        gait = getattr(self.controller, "gait", None)
-        if gait is None or not hasattr(gait, "phase_params"):
+        gait = self._gait
+        if gait is None:
             return None
-        from ankle_rt.control.gait_phase import PHASES
-
         return {"phase": PHASES[gait.phase], "time_in_phase_s": gait.time, "params": gait.phase_params()}
 
     def gait_phase(self) -> int:
         """The log record's gait_phase code: 1 + the gait-phase controller's phase, 0 for any other."""
-        phase = getattr(self.controller, "phase", None)
-        return 0 if phase is None else phase + 1
+        gait = self._gait
+        return 0 if gait is None else gait.phase + 1
 
     def _service_tick(self, now: float) -> None:
         service = self.service

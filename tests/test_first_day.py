@@ -423,3 +423,25 @@ def test_a_long_lockstep_run_shows_progress_off_a_terminal(monkeypatch, capsys):
     assert main(["run", "--fast", "--duration", "4", "--no-log"]) == 0
     lines = [line for line in capsys.readouterr().err.splitlines() if line.startswith("run --fast: ")]
     assert lines and all(" elapsed, ETA " in line for line in lines)
+
+
+class PhasedPlugin:
+    """A plugin-like controller with attributes of its own named ``phase`` and ``gait``."""
+
+    phase = "swing"
+    gait = "walking"
+
+    def reset(self, est):
+        pass
+
+    def update(self, est, out):
+        out[0] = out[1] = 0.0
+
+
+def test_a_plugins_own_phase_attribute_never_reaches_the_logs_gait_phase_code(sim_cfg):
+    daemon = lockstep_daemon(sim_cfg, controller=PhasedPlugin())
+    run_cycles(daemon, 200)                      # the record's gait_phase is one byte: a str would stop the loop
+    assert daemon.safety.state == State.ACTIVE
+    assert np.all(daemon.recorder.records["gait_phase"] == 0)
+    assert daemon.status()["gait_phase"] is None
+    daemon.close()
