@@ -258,7 +258,7 @@ def test_load_hysteresis_must_be_positive(tmp_path):
 
 
 def test_walking_strides_run_through_the_phases_without_a_fault():
-    from ankle_rt.walk_bench import run_walk
+    from ankle_rt.bench.walk import run_walk
 
     run = run_walk(str(WALK), 75.0, "normal", 3)
     assert run.fault == "NONE" and len(run.strides) == 3

@@ -440,7 +440,7 @@ def bench_impedance(args: argparse.Namespace) -> int:
 
 
 def register_walk(sub: argparse._SubParsersAction) -> None:
-    from ankle_rt.walk_bench import __doc__ as walk_doc
+    from ankle_rt.bench.walk import __doc__ as walk_doc
 
     p = sub.add_parser("walk", help="strides on the walking scenario for several wearers and cadences",
                        description=walk_doc, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -459,7 +459,7 @@ def register_walk(sub: argparse._SubParsersAction) -> None:
 def bench_walk(args: argparse.Namespace) -> int:
     from ankle_rt import jsonout
     from ankle_rt.progress import Progress
-    from ankle_rt.walk_bench import default_walk_config, plot_walk, walk_bench
+    from ankle_rt.bench.walk import default_walk_config, plot_walk, walk_bench
     from ankle_rt.gait_data import CADENCES
 
     try:
