@@ -248,6 +248,20 @@ def test_ctl_status_prints_angles_in_degrees_and_tiny_values_as_zero():
     assert not any("_deg" in line for line in rad)
 
 
+def test_ctl_status_prints_the_gait_phases_equilibria_in_degrees():
+    from ankle_rt.commands.ctl import format_fields, status_for_people
+
+    status = {"gait_phase": {"phase": "safe", "time_in_phase_s": 0.5,
+                             "params": {"late_stance": {"stiffness_dp": 150.0, "equilibrium_dp": -0.55,
+                                                        "equilibrium_ie": 0.0}}}}
+    lines = format_fields(status_for_people(status))
+    assert "gait_phase.params.late_stance.equilibrium_dp_deg: -31.5127" in lines
+    assert "gait_phase.params.late_stance.stiffness_dp: 150" in lines
+    rad = format_fields(status_for_people(status, rad=True))
+    assert "gait_phase.params.late_stance.equilibrium_dp_rad: -0.55" in rad
+    assert status["gait_phase"]["params"]["late_stance"]["equilibrium_dp"] == -0.55    # the reply is not changed
+
+
 def test_presence_says_when_a_daemon_connects_and_when_it_has_gone():
     import io
 

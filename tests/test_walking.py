@@ -389,12 +389,20 @@ def test_ctl_gains_with_a_phase_and_bench_walk_json(capsys):
     import json
 
     from ankle_rt.cli import build_parser, main
-    from ankle_rt.commands.ctl import request_from_args
+    from ankle_rt.commands.ctl import _degree_note, request_from_args
 
     args = build_parser().parse_args(["ctl", "gains", "--phase", "late_stance", "--stiffness-dp", "180",
-                                      "--equilibrium-dp", "-0.5"])
+                                      "--equilibrium-dp", "-0.5", "--rad"])
     assert request_from_args(args) == {"cmd": "set_gains", "stiffness_dp": 180.0, "phase": "late_stance",
                                        "equilibrium_dp": -0.5}
+    args = build_parser().parse_args(["ctl", "gains", "--phase", "late_stance", "--equilibrium-dp", "-30",
+                                      "--equilibrium-ie", "5"])    # degrees, as ctl ref and ctl profile take
+    req = request_from_args(args)
+    assert req["equilibrium_dp"] == pytest.approx(math.radians(-30.0))
+    assert req["equilibrium_ie"] == pytest.approx(math.radians(5.0))
+    note = _degree_note(build_parser().parse_args(["ctl", "gains", "--phase", "safe", "--equilibrium-dp", "50"]),
+                        {"field": "equilibrium_dp"})       # a refusal names the rad the daemon saw
+    assert "--equilibrium-dp 50 deg is 0.8727 rad" in note
     assert main(["bench", "walk", "--masses", "75", "--cadences", "normal", "--strides", "2", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["strides"] == 2 and out["faults"] == 0 and out["push_off_work_j_per_kg"] > 0.0

@@ -16,6 +16,7 @@ from ankle_rt.command_limits import GAIN_FIELDS
 from ankle_rt.references import angle_params
 from ankle_rt.service.protocol import GAIT_PHASES, PHASE_FIELDS, PROFILE_NAMES, CommandError
 
+EQUILIBRIA = {"equilibrium_dp", "equilibrium_ie"}   # ctl gains' angles: degrees on the command line
 EXIT_REFUSED = 1
 EXIT_UNREACHABLE = 3
 
@@ -58,8 +59,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         gains.add_argument("--" + name.replace("_", "-"), dest=name, type=float, help=doc)
     gains.add_argument("--phase", choices=GAIT_PHASES, help=PHASE_FIELDS["phase"] + "; the other options then "
                                                                "set that phase's stiffness, damping and equilibrium")
-    for name in ("equilibrium_dp", "equilibrium_ie"):
-        gains.add_argument("--" + name.replace("_", "-"), dest=name, type=float, help=PHASE_FIELDS[name])
+    for name in EQUILIBRIA:
+        gains.add_argument("--" + name.replace("_", "-"), dest=name, type=float,
+                           help=PHASE_FIELDS[name].replace("rad, ", "DEGREES (rad with --rad), ", 1))
+    gains.add_argument("--rad", action="store_true", help="--equilibrium-dp / --equilibrium-ie are given in rad")
     profile = sub.add_parser("profile", help="start a reference profile",
                              description="Start a reference profile. Parameters are KEY=VALUE: angles (dp, ie, "
                                          "amplitude_dp, amplitude_ie, ie_phase) in DEGREES (converted to rad on the "
@@ -92,8 +95,12 @@ def request_from_args(args: argparse.Namespace) -> dict:
             req["ramp"] = args.ramp
         return req
     if name == "gains":
-        return {"cmd": "set_gains", **{k: getattr(args, k) for k in (*GAIN_FIELDS, *PHASE_FIELDS)
-                                       if getattr(args, k) is not None}}
+        req = {"cmd": "set_gains", **{k: getattr(args, k) for k in (*GAIN_FIELDS, *PHASE_FIELDS)
+                                      if getattr(args, k) is not None}}
+        if not args.rad:
+            for key in EQUILIBRIA & req.keys():
+                req[key] = math.radians(req[key])
+        return req
     if name == "profile":
         params = dict(_param(p) for p in args.params)
         if not args.rad:
@@ -167,13 +174,27 @@ TINY = 1e-9   # |value| printed as 0: far below any sensor's resolution (a decay
 
 
 def status_for_people(status: dict, rad: bool = False) -> dict:
-    """The status reply with every angle in degrees (``rad``: in rad), the names saying which."""
+    """The status reply with every angle in degrees (``rad``: in rad), the names saying which; the
+    gait phases' equilibria (rad on the wire) too."""
     out = {}
     for key, value in status.items():
         if key in STATUS_ANGLES and isinstance(value, list):
             deg_name, rad_name, to_deg = STATUS_ANGLES[key]
             scale = to_deg * (math.pi / 180.0 if rad else 1.0)
             key, value = (rad_name if rad else deg_name), [v * scale if isinstance(v, float) else v for v in value]
+        elif key == "gait_phase" and isinstance(value, dict) and isinstance(value.get("params"), dict):
+            value = {**value, "params": {phase: _equilibria_for_people(params, rad)
+                                         for phase, params in value["params"].items()}}
+        out[key] = value
+    return out
+
+
+def _equilibria_for_people(params: dict, rad: bool) -> dict:
+    """One gait phase's parameters with its equilibrium angles named in deg (``rad``: in rad)."""
+    out = {}
+    for key, value in params.items():
+        if key.startswith("equilibrium_") and isinstance(value, float):
+            key, value = (f"{key}_rad", value) if rad else (f"{key}_deg", math.degrees(value))
         out[key] = value
     return out
 
@@ -194,6 +215,9 @@ def _degree_note(args: argparse.Namespace, reply: dict) -> str:
         given = dict(_param(p) for p in args.params).get(key)
         if isinstance(given, float):
             return f" (the command line takes degrees: {key}={given:g} deg is {math.radians(given):.4g} rad)"
+    if args.ctl_command == "gains" and not args.rad and field in EQUILIBRIA and getattr(args, field) is not None:
+        given = getattr(args, field)
+        return f" (the command line takes degrees: --{field.replace('_', '-')} {given:g} deg is {math.radians(given):.4g} rad)"
     return ""
 
 
