@@ -244,7 +244,8 @@ class Daemon:
 
     def set_gains(self, **gains: float) -> None:
         """Ramp to new gains (over controller.gain_ramp_s: the rate limit). Raises GainError naming a
-        gain that is not finite or beyond controller.gain_limits; nothing changes then."""
+        gain that is not finite or beyond controller.gain_limits, or an equilibrium angle beyond the
+        ankle range (checked here for any controller, as the protocol does); nothing changes then."""
         setter = getattr(self.controller, "set_gains", None)
         if setter is None:
             raise ValueError("this controller has no run-time gains")
@@ -253,11 +254,14 @@ class Daemon:
 
     def _check_gain_maxima(self, gains: dict[str, float]) -> None:
         for name, value in gains.items():
-            if name in proto.PHASE_FIELDS:         # the phase and its equilibria: the controller checks them
+            if name == "phase":                    # the phase's name: the controller checks it
                 continue
-            problem = gain_problem(name, value, self.gain_maxima)
+            if name in proto.PHASE_FIELDS:         # an equilibrium angle: within the ankle range, any controller
+                problem = reference_problem(value, self.safety.ankle_limit)
+            else:
+                problem = gain_problem(name, value, self.gain_maxima)
             if problem:
-                raise GainError(name, f"gain {name!r} {problem}")
+                raise GainError(name, f"{name!r} {problem}" if name in proto.PHASE_FIELDS else f"gain {name!r} {problem}")
 
     def _set_gains_checked(self, gains: dict[str, float]) -> dict | proto.Pending:
         """The set_gains command. A controller whose gain check is slow (``check_gains``: the

@@ -459,3 +459,30 @@ def test_a_plugins_own_phase_attribute_never_reaches_the_logs_gait_phase_code(si
     assert np.all(daemon.recorder.records["gait_phase"] == 0)
     assert daemon.status()["gait_phase"] is None
     daemon.close()
+
+
+class TakesAnyGains(PhasedPlugin):
+    """A plugin whose set_gains takes any names (what it is given is kept)."""
+
+    def __init__(self):
+        self.given = []
+
+    def set_gains(self, **gains):
+        self.given.append(gains)
+
+
+def test_the_daemon_checks_equilibrium_angles_from_any_caller_for_any_controller(sim_cfg):
+    from ankle_rt.control.gains import GainError
+
+    plugin = TakesAnyGains()
+    daemon = lockstep_daemon(sim_cfg, controller=plugin)
+    for bad in (math.nan, 5.0, -daemon.safety.ankle_limit - 1e-6):
+        with pytest.raises(GainError) as err:
+            daemon.set_gains(phase="safe", equilibrium_dp=bad)
+        assert err.value.gain == "equilibrium_dp" and "ankle range" in str(err.value)
+    with pytest.raises(GainError):
+        daemon.set_gains(equilibrium_ie=1e3, kp=1.0)
+    assert plugin.given == []                    # nothing reached the controller
+    daemon.set_gains(phase="safe", equilibrium_dp=0.1)
+    assert plugin.given == [{"phase": "safe", "equilibrium_dp": 0.1}]
+    daemon.close()
