@@ -123,7 +123,7 @@ class Daemon:
                 ref = self.reference.ref
                 code = safety.check_reference(ref.item(0), ref.item(1))
             if code == 0 and state == ACTIVE:
-                self.controller.update(est, torque)
+                self._controller.update(est, torque)   # the attribute (no property call per cycle)
                 code = safety.limit_currents(torque.item(0) * self.inv_kt, torque.item(1) * self.inv_kt)
                 if code == 0:
                     code = safety.check_gauges(est)
