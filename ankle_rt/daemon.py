@@ -385,9 +385,7 @@ class Daemon:
 
     def _list_controllers(self) -> proto.Pending:
         """The built-in and installed controllers (found off the loop thread) and the running one."""
-        from ankle_rt.controller_registry import available_controllers
-
-        job = self._in_background(available_controllers, "the controller list", "cmd")
+        job = self._in_background(_available_controllers, "the controller list", "cmd")
 
         def poll() -> dict | None:
             if not job.done:
@@ -565,6 +563,15 @@ class Daemon:
                             controller_config=self.cfg["controller"] if self.own_controller else None,
                             sim_disturbances=self.cfg["sim"]["disturbances"] if self.simulated_plant else None,
                             states={s.name: int(s) for s in State}, faults={f.name: int(f) for f in Fault})
+
+
+def _available_controllers() -> dict[str, str]:
+    """:func:`ankle_rt.controller_registry.available_controllers`, imported where it runs: on the
+    background loader's thread (the first import of the registry and importlib.metadata reads files;
+    an experiment's daemon has not imported them at start-up)."""
+    from ankle_rt.controller_registry import available_controllers
+
+    return available_controllers()
 
 
 @dataclass

@@ -486,3 +486,30 @@ def test_the_daemon_checks_equilibrium_angles_from_any_caller_for_any_controller
     daemon.set_gains(phase="safe", equilibrium_dp=0.1)
     assert plugin.given == [{"phase": "safe", "equilibrium_dp": 0.1}]
     daemon.close()
+
+
+def test_list_controllers_imports_the_registry_off_the_loop_thread(sim_cfg, monkeypatch):
+    import sys
+    import threading
+    import time
+
+    from ankle_rt.service import protocol as proto
+
+    importers = []
+
+    class Watch:                                  # records the thread that imports the registry
+        def find_spec(self, name, path=None, target=None):
+            if name == "ankle_rt.controller_registry":
+                importers.append((name, threading.current_thread()))
+            return None
+
+    daemon = lockstep_daemon(sim_cfg)
+    monkeypatch.delitem(sys.modules, "ankle_rt.controller_registry")   # as in a daemon that never built one
+    monkeypatch.setattr(sys, "meta_path", [Watch(), *sys.meta_path])
+    pending = daemon.handle(proto.parse_command(b'{"cmd": "list_controllers"}'))
+    end = time.monotonic() + 30.0                 # a guard, not an assertion
+    while (reply := pending.poll()) is None and time.monotonic() < end:
+        time.sleep(0.001)
+    assert "impedance" in reply["controllers"]
+    assert importers and all(thread is not threading.current_thread() for _, thread in importers)
+    daemon.close()
