@@ -91,3 +91,18 @@ def test_the_empty_tank_lets_the_observer_only_brake(base):
     assert outs[-1] == 0.0 and loop.e0 == 0.0     # ... until the tank ran dry
     braking = [loop.update(-2.0, 0.0, 0.0, 0.0, 1.0, 0.0, True)[0] + 2.0 for _ in range(400)]
     assert min(braking) < -0.5                    # against the motion it still acts
+
+
+def test_activation_does_not_read_the_rate_left_from_before_as_a_disturbance(base):
+    """The observer differences the motor rate from the last cycle: after a reset at rest, a rate
+    left from before (the ankle moving fast when the run was deactivated) must not kick it."""
+    tl = dict(base["controller"]["torque_loop"], dob_hz=20.0)
+    gains, act = TorqueLoopGains.from_config(tl), ReflectedActuator.from_config(base)
+    used, fresh = JointTorqueLoop(gains, 1e-3, act), JointTorqueLoop(gains, 1e-3, act)
+    for _ in range(50):
+        used.update(0.0, 0.0, 0.0, 0.0, 8.0, -6.0, True)    # moving fast, then deactivated
+    for loop in (used, fresh):
+        loop.reset_state(1.0, -0.5, 0.0, 0.0)                  # activation at rest
+    first = [loop.update(1.0, -0.5, 1.0, -0.5, 0.0, 0.0, True) for loop in (used, fresh)]
+    assert first[0] == first[1]
+    assert used.d0 == fresh.d0 == 0.0 and used.d1 == fresh.d1 == 0.0

@@ -131,7 +131,7 @@ class ImpedanceController(RampedGainController):
     def start(self, est: Estimate, where: bool | np.ndarray = True) -> None:
         super().start(est, where)
         if self.torque_loop is not None:
-            self.torque_loop.reset_state(est.sg_dp, est.sg_ie, where)
+            self.torque_loop.reset_state(est.sg_dp, est.sg_ie, est.dp_vel, est.ie_vel, where)
 
     def law(self, est: Estimate, ref_dp: Value, ref_ie: Value) -> tuple[Value, Value]:
         g = self.gains

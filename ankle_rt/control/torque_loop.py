@@ -144,15 +144,20 @@ class JointTorqueLoop:
         over the batch (``gains``, descriptive only, is the first device's)."""
         return stack(loops, shared=("gains",))
 
-    def reset_state(self, tau_dp: Value, tau_ie: Value, where: bool | np.ndarray = True) -> None:
-        """Start from the measured torques (N m) with an empty integrator (on activation); for a
-        batch, only where ``where`` (bool per device) holds."""
+    def reset_state(self, tau_dp: Value, tau_ie: Value, w_dp: Value = 0.0, w_ie: Value = 0.0,
+                    where: bool | np.ndarray = True) -> None:
+        """Start from the measured torques (N m) and the ankle-side motor rates ``w`` (rad/s, what
+        :meth:`update` is given) with an empty integrator (on activation); for a batch, only where
+        ``where`` (bool per device) holds. The observer differences the rate from the last cycle: a
+        rate left from before a deactivation would read as a disturbance J_n dw/dt on activation."""
         self.f0 = select(where, tau_dp, self.f0)
         self.f1 = select(where, tau_ie, self.f1)
         self.i0 = select(where, 0.0, self.i0)
         self.i1 = select(where, 0.0, self.i1)
         self.d0 = select(where, 0.0, self.d0)
         self.d1 = select(where, 0.0, self.d1)
+        self.w0 = select(where, w_dp, self.w0)
+        self.w1 = select(where, w_ie, self.w1)
         self.u0 = select(where, tau_dp, self.u0)     # at rest the motors hold the cable torque
         self.u1 = select(where, tau_ie, self.u1)
         self.e0 = select(where, self.tank_max, self.e0)
