@@ -16,7 +16,7 @@ from ankle_rt.command_limits import GAIN_FIELDS
 from ankle_rt.references import angle_params
 from ankle_rt.service.protocol import GAIT_PHASES, PHASE_FIELDS, PROFILE_NAMES, CommandError
 
-EQUILIBRIA = {"equilibrium_dp", "equilibrium_ie"}   # ctl gains' angles: degrees on the command line
+EQUILIBRIA = ("equilibrium_dp", "equilibrium_ie")   # ctl gains' angles: degrees on the command line
 EXIT_REFUSED = 1
 EXIT_UNREACHABLE = 3
 
@@ -54,7 +54,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     ref.add_argument("ie", type=float, help="inversion-eversion angle, degrees (rad with --rad)")
     ref.add_argument("--rad", action="store_true", help="DP and IE are given in rad")
     ref.add_argument("--ramp", type=float, help="s to ramp linearly to the new reference")
-    gains = sub.add_parser("gains", help="change controller gains at run time (bumpless, SI units)")
+    gains = sub.add_parser("gains", help="change controller gains at run time (bumpless; SI units, a gait phase's "
+                                             "equilibria in degrees)")
     for name, doc in GAIN_FIELDS.items():
         gains.add_argument("--" + name.replace("_", "-"), dest=name, type=float, help=doc)
     gains.add_argument("--phase", choices=GAIT_PHASES, help=PHASE_FIELDS["phase"] + "; the other options then "
@@ -98,8 +99,9 @@ def request_from_args(args: argparse.Namespace) -> dict:
         req = {"cmd": "set_gains", **{k: getattr(args, k) for k in (*GAIN_FIELDS, *PHASE_FIELDS)
                                       if getattr(args, k) is not None}}
         if not args.rad:
-            for key in EQUILIBRIA & req.keys():
-                req[key] = math.radians(req[key])
+            for key in EQUILIBRIA:
+                if key in req:
+                    req[key] = math.radians(req[key])
         return req
     if name == "profile":
         params = dict(_param(p) for p in args.params)
