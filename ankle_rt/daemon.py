@@ -26,6 +26,7 @@ from ankle_rt.config import Config, ConfigError, config_data
 from ankle_rt.control import CycleController, build_controller
 from ankle_rt.control.gains import GainError
 from ankle_rt.control.gait_phase import PHASES, GaitPhaseController
+from ankle_rt.control.impedance import ImpedanceController
 from ankle_rt.estimation import Estimate, Estimator
 from ankle_rt.interchange import InterchangeError
 from ankle_rt.kinematics import Kinematics
@@ -203,13 +204,13 @@ class Daemon:
                                + (" (reset the fault first)" if s.state == State.FAULT else ""))
         if not self.est.tared:
             raise RuntimeError("strain gauges not tared yet")
-        ankle = self.est.ankle_pos
+        dp, ie = self.ankle_now()
         if self.activations > 0:
-            self.reference.start(Hold(ankle.item(0), ankle.item(1)))
+            self.reference.start(Hold(dp, ie))
         elif self.own_controller and not self.reference_commanded and isinstance(self.reference.profile, Hold):
             # the configured hold is approached from where the ankle is, over reference.ramp_s
             hold = self.reference.profile
-            self.reference.ref[:] = ankle
+            self.reference.ref[0], self.reference.ref[1] = dp, ie
             self.reference.start(RampTo(hold.dp, hold.ie, self.cfg["reference"]["ramp_s"]))
         self.backend.activate()
         s.activated(self.est)
@@ -432,11 +433,22 @@ class Daemon:
         cfg = config_from_data(data, lambda key: "the set_controller command", getattr(self.cfg, "source", "<memory>"))
         return cfg, build_controller(cfg, self.kin, self.reference.ref)
 
+    def ankle_now(self) -> tuple[float, float]:
+        """rad [DP, IE]: where the ankle is for the running controller's reference, the angle its law
+        compares the reference with: the joint encoders when the impedance law takes them
+        (``controller.impedance.angle_source``; finite readings), else the estimate through the cables.
+        Holding this angle commands no torque step."""
+        est, controller = self.est, self._controller
+        if (isinstance(controller, ImpedanceController) and controller.joint_encoders is True
+                and math.isfinite(est.joint_dp + est.joint_ie)):
+            return est.joint_dp, est.joint_ie
+        return est.dp, est.ie
+
     def _hold_here(self, params: dict) -> None:
-        """Fill the axes ``params`` does not give with the estimated ankle angles; refused (naming the
-        axis) while the estimate is not valid: gauges not tared yet (the angle still moves with the
-        tare), or not finite (a sensor fault)."""
-        for key, value in (("dp", self.est.dp), ("ie", self.est.ie)):
+        """Fill the axes ``params`` does not give with :meth:`ankle_now`; refused (naming the axis)
+        while the estimate is not valid: gauges not tared yet (the angle still moves with the tare),
+        or not finite (a sensor fault)."""
+        for key, value in zip(("dp", "ie"), self.ankle_now()):
             if key in params:
                 continue
             if not self.est.tared or not math.isfinite(value):

@@ -17,7 +17,7 @@ from ankle_rt.daemon import run_lockstep
 from ankle_rt.commands import run as run_cmd
 from ankle_rt.log.summary import summarize
 from ankle_rt.safety import Fault, State
-from tests.daemon_helpers import InjectingBackend, lockstep_daemon, run_cycles
+from tests.daemon_helpers import InjectingBackend, lockstep_daemon, run_cycles, variant
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -512,4 +512,35 @@ def test_list_controllers_imports_the_registry_off_the_loop_thread(sim_cfg, monk
         time.sleep(0.001)
     assert "impedance" in reply["controllers"]
     assert importers and all(thread is not threading.current_thread() for _, thread in importers)
+    daemon.close()
+
+
+def test_hold_here_and_activation_hold_the_angle_the_impedance_law_acts_on(sim_cfg):
+    """With angle_source joint_encoders the law compares the reference with the joint encoders: hold
+    here (and a later activation) must hold their angle, not the estimate through the cables, else
+    K times the difference comes as a torque step."""
+    from ankle_rt.service import protocol as proto
+
+    offset = math.radians(2.0)                  # the joint encoders read 2 deg more than the cables say
+
+    def shift(frame, cycle):
+        frame.ankle_pos[0] += offset
+
+    cfg = variant(sim_cfg, reference={"profile": "hold"}, sim={"disturbances": []})
+    cfg["controller"]["type"] = "impedance"
+    cfg["controller"]["impedance"]["angle_source"] = "joint_encoders"
+    daemon = lockstep_daemon(cfg, backend=InjectingBackend(cfg, SimClock(), at=0, mutate=shift))
+    run_cycles(daemon, 1000)
+    assert daemon.safety.state == State.ACTIVE
+    assert daemon.ankle_now() == (daemon.est.joint_dp, daemon.est.joint_ie)
+    assert abs(daemon.est.joint_dp - daemon.est.dp) > 0.9 * offset
+    before = daemon.torque.copy()
+    daemon.handle(proto.parse_command(b'{"cmd": "start_profile", "name": "hold"}'))
+    run_cycles(daemon, 5)
+    assert abs(daemon.reference.ref[0] - daemon.est.joint_dp) < math.radians(0.05)
+    assert np.max(np.abs(daemon.torque - before)) < 0.5   # N m: no step of K x 2 deg
+    daemon.deactivate()
+    run_cycles(daemon, 5)
+    daemon.activate()
+    assert abs(daemon.reference.ref[0] - daemon.est.joint_dp) < math.radians(0.05)
     daemon.close()
