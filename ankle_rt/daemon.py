@@ -26,7 +26,7 @@ from ankle_rt.config import Config, ConfigError, config_data
 from ankle_rt.control import CycleController, build_controller
 from ankle_rt.control.gains import GainError
 from ankle_rt.control.gait_phase import PHASES, GaitPhaseController
-from ankle_rt.control.impedance import ImpedanceController
+from ankle_rt.control.base import BatchableController
 from ankle_rt.estimation import Estimate, Estimator
 from ankle_rt.interchange import InterchangeError
 from ankle_rt.kinematics import Kinematics
@@ -435,13 +435,14 @@ class Daemon:
 
     def ankle_now(self) -> tuple[float, float]:
         """rad [DP, IE]: where the ankle is for the running controller's reference, the angle its law
-        compares the reference with: the joint encoders when the impedance law takes them
-        (``controller.impedance.angle_source``; finite readings), else the estimate through the cables.
-        Holding this angle commands no torque step."""
+        compares the reference with (:meth:`BatchableController.angles`: the joint encoders when the
+        impedance law takes them, ``controller.impedance.angle_source``), else (a plugin, readings not
+        finite) the estimate through the cables. Holding this angle commands no torque step."""
         est, controller = self.est, self._controller
-        if (isinstance(controller, ImpedanceController) and controller.joint_encoders is True
-                and math.isfinite(est.joint_dp + est.joint_ie)):
-            return est.joint_dp, est.joint_ie
+        if isinstance(controller, BatchableController):
+            dp, ie = controller.angles(est)
+            if math.isfinite(dp + ie):
+                return dp, ie
         return est.dp, est.ie
 
     def _hold_here(self, params: dict) -> None:

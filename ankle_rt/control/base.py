@@ -135,6 +135,12 @@ class BatchableController(abc.ABC):
         :meth:`batch_key`); ValueError for a non-numeric attribute that differs."""
         return stack(controllers, shared=cls.shared, columns=cls.columns)
 
+    def angles(self, est: Estimate) -> tuple[Value, Value]:
+        """rad [DP, IE]: the ankle angles the law compares the reference with (here the estimate
+        through the cables). Element-wise. Where the daemon and the batch hold "where the ankle is"
+        (hold here, activation), so that a hold commands no torque step."""
+        return est.dp, est.ie
+
     def batch_key(self) -> tuple[tuple[str, Any], ...]:
         """(config key, value) pairs that must be equal for controllers to run in one batch (their
         structure, e.g. whether a loop is closed); the batch names the first key that differs."""

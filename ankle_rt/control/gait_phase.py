@@ -240,6 +240,10 @@ class GaitPhaseController(ImpedanceController):
         super().start(est, where)
         self.gait.start(where)
 
+    def angles(self, est: Estimate) -> tuple[Value, Value]:
+        """The estimate through the cables: what the phase law takes (it has no reference)."""
+        return est.dp, est.ie
+
     def law(self, est: Estimate, ref_dp: Value, ref_ie: Value) -> tuple[Value, Value]:
         """The phase machine's joint torques through the impedance actuation; the reference is unused
         (each phase has its own equilibrium)."""

@@ -143,9 +143,13 @@ class ImpedanceController(RampedGainController):
         if ramping and loop is not None:      # the loop's gains ramp too, and the lead on its lag with them
             loop.set_gains(v[4], v[5], v[6], v[7], v[8], v[9])
             self.lead0, self.lead1 = loop.lag_s
+        a0, a1 = self.angles(est)
+        return self.actuate(est, k0 * (ref_dp - a0) - b0 * est.dp_vel, k1 * (ref_ie - a1) - b1 * est.ie_vel, k0, k1)
+
+    def angles(self, est: Estimate) -> tuple[Value, Value]:
+        """The joint encoders' angles when ``joint_encoders`` (angle_source), else the estimate."""
         joint = self.joint_encoders
-        return self.actuate(est, k0 * (ref_dp - select(joint, est.joint_dp, est.dp)) - b0 * est.dp_vel,
-                            k1 * (ref_ie - select(joint, est.joint_ie, est.ie)) - b1 * est.ie_vel, k0, k1)
+        return select(joint, est.joint_dp, est.dp), select(joint, est.joint_ie, est.ie)
 
     def actuate(self, est: Estimate, t0: Value, t1: Value, k0: Value, k1: Value) -> tuple[Value, Value]:
         """Motor torques (N m) rendering the desired joint torques ``t0``, ``t1`` (N m [DP, IE]) of a

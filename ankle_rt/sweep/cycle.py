@@ -188,12 +188,13 @@ class BatchRun:
                 safety.activated(est, starting)
                 trace.activation_time[starting] = t
                 hs = starting & self.hold
-                if hs.any():
-                    ramp_from[0] = np.where(hs, est.dp, ramp_from[0])
-                    ramp_from[1] = np.where(hs, est.ie, ramp_from[1])
+                if hs.any():                     # from the angles the law acts on (Daemon.ankle_now)
+                    a0, a1 = ctl.angles(est)
+                    ramp_from[0] = np.where(hs, a0, ramp_from[0])
+                    ramp_from[1] = np.where(hs, a1, ramp_from[1])
                     ramp_t0 = np.where(hs, t + dt, ramp_t0)
-                    r0 = np.where(hs, est.dp, r0)
-                    r1 = np.where(hs, est.ie, r1)
+                    r0 = np.where(hs, a0, r0)
+                    r1 = np.where(hs, a1, r1)
                 ctl.start(est, starting)
             waiting = waiting and bool((safety.state == CONFIGURED).any())
             # -- reference check, control law, current limits (only the active, fault-free plants count)
