@@ -15,7 +15,7 @@ from ankle_rt.clock import SimClock
 from ankle_rt.config import load_config
 from ankle_rt.daemon import run_lockstep
 from ankle_rt.gauge_check import GaugeCrossCheck
-from ankle_rt.impedance_bench import TorqueProgramBackend, bench_config
+from ankle_rt.bench.impedance import TorqueProgramBackend, bench_config
 from ankle_rt.paths import default_config_path
 from ankle_rt.safety import Fault, State
 

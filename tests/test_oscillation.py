@@ -13,7 +13,7 @@ from ankle_rt.config import load_config
 from ankle_rt.control.impedance import ImpedanceController
 from ankle_rt.control.torque_loop import JointTorqueLoop, TorqueLoopGains
 from ankle_rt.daemon import run_lockstep
-from ankle_rt.impedance_bench import bench_config
+from ankle_rt.bench.impedance import bench_config
 from ankle_rt.kinematics import Kinematics
 from ankle_rt.oscillation import OscillationDetector
 from ankle_rt.params import TransmissionParams
