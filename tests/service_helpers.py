@@ -102,8 +102,14 @@ def status(path: Path) -> dict:
 
 def activate(client: LineClient) -> dict:
     """Activate once the strain gauges are tared (the daemon refuses before; guarded retries)."""
+    return once_tared(client, b'{"cmd":"activate"}')
+
+
+def once_tared(client: LineClient, request: bytes) -> dict:
+    """The reply to ``request`` once the strain gauges are tared: activation and "hold here" are
+    refused before (guarded retries)."""
     for _ in range(600):
-        reply = client.request(b'{"cmd":"activate"}')
+        reply = client.request(request)
         if reply["ok"] or "tared" not in reply["error"]:
             return reply
         time.sleep(0.1)

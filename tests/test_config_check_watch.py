@@ -12,7 +12,7 @@ import pytest
 
 from ankle_rt.cli import EXIT_BROKEN_PIPE, main
 from ankle_rt.commands.ctl import watch_view
-from tests.service_helpers import LineClient, activate, daemon  # noqa: F401  (daemon is a fixture)
+from tests.service_helpers import LineClient, activate, daemon, once_tared  # noqa: F401  (daemon is a fixture)
 
 ROOT = Path(__file__).resolve().parent.parent
 CONFIGS = ROOT / "config"
@@ -69,7 +69,7 @@ def test_watch_view_shows_degrees_and_names_units():
 def test_watch_follows_a_running_daemon_and_ends_cleanly(daemon, capsys):  # noqa: F811
     proc, path = daemon
     client = LineClient(path)
-    assert client.request(b'{"cmd":"start_profile","name":"hold"}')["ok"]
+    assert once_tared(client, b'{"cmd":"start_profile","name":"hold"}')["ok"]     # hold here: needs the tare
     assert activate(client)["ok"]
     assert main(["ctl", "--socket", str(path), "watch", "--count", "2", "--interval", "0.05"]) == 0
     out = capsys.readouterr().out
