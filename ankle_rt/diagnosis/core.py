@@ -1,7 +1,8 @@
 """The diagnosis: from measured data to the set of effects the model lacks, each fitted, and the gain.
 
 Steps (docs/diagnosis.md explains the choices):
-1. Screen the data (sensor artefacts are warned about and masked, never named as physics).
+1. Screen the data (sensor artefacts are warned about and masked, never named as physics); irregular
+   sample times are put on a uniform grid.
 2. Build the motor channel and, where joint angles are measured, the cable channel; a strain-gauge
    offset drift found on the cable side becomes a nuisance term of both baselines.
 3. In each channel re-fit the baseline and select a set of candidate blocks: forward selection by the
@@ -26,6 +27,7 @@ from ankle_rt.config import Config
 from ankle_rt.diagnosis.candidates import (CABLE_CANDIDATES, INPUT_GROUPS, MOTOR_CANDIDATES, Candidate, Channel,
                                            catch_all_cable, catch_all_motor, time_columns, without_groups)
 from ankle_rt.diagnosis.regression import rss_only
+from ankle_rt.diagnosis.resample import to_uniform_grid
 from ankle_rt.diagnosis.screening import Screening, screen, strain_gauge_drift, strain_gauge_offset
 from ankle_rt.diagnosis.selection import (IC_THRESHOLD, LARGE_REDUCTION, MIN_REDUCTION, MIN_SIZE, MIN_SIZE_UNKNOWN,
                                           MIN_UNKNOWN_REDUCTION, AMBIGUOUS_IC, ChannelModels, ChannelResult, Score,
@@ -449,6 +451,9 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
     vscr: Screening = screen(validation, inputs.v_eps, inputs.current_limit, f"validation data ({vname})")
     unusable = scr.unusable or vscr.unusable
     warnings = scr.warnings + vscr.warnings
+    ident, scr.good, note = to_uniform_grid(ident, scr.good)
+    validation, vscr.good, vnote = to_uniform_grid(validation, vscr.good)
+    notes += [n for n in (note, vnote) if n]
     chans = build_channels(ident, inputs, scr.good)
     vchans = build_channels(validation, inputs, vscr.good)
     if plant == "ankle" and "cable" not in chans:
