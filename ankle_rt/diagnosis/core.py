@@ -469,7 +469,7 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
     else:
         _remove_gauge_offsets(chans, "identification", warnings)
         _remove_gauge_offsets(vchans, "validation", warnings)
-    skip = scr.skip | vscr.skip
+    skip = scr.skip
     motor_pool = tuple(c for c in MOTOR_CANDIDATES if c.cause not in skip)
     motor_catch_all = without_groups(catch_all_motor, INPUT_GROUPS) if scr.one_way or vscr.one_way else catch_all_motor
     results = [select_channel("motor", chans["motor"], motor_pool, motor_catch_all)]
