@@ -217,3 +217,12 @@ def test_jittered_sample_times_leave_no_spurious_unknown(seed, kinds, controller
     diag = diagnose(case.ident, case.valid, plant="ankle", cfg=case.nominal_cfg)
     assert sorted(diag.causes) == list(case.causes), f"{case.describe()} -> {diag.causes} {diag.notes}"
     assert any("irregular sample times" in n for n in diag.notes)
+
+
+def test_a_one_way_validation_file_does_not_keep_a_load_offset_from_being_named():
+    # walking under the impedance law: the validation record's motor 1 turns one way only, the
+    # identification record reverses; the offset is fitted on the identification data
+    case = make_case_b(1038, ["torque_offset"], "impedance", "walking", jitter=True)
+    diag = diagnose(case.ident, case.valid, plant="ankle", cfg=case.nominal_cfg)
+    assert any("one direction" in w and "validation" in w for w in diag.data_warnings)
+    assert diag.causes == ["torque_offset"], f"{case.describe()} -> {diag.causes} {diag.notes}"
