@@ -14,10 +14,11 @@ import numpy as np
 import pytest
 
 from ankle_rt.diagnosis import diagnose
-from ankle_rt.diagnosis.candidates import HardeningStiffness
+from ankle_rt.diagnosis.candidates import HardeningStiffness, catch_all_motor
 from ankle_rt.diagnosis.model_fragment import fragment
 from ankle_rt.diagnosis.resample import to_uniform_grid
 from ankle_rt.diagnosis.screening import screen
+from ankle_rt.diagnosis.selection import replicates
 from ankle_rt.interchange import Recording
 from tests.diagnosis_cases import ENCODER_SCALE, SG_OFFSET_NM, make_case
 from tests.diagnosis_cases_b import make_case_b
@@ -226,3 +227,17 @@ def test_a_one_way_validation_file_does_not_keep_a_load_offset_from_being_named(
     diag = diagnose(case.ident, case.valid, plant="ankle", cfg=case.nominal_cfg)
     assert any("one direction" in w and "validation" in w for w in diag.data_warnings)
     assert diag.causes == ["torque_offset"], f"{case.describe()} -> {diag.causes} {diag.notes}"
+
+
+@pytest.mark.parametrize("seed,causes,shows", [(81, ["asymmetric_friction", "kt_saturation"], True),
+                                               (83, ["asymmetric_friction"], False)])
+def test_unknown_beside_a_named_effect_needs_the_remainder_on_the_validation_data(seed, causes, shows):
+    """A torque-constant saturation beside friction asymmetry leaves a remainder the catch-all finds on
+    the validation data too (``unknown`` is named beside the effect); with the effect alone it finds none."""
+    _, diag, msg = _diagnose(seed=seed, plant="ankle", cause=causes)
+    motor = diag.detail["results"][0]
+    specs = [(ts.term.candidate, ts.term.nl) for ts in motor.terms]
+    assert "asymmetric_friction" in [c.cause for c, _ in specs], msg
+    held_out, gain, reduction = replicates(diag.detail["validation_models"]["motor"], specs, catch_all_motor)
+    assert held_out == shows and (reduction > 0.5) == shows, (gain, reduction, msg)
+    assert sorted(diag.causes) == sorted(["asymmetric_friction"] + (["unknown"] if shows else [])), msg
