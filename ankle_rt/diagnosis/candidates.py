@@ -156,8 +156,7 @@ class Cogging(Candidate):
         full = np.zeros((ch.n_samples, ch.m))
         full[ch.rows] = residual.reshape(ch.m, -1).T
         back = ch.sm.smooth(full)                                # adjoint of "filter, keep rows"
-        bins = 1 << int(math.ceil(math.log2(8 * n_max)))
-        idx = np.floor(np.mod(ch.pos, 2.0 * np.pi) * (bins / (2.0 * np.pi))).astype(np.int64) % bins
+        turn = np.mod(ch.pos, 2.0 * np.pi) / (2.0 * np.pi)      # fraction of a revolution, 0..1
         speed = np.abs(ch.vel)
         # speed bands, within which the taper of a count's ripple is nearly one number
         edges = np.unique(np.quantile(speed, np.linspace(0.0, 1.0, SPEED_BANDS + 1)))
@@ -174,7 +173,14 @@ class Cogging(Candidate):
                 v_b = float(np.sqrt(max(edges[b], 1e-12) * max(edges[b + 1], 1e-12)))
                 w = self.taper(ch, counts * v_b)
                 r = back[sel, i]
-                spectrum += w * np.fft.fft(np.bincount(idx[sel, i], weights=r, minlength=bins))[: n_max + 1]
+                # the taper is zero beyond n_b: this band's grid need only resolve counts up to n_b
+                # (a fast band's transform is short; only the slowest bands need the full grid)
+                if not w.any():
+                    continue
+                n_b = int(np.flatnonzero(w)[-1])
+                bins = 1 << int(math.ceil(math.log2(8 * max(n_b, 1))))
+                idx = np.minimum((turn[sel, i] * bins).astype(np.int64), bins - 1)
+                spectrum[: n_b + 1] += w[: n_b + 1] * np.fft.rfft(np.bincount(idx, weights=r, minlength=bins))[: n_b + 1]
                 variance += 0.5 * w ** 2 * float(r @ r)
             power += np.abs(spectrum) ** 2 / np.maximum(variance, 1e-300)
         power[:n_min] = 0.0

@@ -1,7 +1,8 @@
 """The diagnosis: from measured data to the set of effects the model lacks, each fitted, and the gain.
 
 Steps (docs/diagnosis.md explains the choices):
-1. Screen the data (sensor artefacts are warned about and masked, never named as physics).
+1. Screen the data (sensor artefacts are warned about and masked, never named as physics); irregular
+   sample times are put on a uniform grid.
 2. Build the motor channel and, where joint angles are measured, the cable channel; a strain-gauge
    offset drift found on the cable side becomes a nuisance term of both baselines.
 3. In each channel re-fit the baseline and select a set of candidate blocks: forward selection by the
@@ -26,10 +27,11 @@ from ankle_rt.config import Config
 from ankle_rt.diagnosis.candidates import (CABLE_CANDIDATES, INPUT_GROUPS, MOTOR_CANDIDATES, Candidate, Channel,
                                            catch_all_cable, catch_all_motor, time_columns, without_groups)
 from ankle_rt.diagnosis.regression import rss_only
+from ankle_rt.diagnosis.resample import to_uniform_grid
 from ankle_rt.diagnosis.screening import Screening, screen, strain_gauge_drift, strain_gauge_offset
 from ankle_rt.diagnosis.selection import (IC_THRESHOLD, LARGE_REDUCTION, MIN_REDUCTION, MIN_SIZE, MIN_SIZE_UNKNOWN,
                                           MIN_UNKNOWN_REDUCTION, AMBIGUOUS_IC, ChannelModels, ChannelResult, Score,
-                                          select_channel, significant)
+                                          replicates, select_channel, significant)
 from ankle_rt.diagnosis.signals import CableChannel, Geometry, MotorChannel
 from ankle_rt.interchange import InterchangeError, Recording
 
@@ -324,21 +326,30 @@ def _remove_gauge_offsets(chans: dict[str, Channel], label: str, warnings: list[
     chans["motor"].remove_gauge_offset(off)
 
 
-def _named_sets(results: list[ChannelResult], notes: list[str],
-                unusable: bool) -> tuple[dict[str, list[tuple[Candidate, float]]], dict[str, Any]]:
+def _named_sets(results: list[ChannelResult], notes: list[str], unusable: bool, vmodels: dict[str, ChannelModels],
+                catch_alls: dict[str, Any]) -> tuple[dict[str, list[tuple[Candidate, float]]], dict[str, Any]]:
     """Per channel the effects to name, and the channels with an unexplained remainder. A named set that
-    explains less than MIN_EXPLAINED of the catch-all's gain is a partial proxy: not named."""
+    explains less than MIN_EXPLAINED of the catch-all's gain is a partial proxy: not named. A remainder
+    beside named effects counts only where it shows on the validation data too (:func:`replicates`)."""
     chosen: dict[str, list[tuple[Candidate, float]]] = {}
     unexplained: dict[str, Any] = {}
     for res in results:
         specs = [(ts.term.candidate, ts.term.nl) for ts in res.terms]
         if res.unexplained:
-            unexplained[res.name] = _describe_remainder(res)
             explained = sum(ts.share for ts in res.terms) / max(res.catch_all_total, 1e-12)
             if specs and explained < MIN_EXPLAINED:
                 notes.append(f"{res.name} channel: {', '.join(c.cause for c, _ in specs)} explain only "
                              f"{100 * explained:.0f} % of what the catch-all removes: not named")
                 specs = []
+            held_out = replicates(vmodels[res.name], specs, catch_alls[res.name]) if specs else (True, 0.0, 0.0)
+            if held_out[0]:
+                unexplained[res.name] = _describe_remainder(res)
+            else:
+                notes.append(f"{res.name} channel: the catch-all's remainder beside "
+                             f"{', '.join(c.cause for c, _ in specs)} (removes {100 * res.catch_all_reduction:.0f} "
+                             f"% in-sample) does not show on the validation data (criterion gain "
+                             f"{held_out[1]:.1f}, needs {IC_THRESHOLD:g}; removes {100 * held_out[2]:.1f} %, "
+                             f"needs {100 * MIN_UNKNOWN_REDUCTION:g} %): not unknown")
         chosen[res.name] = [] if unusable else specs
     return chosen, unexplained
 
@@ -449,6 +460,9 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
     vscr: Screening = screen(validation, inputs.v_eps, inputs.current_limit, f"validation data ({vname})")
     unusable = scr.unusable or vscr.unusable
     warnings = scr.warnings + vscr.warnings
+    ident, scr.good, note = to_uniform_grid(ident, scr.good)
+    validation, vscr.good, vnote = to_uniform_grid(validation, vscr.good)
+    notes += [n for n in (note, vnote) if n]
     chans = build_channels(ident, inputs, scr.good)
     vchans = build_channels(validation, inputs, vscr.good)
     if plant == "ankle" and "cable" not in chans:
@@ -464,7 +478,7 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
     else:
         _remove_gauge_offsets(chans, "identification", warnings)
         _remove_gauge_offsets(vchans, "validation", warnings)
-    skip = scr.skip | vscr.skip
+    skip = scr.skip
     motor_pool = tuple(c for c in MOTOR_CANDIDATES if c.cause not in skip)
     motor_catch_all = without_groups(catch_all_motor, INPUT_GROUPS) if scr.one_way or vscr.one_way else catch_all_motor
     results = [select_channel("motor", chans["motor"], motor_pool, motor_catch_all)]
@@ -472,7 +486,8 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
     if "cable" in chans and "cable" in vchans:
         results.append(select_channel("cable", chans["cable"], CABLE_CANDIDATES, catch_all_cable))
 
-    chosen, unexplained = _named_sets(results, notes, unusable)
+    catch_alls = {"motor": motor_catch_all, "cable": catch_all_cable}
+    chosen, unexplained = _named_sets(results, notes, unusable, vmodels, catch_alls)
     for res in results:
         chosen[res.name] = _validated(res, vmodels[res.name], chosen[res.name], notes)
     fits = {res.name: _sound_fit(res, chosen[res.name], notes) for res in results}

@@ -410,3 +410,19 @@ def _catch_all_on_top(out: ChannelResult, models: ChannelModels, chosen: list[Te
             cols = [j for j, gj in enumerate(groups) if gj == g]
             shares.append((g, (model.rss - rss_only(y, np.hstack([X, C[:, cols]]))) / max(removed, 1e-300)))
         out.correlates = sorted(shares, key=lambda p: -p[1])
+
+
+def replicates(vmodels: ChannelModels, specs: list[tuple[Candidate, float]], catch_all) -> tuple[bool, float, float]:
+    """(whether, criterion gain, residual share): does the catch-all find a remainder beyond the named
+    ``specs`` on the held-out (validation) data too, each refitted there? A remainder left beside named
+    effects must show on data the selection never saw before it is called ``unknown``: a form a little
+    off the true one leaves a remainder in-sample the catch-all's many columns fit (issue 21)."""
+    y, X = vmodels.system(vmodels.terms(specs))
+    C, _ = catch_all(vmodels.ch)
+    Xc = np.hstack([X, C])
+    model, full = fit(y, X), fit(y, Xc)
+    n_eff = effective_samples(full.residual, vmodels.ch.m)
+    gain = (information_criterion(model.rss, vmodels.n, X.shape[1], n_eff)
+            - information_criterion(full.rss, vmodels.n, Xc.shape[1], n_eff))
+    reduction = 1.0 - full.rss / model.rss
+    return gain > IC_THRESHOLD and reduction > MIN_UNKNOWN_REDUCTION, gain, reduction
