@@ -563,6 +563,7 @@ def check_consistency(cfg: Mapping[str, Any], origin: Callable[[KeyPath], str]) 
     checks += [(("impedance", name), limits[name.split("_")[0]], ctl["impedance"][name])
                for name in ("stiffness_dp", "stiffness_ie", "damping_dp", "damping_ie")]
     check_walking_limits(cfg, origin)
+    check_device_deadlines(cfg, origin)
     gait = ctl["gait_phase"]
     if gait["load_off_nm"] >= gait["load_on_nm"]:
         raise ConfigError(f"must be < controller.gait_phase.load_on_nm ({gait['load_on_nm']:g}): the hysteresis, "
@@ -573,6 +574,23 @@ def check_consistency(cfg: Mapping[str, Any], origin: Callable[[KeyPath], str]) 
             limit_key = f"controller.gain_limits.{name.split('_')[0]}"
             raise ConfigError(f"must be <= {limit_key} ({limit:g}), got {value:g}",
                               origin(("controller", section, name)), f"controller.{section}.{name}")
+
+
+DEVICE_MAX_STALL_S = 0.1           # s: the longest stall the device's loop may be told to ride out
+DEVICE_MAX_OVERRUNS = 50           # overruns in a row the device's loop may be told to ride out
+
+
+def check_device_deadlines(cfg: Mapping[str, Any], origin: Callable[[KeyPath], str]) -> None:
+    """On the device (any backend but the simulator) the loop may not be told to ride out long stalls:
+    the last set values stay on the motors while it stalls. The schema's wider ranges serve simulated
+    runs on busy machines (tests, lockstep)."""
+    if cfg["backend"] == "sim":
+        return
+    loop = cfg["loop"]
+    for key, most, unit in (("max_stall_s", DEVICE_MAX_STALL_S, " s"), ("max_consecutive_overruns", DEVICE_MAX_OVERRUNS, "")):
+        if loop[key] > most:
+            raise ConfigError(f"must be <= {most:g}{unit} with backend {cfg['backend']!r}: the last set values stay on "
+                              f"the motors while the loop stalls, got {loop[key]:g}", origin(("loop", key)), f"loop.{key}")
 
 
 def check_walking_limits(cfg: Mapping[str, Any], origin: Callable[[KeyPath], str]) -> None:

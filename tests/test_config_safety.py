@@ -148,3 +148,12 @@ def test_the_current_clamp_holds_for_any_command(sim_cfg):
         assert max(abs(c) for c in s.current) <= peak
     for bad in (math.nan, math.inf, -math.inf):
         assert s.limit_currents(bad, 0.0) != 0 and s.current == [0.0, 0.0]
+
+
+@pytest.mark.parametrize("key, value", [("max_stall_s", 0.5), ("max_consecutive_overruns", 1000)])
+def test_the_device_loop_may_not_be_told_to_ride_out_long_stalls(key, value):
+    """The schema admits up to 10 s / 10^6 overruns for simulated runs on busy machines; on the device
+    the last set values would stay on the motors that long, so a hardware config is refused naming the key."""
+    with pytest.raises(ConfigError, match=f"loop.{key}"):
+        load_config(ROOT / "config" / "hw-serial.yaml", {"loop": {key: value}})
+    assert load_config(ROOT / "config" / "sim.yaml", {"loop": {key: value}})["loop"][key] == value
