@@ -21,7 +21,7 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING, Sequence
 
-from ankle_rt.elementwise import Value, positive_part, select, stack
+from ankle_rt.elementwise import Value, select, stack
 
 if TYPE_CHECKING:
     import numpy as np
@@ -104,8 +104,8 @@ class GaugeCrossCheck:
         f = self.fraction
         tol0 = self.base0 + f * (self.q00 * m0 + self.q10 * m1)
         tol1 = self.base1 + f * (self.q01 * m0 + self.q11 * m1)
-        off = positive_part(abs(r0) - tol0) + positive_part(abs(r1) - tol1)
-        self.beyond = beyond = select(off > 0.0, self.beyond + self.dt, 0.0)
-        fast = positive_part(abs(f0) - tol0 - FAST_TOLERANCE_NM) + positive_part(abs(f1) - tol1 - FAST_TOLERANCE_NM)
-        self.fast_beyond = fast_beyond = select(fast > 0.0, self.fast_beyond + self.dt, 0.0)
+        off = (abs(r0) > tol0) | (abs(r1) > tol1)
+        self.beyond = beyond = select(off, self.beyond + self.dt, 0.0)
+        fast = (abs(f0) > tol0 + FAST_TOLERANCE_NM) | (abs(f1) > tol1 + FAST_TOLERANCE_NM)
+        self.fast_beyond = fast_beyond = select(fast, self.fast_beyond + self.dt, 0.0)
         return (beyond >= self.hold) | (fast_beyond >= FAST_HOLD_S)

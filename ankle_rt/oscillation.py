@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING, Sequence
 
-from ankle_rt.elementwise import Value, positive_part, select, stack
+from ankle_rt.elementwise import Value, select, stack
 
 if TYPE_CHECKING:
     import numpy as np
@@ -70,4 +70,4 @@ class OscillationDetector:
     def band_above(self) -> Value:
         """True (per device) while either motor's band RMS is above the limit (no hold): the
         safety layer names a fault OSCILLATION rather than a sensor's when it coincides with this."""
-        return positive_part(self.e0 - self.limit2) + positive_part(self.e1 - self.limit2) > 0.0
+        return (self.e0 > self.limit2) | (self.e1 > self.limit2)
