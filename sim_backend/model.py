@@ -151,21 +151,25 @@ class CompliantModel:
         tau1, tau2 = self.command_torque(tau1, tau2)
         self.tau_applied[0] = tau1
         self.tau_applied[1] = tau2
-        z, x, phi, x_next = self._z, self.x, self._phi, self._x_next
+        z, x, x_next = self._z, self.x, self._x_next
+        linear = self._phi.dot   # x_next = phi @ z (the bound method: ~1/3 cheaper a call than np.dot)
         forces = self.generalized_forces
         for _ in range(self.substeps):
             # Heun on the non-linear forces (the linear part is exact): predict the substep holding f
             # from its start, then redo it holding the mean of f at both ends. Holding f alone is first
             # order, and for cable effects (slack, hardening) on the stiff modes it can go unstable.
-            f = forces(x.tolist(), tau1, tau2, td_dp, td_ie)
-            z[8], z[9], z[10], z[11] = f
-            np.dot(phi, z, out=x_next)
-            g = forces(x_next.tolist(), tau1, tau2, td_dp, td_ie)
-            z[8] = 0.5 * (f[0] + g[0])
-            z[9] = 0.5 * (f[1] + g[1])
-            z[10] = 0.5 * (f[2] + g[2])
-            z[11] = 0.5 * (f[3] + g[3])
-            np.dot(phi, z, out=x_next)
+            f0, f1, f2, f3 = forces(x.tolist(), tau1, tau2, td_dp, td_ie)
+            z[8] = f0
+            z[9] = f1
+            z[10] = f2
+            z[11] = f3
+            linear(z, x_next)
+            g0, g1, g2, g3 = forces(x_next.tolist(), tau1, tau2, td_dp, td_ie)
+            z[8] = 0.5 * (f0 + g0)
+            z[9] = 0.5 * (f1 + g1)
+            z[10] = 0.5 * (f2 + g2)
+            z[11] = 0.5 * (f3 + g3)
+            linear(z, x_next)
             x[:] = x_next
 
     def derivative(self, x: np.ndarray, tau1: float, tau2: float, td_dp: float, td_ie: float) -> np.ndarray:
