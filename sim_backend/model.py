@@ -61,6 +61,9 @@ class CompliantModel:
         self._z = np.zeros(N_X + 4)
         self._x_next = np.zeros(N_X)
         self.x = self._z[:N_X]  # a view: the state lives in the first 8 entries of z
+        # the substeps alternate between z and this second buffer (no copy of the state per substep)
+        self._z_alt = np.zeros(N_X + 4)
+        self._x_alt = self._z_alt[:N_X]
         self.tau_applied = [0.0, 0.0]   # N m, motor torque command after command effects (last tick)
         # an external load on the foot that depends on its state (the walking scenario's body), or
         # None: ``load.torque(th_dp, th_ie, w_dp, w_ie)`` -> N m [DP, IE], evaluated at every substep
@@ -151,14 +154,15 @@ class CompliantModel:
         tau1, tau2 = self.command_torque(tau1, tau2)
         self.tau_applied[0] = tau1
         self.tau_applied[1] = tau2
-        z, x, x_next = self._z, self.x, self._x_next
+        x, x_next = self.x, self._x_next
+        z, x_now, z_alt, x_alt = self._z, x, self._z_alt, self._x_alt
         linear = self._phi.dot   # x_next = phi @ z (the bound method: ~1/3 cheaper a call than np.dot)
         forces = self.generalized_forces
         for _ in range(self.substeps):
             # Heun on the non-linear forces (the linear part is exact): predict the substep holding f
             # from its start, then redo it holding the mean of f at both ends. Holding f alone is first
             # order, and for cable effects (slack, hardening) on the stiff modes it can go unstable.
-            f0, f1, f2, f3 = forces(x.tolist(), tau1, tau2, td_dp, td_ie)
+            f0, f1, f2, f3 = forces(x_now.tolist(), tau1, tau2, td_dp, td_ie)
             z[8] = f0
             z[9] = f1
             z[10] = f2
@@ -169,8 +173,10 @@ class CompliantModel:
             z[9] = 0.5 * (f1 + g1)
             z[10] = 0.5 * (f2 + g2)
             z[11] = 0.5 * (f3 + g3)
-            linear(z, x_next)
-            x[:] = x_next
+            linear(z, x_alt)   # the corrected state, into the other buffer
+            z, x_now, z_alt, x_alt = z_alt, x_alt, z, x_now
+        if x_now is not x:     # an odd number of substeps ended in the second buffer
+            x[:] = x_now
 
     def derivative(self, x: np.ndarray, tau1: float, tau2: float, td_dp: float, td_ie: float) -> np.ndarray:
         """dx/dt of the full model, for the RK4 reference (torques already through command effects)."""
