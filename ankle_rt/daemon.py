@@ -140,7 +140,7 @@ class Daemon:
             ref = self.reference.ref
             self.recorder.append(
                 est.t, est.mp1, est.mp2, est.mv1, est.mv2, est.sg_dp, est.sg_ie, est.joint_dp, est.joint_ie,
-                est.dp, est.ie, ref[0], ref[1], torque[0], torque[1],
+                est.dp, est.ie, ref.item(0), ref.item(1), torque.item(0), torque.item(1),   # .item: floats
                 safety.current[0], safety.current[1],
                 (t_start_ns - loop.start_ns) * 1e-9, frame.seq, loop.last_period_ns * 1e-3, latency_ns * 1e-3,
                 loop.stats.overruns, safety.state, safety.fault, frame.faults, self.gait_phase())
