@@ -13,6 +13,7 @@ as the reference solution in the tests.
 from __future__ import annotations
 
 import math
+from array import array
 
 import numpy as np
 
@@ -28,6 +29,12 @@ def baseline_friction(p: PlantParams, dt: float) -> CoulombFriction:
     """The nominal Coulomb friction of the actuator parameters, as an effects-library entry."""
     return CoulombFriction({"coulomb": p.actuator.coulomb,
                             "smoothing_velocity": p.actuator.friction_smoothing_velocity}, p, dt)
+
+
+def _buffer(n: int) -> tuple[array, np.ndarray]:
+    """``n`` zeros as an array.array and a numpy array sharing its memory."""
+    buf = array("d", bytes(8 * n))
+    return buf, np.frombuffer(buf)
 
 
 class CompliantModel:
@@ -58,11 +65,13 @@ class CompliantModel:
 
         Ad, Bd = zoh(self.linear.A, self.linear.B, dt / self.substeps)
         self._phi = np.hstack([Ad, Bd])  # x[k+1] = phi @ [x[k]; f]
-        self._z = np.zeros(N_X + 4)
-        self._x_next = np.zeros(N_X)
+        # z = [x; f]: numpy views of array.array buffers, so the substeps index and set the entries
+        # as plain floats through the buffer (~2x cheaper than numpy item access, and no tolist)
+        self._zbuf, self._z = _buffer(N_X + 4)
+        self._next_buf, self._x_next = _buffer(N_X)
         self.x = self._z[:N_X]  # a view: the state lives in the first 8 entries of z
         # the substeps alternate between z and this second buffer (no copy of the state per substep)
-        self._z_alt = np.zeros(N_X + 4)
+        self._zbuf_alt, self._z_alt = _buffer(N_X + 4)
         self._x_alt = self._z_alt[:N_X]
         self.tau_applied = [0.0, 0.0]   # N m, motor torque command after command effects (last tick)
         # an external load on the foot that depends on its state (the walking scenario's body), or
@@ -104,7 +113,7 @@ class CompliantModel:
 
     def generalized_forces(self, s: list[float], tau1: float, tau2: float,
                            td_dp: float, td_ie: float) -> tuple[float, float, float, float]:
-        """The non-linear generalised forces f of the state ``s`` (list of 8 floats), in N m.
+        """The non-linear generalised forces f of the state ``s`` (8 floats, indexed), in N m.
 
         Written element-wise (no augmented assignment, :mod:`~ankle_rt.elementwise`
         maths), so the batch simulator runs this same code on rows of arrays over its plants."""
@@ -154,27 +163,28 @@ class CompliantModel:
         tau1, tau2 = self.command_torque(tau1, tau2)
         self.tau_applied[0] = tau1
         self.tau_applied[1] = tau2
-        x, x_next = self.x, self._x_next
-        z, x_now, z_alt, x_alt = self._z, x, self._z_alt, self._x_alt
+        x, x_next, next_buf = self.x, self._x_next, self._next_buf
+        z, zb, x_now = self._z, self._zbuf, x          # zb: z's buffer, read and set as floats
+        z_alt, zb_alt, x_alt = self._z_alt, self._zbuf_alt, self._x_alt
         linear = self._phi.dot   # x_next = phi @ z (the bound method: ~1/3 cheaper a call than np.dot)
         forces = self.generalized_forces
         for _ in range(self.substeps):
             # Heun on the non-linear forces (the linear part is exact): predict the substep holding f
             # from its start, then redo it holding the mean of f at both ends. Holding f alone is first
             # order, and for cable effects (slack, hardening) on the stiff modes it can go unstable.
-            f0, f1, f2, f3 = forces(x_now.tolist(), tau1, tau2, td_dp, td_ie)
-            z[8] = f0
-            z[9] = f1
-            z[10] = f2
-            z[11] = f3
+            f0, f1, f2, f3 = forces(zb, tau1, tau2, td_dp, td_ie)
+            zb[8] = f0
+            zb[9] = f1
+            zb[10] = f2
+            zb[11] = f3
             linear(z, x_next)
-            g0, g1, g2, g3 = forces(x_next.tolist(), tau1, tau2, td_dp, td_ie)
-            z[8] = 0.5 * (f0 + g0)
-            z[9] = 0.5 * (f1 + g1)
-            z[10] = 0.5 * (f2 + g2)
-            z[11] = 0.5 * (f3 + g3)
+            g0, g1, g2, g3 = forces(next_buf, tau1, tau2, td_dp, td_ie)
+            zb[8] = 0.5 * (f0 + g0)
+            zb[9] = 0.5 * (f1 + g1)
+            zb[10] = 0.5 * (f2 + g2)
+            zb[11] = 0.5 * (f3 + g3)
             linear(z, x_alt)   # the corrected state, into the other buffer
-            z, x_now, z_alt, x_alt = z_alt, x_alt, z, x_now
+            z, zb, x_now, z_alt, zb_alt, x_alt = z_alt, zb_alt, x_alt, z, zb, x_now
         if x_now is not x:     # an odd number of substeps ended in the second buffer
             x[:] = x_now
 
@@ -185,7 +195,7 @@ class CompliantModel:
 
     # -- outputs ---------------------------------------------------------------------------------
     def joint_torque(self) -> tuple[float, float]:
-        return self.joint_torque_of(self.x.tolist())
+        return self.joint_torque_of(self._zbuf)   # x's own buffer: its entries as floats
 
     def energy(self) -> float:
         """J: kinetic + cable + gravity energy (meaningful for the reciprocal transmission)."""
