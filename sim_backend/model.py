@@ -117,10 +117,11 @@ class CompliantModel:
 
         Written element-wise (no augmented assignment, :mod:`~ankle_rt.elementwise`
         maths), so the batch simulator runs this same code on rows of arrays over its plants."""
-        f0 = td_dp - self._grav * (sin(s[0]) - s[0])
+        th_dp = s[0]
+        f0 = td_dp - self._grav * (sin(th_dp) - th_dp)
         f1 = td_ie
         if self.load is not None:
-            l0, l1 = self.load.torque(s[0], s[1], s[4], s[5])
+            l0, l1 = self.load.torque(th_dp, s[1], s[4], s[5])
             f0 = f0 + l0
             f1 = f1 + l1
         f2, f3 = tau1, tau2
@@ -160,7 +161,8 @@ class CompliantModel:
     # -- integration -----------------------------------------------------------------------------
     def step(self, tau1: float, tau2: float, td_dp: float = 0.0, td_ie: float = 0.0) -> None:
         """Advance one control tick with motor torques (N m) and ankle disturbances (N m) held."""
-        tau1, tau2 = self.command_torque(tau1, tau2)
+        if self._command_fx:
+            tau1, tau2 = self.command_torque(tau1, tau2)
         self.tau_applied[0] = tau1
         self.tau_applied[1] = tau2
         x, x_next, next_buf = self.x, self._x_next, self._next_buf

@@ -7,6 +7,7 @@ the same plant. Stepped once per control tick with the amplifier set values held
 from __future__ import annotations
 
 import math
+from array import array
 
 import numpy as np
 
@@ -46,8 +47,10 @@ class SimulatedPlant:
         check_disturbances(self.disturbances, source)
         self._pulses = [(d["start"], d["stop"], d["torque_dp"], d["torque_ie"]) for d in self.disturbances]
         self.rng = np.random.default_rng(sim["seed"])
-        self._noise = np.empty((NOISE_BLOCK, 2))
-        self._noise_i = NOISE_BLOCK
+        # [DP, IE] per sample, drawn into a numpy view of an array.array read as plain floats
+        self._noise_buf = array("d", bytes(16 * NOISE_BLOCK))
+        self._noise = np.frombuffer(self._noise_buf).reshape(NOISE_BLOCK, 2)
+        self._noise_i = 2 * NOISE_BLOCK   # index of the next DP sample in _noise_buf (steps of 2)
         self.extra_disturbance = [0.0, 0.0]  # N m at the ankle [DP, IE], set by tests and tools
         self.current = [0.0, 0.0]            # A actually driven in the last tick
         self.ticks = 0
@@ -103,16 +106,18 @@ class SimulatedPlant:
     def strain_gauge_torques(self) -> tuple[float, float]:
         """N m [DP, IE]: joint torque plus the sensor's offset and noise."""
         t0, t1 = self.model.joint_torque()
-        if self.noise_rms > 0.0:
-            if self._noise_i >= NOISE_BLOCK:
-                self.rng.standard_normal(out=self._noise)
-                self._noise_i = 0
+        rms = self.noise_rms
+        if rms > 0.0:
             k = self._noise_i
-            self._noise_i = k + 1
-            noise = self._noise               # .item: plain floats, no view or numpy scalar per sample
-            t0 += self.noise_rms * noise.item(k, 0)
-            t1 += self.noise_rms * noise.item(k, 1)
-        return t0 + self.sg_offset[0], t1 + self.sg_offset[1]
+            if k >= 2 * NOISE_BLOCK:
+                self.rng.standard_normal(out=self._noise)
+                k = 0
+            self._noise_i = k + 2
+            noise = self._noise_buf
+            t0 += rms * noise[k]
+            t1 += rms * noise[k + 1]
+        offset = self.sg_offset
+        return t0 + offset[0], t1 + offset[1]
 
     def ankle_positions(self) -> tuple[float, float]:
         """rad [DP, IE]: the true joint angles (a bench's joint encoders)."""
