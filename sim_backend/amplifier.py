@@ -17,6 +17,7 @@ class EsconCurrentLimit:
         self.i_peak = p.current_limit_peak
         self.dt = dt
         self.budget = (self.i_peak ** 2 - self.i_cont ** 2) * PEAK_DURATION_S  # A^2 s
+        self.i_cont2 = self.i_cont * self.i_cont   # A^2
         self.used = 0.0
 
     def reset(self) -> None:
@@ -25,7 +26,8 @@ class EsconCurrentLimit:
     def apply(self, current: float) -> float:
         """A: the current the amplifier actually drives for the set value ``current`` (element-wise:
         a batch stacks one limiter per plant, :mod:`sim_backend.batch`)."""
-        limit = select(self.used >= self.budget, self.i_cont, self.i_peak)
+        used = self.used
+        limit = select(used >= self.budget, self.i_cont, self.i_peak)
         i = clip(current, -limit, limit)
-        self.used = positive_part(self.used + (i * i - self.i_cont * self.i_cont) * self.dt)
+        self.used = positive_part(used + (i * i - self.i_cont2) * self.dt)
         return i
