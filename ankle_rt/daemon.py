@@ -25,8 +25,8 @@ from ankle_rt.command_limits import gain_maxima, gain_problem, reference_problem
 from ankle_rt.config import Config, ConfigError, config_data
 from ankle_rt.control import CycleController, build_controller
 from ankle_rt.control.gains import GainError
-from ankle_rt.control.gait_phase import PHASES, GaitPhaseController
 from ankle_rt.control.base import BatchableController
+from ankle_rt.control.gait_phase import PHASES, GaitPhaseController
 from ankle_rt.estimation import Estimate, Estimator
 from ankle_rt.interchange import InterchangeError
 from ankle_rt.kinematics import Kinematics
@@ -258,11 +258,11 @@ class Daemon:
             if name == "phase":                    # the phase's name: the controller checks it
                 continue
             if name in proto.PHASE_FIELDS:         # an equilibrium angle: within the ankle range, any controller
-                problem = reference_problem(value, self.safety.ankle_limit)
+                what, problem = repr(name), reference_problem(value, self.safety.ankle_limit)
             else:
-                problem = gain_problem(name, value, self.gain_maxima)
+                what, problem = f"gain {name!r}", gain_problem(name, value, self.gain_maxima)
             if problem:
-                raise GainError(name, f"{name!r} {problem}" if name in proto.PHASE_FIELDS else f"gain {name!r} {problem}")
+                raise GainError(name, f"{what} {problem}")
 
     def _set_gains_checked(self, gains: dict[str, float]) -> dict | proto.Pending:
         """The set_gains command. A controller whose gain check is slow (``check_gains``: the

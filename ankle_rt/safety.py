@@ -307,7 +307,7 @@ class Safety:
         over = counted & ((q0 > self.i2t_budget) | (q1 > self.i2t_budget))
         # the detector's state matters only while driven: it restarts at every activation (activated)
         oscillating = counted & self.oscillation.update(cur[0], cur[1])
-        invalid = (valid | (where ^ True)) ^ True
+        invalid = where & (valid ^ True)         # driven and not finite
         if not any_true(over | oscillating | invalid):
             return 0 * over
         return select(over, _OVERCURRENT, select(invalid, _OUTPUT_INVALID, select(oscillating, _OSCILLATION, 0)))

@@ -231,11 +231,6 @@ class GaitPhaseController(ImpedanceController):
         """Start the blend to parameters :meth:`check_gains` accepted (no torque jump)."""
         self.gait.set_phase_params(PHASES.index(phase), **gains)
 
-    def set_gains(self, phase: str | None = None, **gains: float) -> None:
-        """:meth:`check_gains`, then :meth:`apply_gains` (GainError and nothing changes if refused)."""
-        self.check_gains(phase, **gains)
-        self.apply_gains(phase, **gains)
-
     def start(self, est: Estimate, where: bool | np.ndarray = True) -> None:
         super().start(est, where)
         self.gait.start(where)

@@ -49,9 +49,9 @@ class ImpedanceController(RampedGainController):
         a ramp) must keep the required gain margin with (:func:`gain_set_refusal`); None: not checked."""
         if limits is not None:
             self._check(limits, gains)
-        if margin_cfg is not None:
-            self._raise(gain_set_refusal(margin_cfg, {k: gains[k] for k in IMPEDANCE_GAINS}))
         ramped = {k: gains[k] for k in IMPEDANCE_GAINS}
+        if margin_cfg is not None:
+            self._raise(gain_set_refusal(margin_cfg, ramped))
         if torque_loop is not None:   # the loop's gains ramp too (set_gains), from the configured ones
             g = torque_loop.gains
             ramped.update(zip(RUNTIME_LOOP_GAINS, (*g.kp, *g.ki, *g.torque_rate)))
