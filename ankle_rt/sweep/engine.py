@@ -39,11 +39,9 @@ class BatchTask:
 def plan(study: Study) -> list[BatchTask]:
     """Runs that can share a batch (same structure and controller), in run order, cut at batch_size
     (fewer for long runs, see MAX_PLANT_TICKS)."""
-    from ankle_rt.sweep.cycle import batch_key
-
     groups: dict[tuple, list[Run]] = {}
     for r in study.runs:
-        groups.setdefault(batch_key(r.config), []).append(r)
+        groups.setdefault(r.batch_key, []).append(r)
     tasks = []
     for runs in groups.values():
         ticks = study.duration_s * runs[0].config["controller"]["rate_hz"]

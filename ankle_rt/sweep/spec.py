@@ -113,6 +113,7 @@ class Run:
     seed: int
     values: dict[str, Any]       # sampled values by table column (relative ones as the factor)
     config: Config
+    batch_key: tuple             # ankle_rt.sweep.cycle.batch_key(config), found by the preflight
 
 
 @dataclass
@@ -391,8 +392,8 @@ def expand(study: Study) -> list[Run]:
                 raise SpecError(f"parameters.{hint}" if hint else "overrides",
                                 f"run {run_id} (sample {sample}, {scen_name}): the config rejects it: "
                                 f"{exc.key}: {exc.message}") from None
-            _preflight(cfg, run_id, sample, scen_name, values, study)
-            runs.append(Run(run_id, sample, scen_name, cfg["sim"]["seed"], values, cfg))
+            key = _preflight(cfg, run_id, sample, scen_name, values, study)
+            runs.append(Run(run_id, sample, scen_name, cfg["sim"]["seed"], values, cfg, key))
     return runs
 
 
@@ -406,18 +407,19 @@ def _get_or_none(data: Any, key: str) -> Any:
         return None
 
 
-def _preflight(cfg: Config, run_id: int, sample: int, scenario: str, values: dict[str, Any], study: Study) -> None:
+def _preflight(cfg: Config, run_id: int, sample: int, scenario: str, values: dict[str, Any], study: Study) -> tuple:
     """What the config validation leaves to the plant, the reference and the controller (effect
     parameters, the disturbance times, the profile, a controller the batch runs, impedance gains
     inside the joint-torque loop's limits, the friction model), checked before any run starts. The
     error names the key and the run's sampled values (a sampled plant parameter can move the impedance
-    limits, which the daemon derives from the config's actuator)."""
+    limits, which the daemon derives from the config's actuator). Returns the run's batch key, found
+    once here (it builds the controller): what :func:`ankle_rt.sweep.engine.plan` groups by."""
     from ankle_rt.backend import batch_plant_class
     from ankle_rt.sweep.cycle import batch_key
 
     try:
         batch_plant_class(cfg["backend"], cfg.source).check_config(cfg)
-        batch_key(cfg)      # builds the reference and the controller as the batch will
+        return batch_key(cfg)      # builds the reference and the controller as the batch will
     except ConfigError as exc:
         hint = next((p.key for p in study.parameters if exc.key and p.key.startswith(exc.key.rsplit(".", 1)[0])), None)
         sampled = "".join(f", {k}={v:g}" if isinstance(v, float) else f", {k}={v}" for k, v in values.items())
