@@ -123,10 +123,11 @@ def _coerce_leaf(value: Any, spec: Field, where: str, source: str) -> Any:
         raise ConfigError(f"expected a finite number, got {value!r}", source, where)
     if spec.choices is not None and value not in spec.choices:
         raise ConfigError(f"expected one of {list(spec.choices)}, got {value!r}", source, where)
-    if spec.low is not None and (value <= spec.low if spec.low_open else value < spec.low):
+    bounded = value is not None     # an optional number left unset (its kind admits None) has no bound to hold
+    if bounded and spec.low is not None and (value <= spec.low if spec.low_open else value < spec.low):
         op = ">" if spec.low_open else ">="
         raise ConfigError(f"must be {op} {spec.low:g}, got {value!r}", source, where)
-    if spec.high is not None and value > spec.high:
+    if bounded and spec.high is not None and value > spec.high:
         raise ConfigError(f"must be <= {spec.high:g}, got {value!r}", source, where)
     if spec.check is not None:
         try:

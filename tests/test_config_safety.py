@@ -157,3 +157,18 @@ def test_the_device_loop_may_not_be_told_to_ride_out_long_stalls(key, value):
     with pytest.raises(ConfigError, match=f"loop.{key}"):
         load_config(ROOT / "config" / "hw-serial.yaml", {"loop": {key: value}})
     assert load_config(ROOT / "config" / "sim.yaml", {"loop": {key: value}})["loop"][key] == value
+
+
+def test_an_optional_bounded_number_set_to_null_is_unset_not_a_crash():
+    """A bounded field whose kind admits None (a cogging effect's amplitude_2) may be written null: it
+    stays unset (was a TypeError from comparing None with the bound); a value given is still held
+    to the bound, refused naming the key."""
+    from ankle_rt.params import PlantParams
+    from sim_backend.effects.base import build_effects
+
+    cfg = load_config(ROOT / "config" / "sim.yaml")
+    plant = PlantParams.from_config(cfg)
+    effect = {"type": "cogging", "amplitude": 0.05, "periods_per_rev": 486, "amplitude_2": None}
+    assert build_effects([effect], plant, 1e-3)[0].a2 == 0.05       # unset: motor 1's amplitude
+    with pytest.raises(ConfigError, match="sim.effects.0.amplitude_2"):
+        build_effects([dict(effect, amplitude_2=-1.0)], plant, 1e-3)
