@@ -101,8 +101,8 @@ class Row:
 
 
 def flagged(diag: Diagnosis) -> bool:
-    """A data warning or a calibration finding (when the diagnosis reports one) was given."""
-    return bool(diag.data_warnings) or bool(getattr(diag, "calibration", None))
+    """A data warning or a calibration finding was given."""
+    return bool(diag.data_warnings or diag.calibration)
 
 
 def run_case(ident, valid, plant: str, cfg, truth, expect_flag: bool = False) -> Row:

@@ -39,7 +39,7 @@ def next_steps(comparisons: list, failed: list, args: argparse.Namespace, out: P
     model = args.model or args.config
     lines = []
     for k, c in enumerate(comparisons, start=1):
-        if c not in failed:
+        if not any(c is f for f in failed):   # by identity: the comparisons hold numpy columns
             continue
         data = args.source or str(out / f"validate_{k}.csv")
         plant = " --plant actuator" if not c.measured.two_motors or "off the cables" in c.label else ""

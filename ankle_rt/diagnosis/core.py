@@ -46,10 +46,10 @@ EDGE_MIN_SHARE = 0.01
 PER = 3
 
 PLANTS = ("ankle", "actuator")
-#: candidates that are calibration findings (fitted and reported, never causes or sim effects)
 #: what each calibration finding's scales are
 CALIBRATION_TEXT = {"torque_constant": "the torque constant is (true / configured, per motor)",
                     "encoder_scale": "the motor encoders read, relative to the ankle encoders (per axis),"}
+#: candidates that are calibration findings (fitted and reported, never causes or sim effects)
 CALIBRATIONS = tuple(c.cause for c in MOTOR_CANDIDATES + CABLE_CANDIDATES if c.calibration)
 
 

@@ -29,14 +29,13 @@ class Backlash(Effect):
     def __init__(self, params, plant, dt):
         super().__init__(params, plant, dt)
         tr = plant.transmission
-        K = Kinematics.from_params(tr).K
-        self.k_dp, self.k_ie = float(K[0, 0]), float(K[1, 1])
+        kin = Kinematics.from_params(tr)
+        self.k_dp, self.k_ie = float(kin.K[0, 0]), float(kin.K[1, 1])
         self.per_cable = params["per"] == "cable"
         self.b_dp = params["half_width"] / tr.lever_dp
         self.b_ie = params["half_width"] / tr.lever_ie
         self.b_cable = params["half_width"] / tr.pulley_radius          # motor rad
-        self.a_dp = tr.lever_dp / tr.pulley_radius                       # R = [[a_dp, a_ie], [a_dp, -a_ie]]
-        self.a_ie = tr.lever_ie / tr.pulley_radius
+        self.a_dp, self.a_ie = float(kin.R[0, 0]), float(kin.R[0, 1])   # R = [[a_dp, a_ie], [a_dp, -a_ie]]
 
     def cable_torque(self, phi_dp, phi_ie, dphi_dp, dphi_ie):
         if self.per_cable:
