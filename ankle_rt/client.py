@@ -122,7 +122,8 @@ class AnkleClient:
 
     def request(self, cmd: str, **fields: Any) -> dict[str, Any]:
         """Send one request and return the reply's data (without ``ok``). Raises CommandRefused (the
-        daemon's refusal, or a field that cannot be sent) or DaemonUnreachable."""
+        daemon's refusal), CommandError (a field that cannot be sent: nothing is sent) or
+        DaemonUnreachable."""
         line = encode_request(cmd, **fields)
         sock = self._live_socket()
         try:

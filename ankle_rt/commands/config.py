@@ -43,6 +43,7 @@ def emulated(cfg):
 def describe(cfg) -> list[str]:
     """What the config would run, one fact per line."""
     from ankle_rt.references import angle_params
+    from ankle_rt.service.protocol import GAIT_PHASES
 
     c, ref, loop, rt = cfg["controller"], cfg["reference"], cfg["loop"], cfg["loop"]["realtime"]
     backend = cfg["backend"]
@@ -64,8 +65,7 @@ def describe(cfg) -> list[str]:
         g = c["gait_phase"]
         controller = "gait_phase, " + "; ".join(
             f"{p.replace('_', ' ')} K {g[p]['stiffness_dp']:g} B {g[p]['damping_dp']:g} theta_0 "
-            f"{math.degrees(g[p]['equilibrium_dp']):.3g} deg" for p in ("early_stance", "late_stance", "early_swing",
-                                                                        "late_swing", "safe")) + " (DP)"
+            f"{math.degrees(g[p]['equilibrium_dp']):.3g} deg" for p in GAIT_PHASES) + " (DP)"
     else:
         controller = f"{c['type']} (plugin), params {dict(c['params'])}"
     if c["friction_ff"]["enabled"]:

@@ -80,7 +80,9 @@ def run(args: argparse.Namespace) -> int:
             daemon.close()
             raise
     if daemon.lsl is not None:
-        notes.append("lab streaming layer: streams 'ankle-rt' and 'ankle-rt-events' (docs/lab.md)")
+        from ankle_rt.log.lsl import EVENTS_NAME, STREAM_NAME
+
+        notes.append(f"lab streaming layer: streams '{STREAM_NAME}' and '{EVENTS_NAME}' (docs/lab.md)")
     elif cfg["lsl"]["enabled"]:
         notes.append("lab streaming layer: off " + ("in lockstep (--fast)" if args.fast else "(--no-log: it publishes "
                                                    "from the log writer)"))
@@ -179,9 +181,9 @@ def _exit_code(daemon) -> int:
     fault = Fault(safety.fault)
     print(f"ankle-rt run: ended in FAULT at t = {safety.fault_time:.3f} s: {fault.name} ({fault.description})",
           file=sys.stderr)
-    if fault == Fault.MISSED_DEADLINES and daemon.simulated_plant and not daemon.clock.simulated:
-        sim = daemon.cfg["sim"]
-        print(MISSED_DEADLINES_HINT.format(stall_s=sim["max_stall_s"], overruns=sim["max_consecutive_overruns"]),
+    limits = daemon.overrun_limits
+    if fault == Fault.MISSED_DEADLINES and limits is daemon.cfg["sim"]:   # the simulated plant's limits tripped
+        print(MISSED_DEADLINES_HINT.format(stall_s=limits["max_stall_s"], overruns=limits["max_consecutive_overruns"]),
               file=sys.stderr)
     return 1
 

@@ -40,9 +40,8 @@ def summarize(records: np.ndarray, meta: dict[str, Any] | None = None) -> dict[s
     out["duration_s"] = float(t[-1] - t[0])
     out["active_s"] = float(active.sum() * np.median(np.diff(t))) if n > 1 else 0.0
     out["final_state"] = State(int(state[-1])).name
-    faults = np.flatnonzero(records["fault"] != Fault.NONE)
-    if faults.size:
-        i = int(faults[0])
+    i = first_fault(records)
+    if i is not None:
         code = Fault(int(records["fault"][i]))
         out["fault"] = {"name": code.name, "description": code.description, "t": float(t[i])}
     has_joint = not np.isnan(records["ankle_dp"]).all()
@@ -139,11 +138,16 @@ def _or_dash(value: float, width: int, spec: str) -> str:
     return f"{'-':>{width}}" if math.isnan(value) else f"{value:{width}{spec}}"
 
 
+def first_fault(records: np.ndarray) -> int | None:
+    """Index of the first record that carries a fault, None when none does."""
+    faults = np.flatnonzero(records["fault"] != Fault.NONE)
+    return int(faults[0]) if faults.size else None
+
+
 def run_outcome(records: np.ndarray) -> str:
     """How a run ended, in words: its first fault and when, else its final state."""
-    faults = np.flatnonzero(records["fault"] != Fault.NONE)
-    if faults.size:
-        i = int(faults[0])
+    i = first_fault(records)
+    if i is not None:
         return f"FAULT {Fault(int(records['fault'][i])).name} at t = {float(records['t'][i]):.3f} s"
     return f"ended {State(int(records['state'][-1])).name}" if len(records) else "no records"
 
@@ -152,9 +156,9 @@ def state_marks(records: np.ndarray) -> dict[str, np.ndarray]:
     """Sample times (s) at which the run was activated, left ACTIVE (deactivated, stopped or
     faulted), and its first fault."""
     t, active = records["t"], records["state"] == State.ACTIVE
-    faults = np.flatnonzero(records["fault"] != Fault.NONE)
+    i = first_fault(records)
     return {"activate": t[1:][active[1:] & ~active[:-1]], "deactivate": t[1:][~active[1:] & active[:-1]],
-            "fault": t[faults[:1]]}
+            "fault": t[:0] if i is None else t[i:i + 1]}
 
 
 MARK_STYLE = {"activate": {"color": "tab:green", "ls": ":", "lw": 1.0},
