@@ -164,7 +164,7 @@ class GaitPhaseController(ImpedanceController):
         self.limits = limits
         self.margin_cfg = margin_cfg
         self.gains = GainRamp({}, dt=dt, ramp_s=0.0, soft_start_s=soft_start_s)   # the soft start only: the
-        for i, phase in enumerate(PHASES):                                         # law blends its own parameters
+        for i in range(len(PHASES)):                                               # law blends its own parameters
             self._check_phase(i, {n: getattr(law, n)[i] for n in PARAMS})
 
     @classmethod
@@ -183,7 +183,7 @@ class GaitPhaseController(ImpedanceController):
             return cls(kin, law, dt=dt, soft_start_s=c["soft_start_s"],
                        ankle_limit=math.radians(cfg["limits"]["ankle_range_deg"]),
                        gain_maxima=c["gain_limits"], friction=friction, torque_loop=loop, limits=limits,
-                       margin_cfg=cfg if loop else None)
+                       margin_cfg=_estimated_angle(cfg) if loop else None)
         except GainError as exc:
             raise ConfigError(str(exc), getattr(cfg, "source", None), f"controller.gait_phase.{exc.gain}") from None
 
@@ -206,11 +206,11 @@ class GaitPhaseController(ImpedanceController):
             elif not 0.0 <= value <= self.gain_maxima[kind]:
                 raise GainError(where, f"{where} must be in [0, {self.gain_maxima[kind]:g}] "
                                        f"(controller.gain_limits.{kind}), got {value:g}")
-        for bad in (self.limits.check(params) if self.limits is not None else None,
-                    gain_set_refusal(self.margin_cfg, {k: params[k] for k in IMPEDANCE_GAINS})
-                    if self.margin_cfg is not None else None):
-            if bad is not None:
-                raise GainError(f"{name}.{bad[0]}", f"{name}: {bad[1]}")
+        bad = self.limits.check(params) if self.limits is not None else None
+        if bad is None and self.margin_cfg is not None:      # the slow check only when the quick one passes
+            bad = gain_set_refusal(self.margin_cfg, {k: params[k] for k in IMPEDANCE_GAINS})
+        if bad is not None:
+            raise GainError(f"{name}.{bad[0]}", f"{name}: {bad[1]}")
 
     def check_gains(self, phase: str | None = None, **gains: float) -> None:
         """Raise GainError naming the parameter unless one phase's new parameters (PARAMS names) keep
@@ -246,3 +246,11 @@ class GaitPhaseController(ImpedanceController):
         gait = self.gait
         t0, t1 = gait.update(-est.sg_dp, est.dp, est.dp_vel, est.ie, est.ie_vel)
         return self.actuate(est, t0, t1, gait.k0, gait.k1)
+
+
+def _estimated_angle(cfg: Mapping[str, Any]) -> dict[str, Any]:
+    """``cfg`` for the gain-margin model of the phase law, which takes the cable estimate of the ankle
+    angle (:meth:`GaitPhaseController.angles`) whatever ``controller.impedance.angle_source`` says (a
+    shallow copy: the config may be a controller's read-only view)."""
+    c = cfg["controller"]
+    return {**cfg, "controller": {**c, "impedance": {**c["impedance"], "angle_source": "estimated"}}}
