@@ -31,7 +31,7 @@ def baseline_friction(p: PlantParams, dt: float) -> CoulombFriction:
                             "smoothing_velocity": p.actuator.friction_smoothing_velocity}, p, dt)
 
 
-def _buffer(n: int) -> tuple[array, np.ndarray]:
+def float_buffer(n: int) -> tuple[array, np.ndarray]:
     """``n`` zeros as an array.array and a numpy array sharing its memory."""
     buf = array("d", bytes(8 * n))
     return buf, np.frombuffer(buf)
@@ -67,11 +67,11 @@ class CompliantModel:
         self._phi = np.hstack([Ad, Bd])  # x[k+1] = phi @ [x[k]; f]
         # z = [x; f]: numpy views of array.array buffers, so the substeps index and set the entries
         # as plain floats through the buffer (~2x cheaper than numpy item access, and no tolist)
-        self._zbuf, self._z = _buffer(N_X + 4)
-        self._next_buf, self._x_next = _buffer(N_X)
+        self._zbuf, self._z = float_buffer(N_X + 4)
+        self._next_buf, self._x_next = float_buffer(N_X)
         self.x = self._z[:N_X]  # a view: the state lives in the first 8 entries of z
         # the substeps alternate between z and this second buffer (no copy of the state per substep)
-        self._zbuf_alt, self._z_alt = _buffer(N_X + 4)
+        self._zbuf_alt, self._z_alt = float_buffer(N_X + 4)
         self._x_alt = self._z_alt[:N_X]
         self.tau_applied = [0.0, 0.0]   # N m, motor torque command after command effects (last tick)
         # an external load on the foot that depends on its state (the walking scenario's body), or

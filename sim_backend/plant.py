@@ -7,7 +7,6 @@ the same plant. Stepped once per control tick with the amplifier set values held
 from __future__ import annotations
 
 import math
-from array import array
 
 import numpy as np
 
@@ -15,7 +14,7 @@ from ankle_rt.config import ConfigError
 from ankle_rt.params import PlantParams
 from sim_backend.amplifier import EsconCurrentLimit
 from sim_backend.effects import build_effects
-from sim_backend.model import CompliantModel
+from sim_backend.model import CompliantModel, float_buffer
 
 NOISE_BLOCK = 4096  # strain-gauge noise samples drawn at a time (refilled in place, no allocation)
 
@@ -48,8 +47,8 @@ class SimulatedPlant:
         self._pulses = [(d["start"], d["stop"], d["torque_dp"], d["torque_ie"]) for d in self.disturbances]
         self.rng = np.random.default_rng(sim["seed"])
         # [DP, IE] per sample, drawn into a numpy view of an array.array read as plain floats
-        self._noise_buf = array("d", bytes(16 * NOISE_BLOCK))
-        self._noise = np.frombuffer(self._noise_buf).reshape(NOISE_BLOCK, 2)
+        self._noise_buf, noise = float_buffer(2 * NOISE_BLOCK)
+        self._noise = noise.reshape(NOISE_BLOCK, 2)
         self._noise_i = 2 * NOISE_BLOCK   # index of the next DP sample in _noise_buf (steps of 2)
         self.extra_disturbance = [0.0, 0.0]  # N m at the ankle [DP, IE], set by tests and tools
         self.current = [0.0, 0.0]            # A actually driven in the last tick

@@ -106,7 +106,7 @@ class WalkingScenario:
         s = select(walking, (t - t_start) / period, 0.0)
         sf = self.stance_fraction
         pos, du = Template.position(s, sf)
-        stance = walking & (s < sf) if s.__class__ is np.ndarray else (walking and s < sf)
+        stance = walking & (s < sf)
         x = s / sf
         w = select(stance, _smoothstep(x / FADE_IN) * _smoothstep((1.0 - x) / FADE_OUT), 0.0)
         scale = self.angle_scale

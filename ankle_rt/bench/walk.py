@@ -33,7 +33,6 @@ REFERENCE_MASS_KG = 75.0
 MASS_SCALED_PHASES = ("early_stance", "late_stance", "safe")
 MASS_SCALED_PARAMS = ("stiffness_dp", "damping_dp", "stiffness_ie", "damping_ie")
 MASS_SCALED_THRESHOLDS = ("load_on_nm", "load_off_nm", "late_stance_load_nm")
-LATE_STANCE = 1   # ankle_rt.control.gait_phase.LATE_STANCE (imported lazily there)
 
 
 def wearer_overrides(cfg: Mapping[str, Any], mass_kg: float, cadence: str, seed: int) -> dict:
@@ -113,6 +112,8 @@ def run_walk(cfg_path: str, mass_kg: float, cadence: str, strides: int, seed: in
 
 def stride_figures(c: Mapping[str, np.ndarray], mass_kg: float) -> list[dict[str, float]]:
     """The per-stride figures of the module docstring for every complete stride but the first."""
+    from ankle_rt.control.gait_phase import LATE_STANCE
+
     out = []
     stride = c["stride"]
     ids = [s for s in np.unique(stride[stride >= 0])]

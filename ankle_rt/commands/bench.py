@@ -472,10 +472,9 @@ def bench_walk(args: argparse.Namespace) -> int:
         raise SystemExit(f"ankle-rt bench walk: --cadences: unknown {', '.join(bad)} (expected {', '.join(CADENCES)})")
     if args.strides < 1:
         raise SystemExit("ankle-rt bench walk: --strides: must be >= 1")
-    bar = Progress("walking", len(masses) * len(cadences))
-    result, runs = walk_bench(args.config or default_walk_config(), masses, cadences, args.strides,
-                              progress=lambda done, total, what: bar.update(done, what))
-    bar.close()
+    with Progress("walking", len(masses) * len(cadences)) as bar:
+        result, runs = walk_bench(args.config or default_walk_config(), masses, cadences, args.strides,
+                                  progress=bar.callback)
     result["plot"] = plot_walk(runs, args.plot) if args.plot else ""
     if args.json:
         print(jsonout.dumps(result))
