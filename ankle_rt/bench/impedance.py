@@ -85,6 +85,13 @@ def schedule(exp: Experiment) -> tuple[list[Segment], float]:
     return segs, t
 
 
+def simulated_s(exp: Experiment) -> float:
+    """Simulated time (s) one commanded impedance costs: the programme's run and, when the
+    experiment has a torque step, one step run per ground."""
+    steps = len(GROUNDS) * (SETTLE_S + exp.step_s) if any(exp.step_nm) else 0.0
+    return schedule(exp)[1] + steps
+
+
 def torque_at(segs: Sequence[Segment], t: float) -> tuple[float, float]:
     """N m [DP, IE] the programme applies at time ``t``."""
     out = [0.0, 0.0]

@@ -361,7 +361,7 @@ def bench_impedance(args: argparse.Namespace) -> int:
     import time
 
     from ankle_rt import jsonout
-    from ankle_rt.bench.impedance import Experiment, schedule
+    from ankle_rt.bench.impedance import Experiment, simulated_s
     from ankle_rt.config import load_config
     from ankle_rt.paths import default_config_path
     from ankle_rt.timing_reference import reference_step_s
@@ -390,7 +390,7 @@ def bench_impedance(args: argparse.Namespace) -> int:
             variants[name] = impedance_variant(cfg, args.stiffness, args.stiffness_ie, tuple(args.damping), effects,
                                                feedback=feedback, friction_ff=f, experiment=exp, keep_loops=True)
     # wall time per simulated cycle, the lockstep runs with their analysis (and the margin checks)
-    cycle_s = (time.perf_counter() - t0) / (len(plan) * len(args.stiffness) * round(schedule(exp)[1] * cfg["controller"]["rate_hz"]))
+    cycle_s = (time.perf_counter() - t0) / (len(plan) * len(args.stiffness) * round(simulated_s(exp) * cfg["controller"]["rate_hz"]))
     ref_s = 0.5 * (ref_s + reference_step_s())
     note = plot_loops({k: variants[k] for k in ("closed loop", "open loop")}, args.plot) if args.plot else ""
     main = variants["closed loop"]["summary"]
