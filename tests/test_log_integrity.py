@@ -146,19 +146,35 @@ def test_a_format1_log_with_a_damaged_header_still_reads(clean, tmp_path):
     assert np.array_equal(log.records["t"], clean[1]["t"]) and not log.records["gait_phase"].any()
 
 
-def test_a_log_written_before_the_gait_phase_field_reads_with_phase_zero(clean, tmp_path):
-    """Fields are only appended: a format-2 log of the older 25-field record (CRC over its 168 data
-    bytes) reads, its records upgraded to this layout with gait_phase 0."""
+def _before_gait_phase(records: np.ndarray) -> bytearray:
+    """A format-2 log of ``records`` as written when the record had 25 fields (CRC over its 168 data bytes)."""
     from ankle_rt.log.header import MAGIC, V1_FIELDS
 
-    old = _older(clean[1], V1_FIELDS)
+    old = _older(records, V1_FIELDS)
     meta = {"format": 2, "rate_hz": 1000, "fields": [[n, old.dtype[n].str, ""] for n in old.dtype.names]}
     block = (MAGIC + json.dumps(meta).encode() + b"\n").ljust(BLOCK_SIZE - 4, b" ")
     block += struct.pack("<I", zlib.crc32(block))
     body = b"".join(row + struct.pack("<I", zlib.crc32(row)) for row in (old[i:i + 1].tobytes() for i in range(len(old))))
-    log = read_log(_write(tmp_path, block + block + body))
+    return bytearray(block + block + body)
+
+
+def test_a_log_written_before_the_gait_phase_field_reads_with_phase_zero(clean, tmp_path):
+    """Fields are only appended: a format-2 log of the older 25-field record reads, its records
+    upgraded to this layout with gait_phase 0."""
+    log = read_log(_write(tmp_path, _before_gait_phase(clean[1])))
     assert log.version == 2 and log.damaged == 0 and len(log) == N_RECORDS
     assert log.records.dtype == RECORD_DTYPE and not log.records["gait_phase"].any()
+    assert np.array_equal(log.records["sg_torque_dp"], clean[1]["sg_torque_dp"])
+
+
+def test_an_older_log_with_both_header_copies_damaged_reads_by_its_checksums(clean, tmp_path):
+    """With the header's layout lost, the records' CRCs tell the 172-byte record from this version's 173."""
+    data = _before_gait_phase(clean[1])
+    data[40] ^= 0x01
+    data[BLOCK_SIZE + 40] ^= 0x01
+    log = read_log(_write(tmp_path, data))
+    assert log.meta == {} and "25 fields" in log.header_note
+    assert log.damaged == 0 and len(log) == N_RECORDS and log.torn_bytes == 0
     assert np.array_equal(log.records["sg_torque_dp"], clean[1]["sg_torque_dp"])
 
 

@@ -26,6 +26,9 @@ HEADER_SIZE = 2 * BLOCK_SIZE         # records start here (format 2)
 V1_HEADER_SIZE = 4096                # format 1: one block, no CRC
 FORMAT_VERSION = 2
 V1_FIELDS = 25                       # the record's fields when format 1 was written (before gait_phase)
+# every record layout format 2 was written with, newest first: a header whose both copies are lost
+# leaves the reader to tell them apart by the records' checksums
+FORMAT2_LAYOUTS = (RECORD_DTYPE, layout(V1_FIELDS, True))
 _CRC = struct.Struct("<I")
 
 
@@ -64,6 +67,7 @@ class Header:
     dtype: np.dtype
     version: int
     note: str = ""
+    layouts: tuple[np.dtype, ...] = ()   # when the header is lost: the layouts ``dtype`` may be instead
 
 
 def _json(block: bytes) -> dict[str, Any] | None:
@@ -93,7 +97,8 @@ def decode_header(head: bytes, source: str) -> Header:
 
     Raises :class:`LogFormatError` for a file that is not an ankle-rt log, a format this version does
     not know, or a readable header whose record layout differs from this version's. A header whose
-    both copies are damaged still yields the records (the layout is the format's), with ``meta`` empty."""
+    both copies are damaged still yields the records, with ``meta`` empty: ``dtype`` is the newest
+    layout and ``layouts`` all the format's, for the reader to choose by the records' checksums."""
     copies = [head[i:i + BLOCK_SIZE] for i in (0, BLOCK_SIZE)]
     if head.startswith(MAGIC_V1):
         if len(head) < V1_HEADER_SIZE:
@@ -119,4 +124,5 @@ def decode_header(head: bytes, source: str) -> Header:
                 return Header(meta, HEADER_SIZE, _layout(meta, True, source), FORMAT_VERSION,
                               "first header copy damaged; read the second" if k else "")
     return Header({}, HEADER_SIZE, RECORD_DTYPE, FORMAT_VERSION,
-                  "both header copies damaged: metadata lost, records read with the format-2 layout")
+                  "both header copies damaged: metadata lost, records read with the format-2 layout",
+                  FORMAT2_LAYOUTS)

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from ankle_rt.log.header import HEADER_SIZE, LogFormatError, decode_header
+from ankle_rt.log.header import HEADER_SIZE, Header, LogFormatError, decode_header
 from ankle_rt.log.record import crc_ok, upgrade
 from ankle_rt.safety import Fault, State
 from ankle_rt.textfile import TextFileError, open_regular
@@ -62,6 +62,21 @@ def _intact(raw: bytes, dtype: np.dtype, checksummed: bool) -> tuple[np.ndarray,
     return rows[ok].view(dtype).reshape(-1), int(n - ok.sum())   # whole rows: the CRC bytes stay
 
 
+def _by_checksums(sample: bytes, header: Header) -> Header:
+    """``header`` with the layout of ``header.layouts`` under which most records of ``sample`` (the
+    file's first records) have intact checksums: a log whose header was lost may predate a field."""
+    def intact(dtype: np.dtype) -> int:
+        n = len(sample) // dtype.itemsize
+        return int(crc_ok(np.frombuffer(sample, np.uint8, n * dtype.itemsize).reshape(n, dtype.itemsize)).sum())
+
+    best = max(header.layouts, key=intact)   # the first (newest) on a tie
+    if best is header.dtype:
+        return header
+    fields = len(best.names)
+    return Header({}, header.records_offset, best, header.version,
+                  f"{header.note} of {fields} fields (an older record, told by its checksums)")
+
+
 def read_log(path: str | Path, last: int | None = None) -> RunLog:
     """Read a run log; ``last`` keeps memory and time bounded for long runs: only the most recent
     ``last`` records are read (a seek, then one read), never the whole file."""
@@ -74,6 +89,9 @@ def read_log(path: str | Path, last: int | None = None) -> RunLog:
         with handle:
             file_size = os.fstat(handle.fileno()).st_size
             header = decode_header(handle.read(HEADER_SIZE), str(path))
+            if header.layouts:
+                header = _by_checksums(handle.read(_FIRST_SCAN * max(d.itemsize for d in header.layouts)), header)
+                handle.seek(header.records_offset)
             size = header.dtype.itemsize
             checksummed = header.version >= 2
             body = max(0, file_size - header.records_offset)
