@@ -50,6 +50,11 @@ KEYPOINTS = (
 )
 REF_PEAK_MOMENT, REF_PUSH_OFF = CADENCES["normal"][2], CADENCES["normal"][3]
 
+
+def stride_period_s(cadence: str) -> float:
+    """One stride (two steps) at ``cadence``, s."""
+    return 120.0 / CADENCES[cadence][0]
+
 class Template:
     """The able-bodied stride as tables over the template phase u in [0, 1): DP and IE angles (rad)
     and their rates per unit phase, moments (N m/kg)."""

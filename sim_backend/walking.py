@@ -39,7 +39,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from ankle_rt.elementwise import Value, lookup, pick, select, stack
-from ankle_rt.gait_data import CADENCES, REF_PEAK_MOMENT, TEMPLATE, Template, angle_scale
+from ankle_rt.gait_data import CADENCES, REF_PEAK_MOMENT, TEMPLATE, Template, angle_scale, stride_period_s
 
 KAPPA_DP = 6.0        # N m/rad per kg: stance stiffness of body + contact about the DP axis [assumed]
 KAPPA_IE = 2.0        # N m/rad per kg, IE [assumed]
@@ -64,8 +64,8 @@ class WalkingScenario:
 
     def __init__(self, params: Mapping[str, Any]):
         self.mass = m = float(params["mass_kg"])
-        period, self.stance_fraction, peak, push = CADENCES[params["cadence"]]
-        period = 120.0 / period
+        _, self.stance_fraction, peak, push = CADENCES[params["cadence"]]
+        period = stride_period_s(params["cadence"])
         self.start = float(params["start_s"])
         rng = np.random.default_rng(params["seed"])
         v = float(params["variability"])

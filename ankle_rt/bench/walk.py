@@ -67,12 +67,12 @@ def run_walk(cfg_path: str, mass_kg: float, cadence: str, strides: int, seed: in
     """Walk ``strides`` strides (plus the first, a warm-up not counted) in lockstep; stops early on a fault."""
     from ankle_rt.clock import SimClock
     from ankle_rt.daemon import Daemon
-    from ankle_rt.gait_data import CADENCES
+    from ankle_rt.gait_data import stride_period_s
 
     base = load_config(cfg_path)
     cfg = load_config(cfg_path, wearer_overrides(base, mass_kg, cadence, seed))
     start = cfg["sim"]["walking"]["start_s"]
-    duration = start + (strides + 1.5) * 120.0 / CADENCES[cadence][0]
+    duration = start + (strides + 1.5) * stride_period_s(cadence)
     daemon = Daemon(cfg, SimClock())
     n = int(duration * cfg["controller"]["rate_hz"]) + 2
     cols = {k: np.full(n, np.nan) for k in ("t", "phase", "gait", "stride", "angle", "angle_ab", "moment",
