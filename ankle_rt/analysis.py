@@ -27,7 +27,7 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from ankle_rt.config_schema import IMPEDANCE_GAINS, LOOP_GAINS, SHIPPED_GAINS
+from ankle_rt.config_schema import IMPEDANCE_GAINS, LOOP_GAINS, SHIPPED_GAINS, SHIPPED_PD_GAINS
 from ankle_rt.linear_model import N_X, LinearModel
 from ankle_rt.params import PlantParams
 
@@ -364,6 +364,63 @@ class ImpedanceLoop:
                    velocity_cutoff_hz=cfg["estimation"]["velocity_cutoff_hz"],
                    dt=1.0 / c["rate_hz"], delay_cycles=delay_cycles)
 
+    GAINS = (*LOOP_GAINS, *IMPEDANCE_GAINS)
+
+    def rows(self, kin, K_cable: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The controller's rows (W, U) of the closed loop (:func:`_controller`)."""
+        return _controller(kin, K_cable, self)
+
+    def gain_values(self) -> tuple[float, ...]:
+        """The loop's gains in the order of GAINS."""
+        return (*self.kp, *self.ki, *self.torque_rate_gain, self.cutoff_hz, *self.stiffness, *self.damping)
+
+    def with_gain(self, name: str, value: float) -> "ImpedanceLoop":
+        """This loop with the gain ``name`` (of GAINS) set to ``value``."""
+        if name == "cutoff_hz":
+            return dataclasses.replace(self, cutoff_hz=value)
+        base, axis = name.rsplit("_", 1)
+        field_name = {"torque_rate": "torque_rate_gain"}.get(base, base)
+        pair = list(getattr(self, field_name))
+        pair[AXES.index(axis)] = value
+        return dataclasses.replace(self, **{field_name: tuple(pair)})
+
+
+@dataclass(frozen=True)
+class MotorPDLoop:
+    """What the closed-loop analysis needs of the motor-side PD (paper eq. 11; ankle_rt.control.pd):
+    the same kp (N m/rad) and kd (N m s/rad) on both motors, kd on the filtered motor velocity."""
+
+    kp: float
+    kd: float
+    velocity_cutoff_hz: float = 100.0       # estimation.velocity_cutoff_hz
+    dt: float = 1e-3
+    delay_cycles: int = 1
+
+    GAINS = ("kp", "kd")
+
+    @classmethod
+    def from_config(cls, cfg: Mapping[str, Any], gains: Mapping[str, float], *, delay_cycles: int = 1) -> "MotorPDLoop":
+        return cls(kp=float(gains["kp"]), kd=float(gains["kd"]),
+                   velocity_cutoff_hz=cfg["estimation"]["velocity_cutoff_hz"],
+                   dt=1.0 / cfg["controller"]["rate_hz"], delay_cycles=delay_cycles)
+
+    def rows(self, kin, K_cable: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(W, U) as :func:`_controller`'s: w keeps theta_m prev and the filtered velocity v (the other
+        controller states held at zero); u = kp (R r - theta_m) - kd v, r the ankle reference."""
+        e = np.eye(N_W + 8)
+        th_prev, v_prev = e[0:2], e[2:4]
+        th, r = e[N_W:N_W + 2], e[N_W + 6:N_W + 8]
+        a_v = 1.0 - math.exp(-2.0 * math.pi * self.velocity_cutoff_hz * self.dt)
+        v = (1.0 - a_v) * v_prev + (a_v / self.dt) * (th - th_prev)
+        held = np.zeros((2 * (N_W // 2 - 2), N_W + 8))
+        return np.vstack([th, v, held]), self.kp * (kin.R @ r - th) - self.kd * v
+
+    def gain_values(self) -> tuple[float, ...]:
+        return self.kp, self.kd
+
+    def with_gain(self, name: str, value: float) -> "MotorPDLoop":
+        return dataclasses.replace(self, **{name: value})
+
 
 def _plant(p: PlantParams, *, foot: str, load_slope: float,
            ground: tuple[tuple[float, float], float] = ((GROUND_STIFFNESS, GROUND_STIFFNESS), 0.0),
@@ -439,7 +496,7 @@ def closed_loop(p: PlantParams, c: ImpedanceLoop, *, foot: str = "free", load_sl
     A, Bm, Cy = _plant(p, foot=foot, load_slope=load_slope, **({} if ground is None else {"ground": ground}))
     Ad, Bd = zoh(A, Bm, c.dt)
     lm = LinearModel.from_params(p)
-    W, U = _controller(lm.kin, lm.kin.K, c)
+    W, U = c.rows(lm.kin, lm.kin.K)
     return _assemble(Ad, Bd, Cy, W, gain * U, c.delay_cycles)
 
 
@@ -591,7 +648,7 @@ def _loop_matrices(p: PlantParams, c: ImpedanceLoop, load_coefficient: float) ->
     controller output scaled by g (T is affine in the controller's output rows, :func:`loop_in_gain`)."""
     T0, Tu = [], []
     for Ad, Bd, Cy, kin in _sampled_plants(p, c.dt, load_coefficient):
-        W, U = _controller(kin, kin.K, c)
+        W, U = c.rows(kin, kin.K)
         t0 = _assemble(Ad, Bd, Cy, W, 0.0 * U, c.delay_cycles)[0]
         T0.append(t0)
         Tu.append(_assemble(Ad, Bd, Cy, W, U, c.delay_cycles)[0] - t0)
@@ -651,39 +708,39 @@ def gain_set_margin_db(cfg_like: Mapping[str, Any], gains: Mapping[str, float]) 
     friction x0.5-x2, load-dependent friction sliding with or against the load (the config's
     coefficient, at least 0.12) and foot free and held; and, when it is below
     REQUIRED_GAIN_MARGIN_DB, the gain that limits it: of the gains away from the shipped values, the
-    one whose shipped value restores the most margin (None when the margin is met)."""
+    one whose shipped value restores the most margin (None when the margin is met). Without the
+    joint-torque loop, the impedance law alone; for ``controller.type`` pd, the motor-side PD with
+    ``gains`` (kp, kd) in place of the active set's (``controller.pd_gains``)."""
+    from ankle_rt.loop_setup import torque_feedback
+
+    ctl = cfg_like["controller"]
+    if ctl["type"] == "pd":
+        unknown = [k for k in gains if k not in MotorPDLoop.GAINS]
+        if unknown:
+            raise ValueError(f"gain_set_margin_db: {unknown[0]!r} is not a motor-side PD gain (kp, kd)")
+        pd = {**ctl[ctl["pd_gains"] + "_gains"], **gains}
+        return _margin_and_limit(PlantParams.from_config(cfg_like), MotorPDLoop.from_config(cfg_like, pd),
+                                 _load_coefficient(cfg_like), tuple(SHIPPED_PD_GAINS.values()))
     cfg = _with_gains(cfg_like, gains)
-    return _margin_and_limit(PlantParams.from_config(cfg), ImpedanceLoop.from_config(cfg, closed=True),
-                             _load_coefficient(cfg), tuple(SHIPPED_GAINS[k] for k in (*LOOP_GAINS, *IMPEDANCE_GAINS)))
+    closed = torque_feedback(cfg)
+    loop = ImpedanceLoop.from_config(cfg, closed=closed)
+    # open loop: only the impedance gains can limit it (the torque loop's stay at their zeros)
+    shipped = tuple(SHIPPED_GAINS[k] if closed or k in IMPEDANCE_GAINS else v
+                    for k, v in zip(loop.GAINS, loop.gain_values()))
+    return _margin_and_limit(PlantParams.from_config(cfg), loop, _load_coefficient(cfg), shipped)
 
 
 @functools.lru_cache(maxsize=64)
-def _margin_and_limit(p: PlantParams, loop: ImpedanceLoop, coefficient: float,
+def _margin_and_limit(p: PlantParams, loop: "ImpedanceLoop | MotorPDLoop", coefficient: float,
                       shipped: tuple[float, ...]) -> tuple[float, str | None]:
     """:func:`gain_set_margin_db` for one plant and loop (cached: a config is checked when it is
-    loaded and again when its controller is built)."""
+    loaded and again when its controller is built); ``shipped``: the loop's GAINS as shipped."""
     margin = loop_margin_db(p, loop, load_coefficient=coefficient)
     if margin >= REQUIRED_GAIN_MARGIN_DB:
         return margin, None
-    names = (*LOOP_GAINS, *IMPEDANCE_GAINS)
-    values = dict(zip(names, _gain_values(loop)))
-    moved = [k for k, v in zip(names, shipped) if values[k] != v] or list(LOOP_GAINS)
-    restored = {k: loop_margin_db(p, _with_gain(loop, k, shipped[names.index(k)]), load_coefficient=coefficient)
+    names = loop.GAINS
+    values = dict(zip(names, loop.gain_values()))
+    moved = [k for k, v in zip(names, shipped) if values[k] != v] or list(names)
+    restored = {k: loop_margin_db(p, loop.with_gain(k, shipped[names.index(k)]), load_coefficient=coefficient)
                 for k in moved}
     return margin, max(moved, key=lambda k: restored[k])
-
-
-def _gain_values(loop: ImpedanceLoop) -> tuple[float, ...]:
-    """The loop's gains in the order LOOP_GAINS + IMPEDANCE_GAINS."""
-    return (*loop.kp, *loop.ki, *loop.torque_rate_gain, loop.cutoff_hz, *loop.stiffness, *loop.damping)
-
-
-def _with_gain(loop: ImpedanceLoop, name: str, value: float) -> ImpedanceLoop:
-    """``loop`` with the gain ``name`` (of LOOP_GAINS or IMPEDANCE_GAINS) set to ``value``."""
-    if name == "cutoff_hz":
-        return dataclasses.replace(loop, cutoff_hz=value)
-    base, axis = name.rsplit("_", 1)
-    field_name = {"torque_rate": "torque_rate_gain"}.get(base, base)
-    pair = list(getattr(loop, field_name))
-    pair[AXES.index(axis)] = value
-    return dataclasses.replace(loop, **{field_name: tuple(pair)})

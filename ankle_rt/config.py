@@ -200,16 +200,23 @@ def config_from_data(data: dict, origin: Callable[[KeyPath], str], source: str) 
 
 
 def _check_gain_margin(cfg: Config, origin: Callable[[KeyPath], str]) -> None:
-    """The impedance controller with the joint-torque loop: its configured gain set must keep the
-    required gain margin over the plant range (ConfigError naming the gain that limits it)."""
+    """The impedance controller (with or without the joint-torque loop) and the motor-side PD (the
+    gain set ``controller.pd_gains`` picks; choosing the other is a config change, checked again):
+    the configured gain set must keep the required gain margin over the plant range (ConfigError
+    naming the gain that limits it)."""
     from ankle_rt.gain_margin import gain_set_refusal
-    from ankle_rt.loop_setup import torque_feedback
 
     ctl = cfg["controller"]
-    if ctl["type"] != "impedance" or not torque_feedback(cfg):
+    if ctl["type"] == "pd":
+        section = ctl["pd_gains"] + "_gains"
+        checks = [(section, ctl[section])]
+    elif ctl["type"] == "impedance":
+        checks = [(None, {})]
+    else:
         return
-    bad = gain_set_refusal(cfg, {})
-    if bad is not None:
-        name, reason = bad
-        section = "torque_loop" if name in ctl["torque_loop"] else "impedance"
-        raise ConfigError(reason, origin(("controller", section, name)), f"controller.{section}.{name}")
+    for section, gains in checks:
+        bad = gain_set_refusal(cfg, gains)
+        if bad is not None:
+            name, reason = bad
+            section = section or ("torque_loop" if name in ctl["torque_loop"] else "impedance")
+            raise ConfigError(reason, origin(("controller", section, name)), f"controller.{section}.{name}")

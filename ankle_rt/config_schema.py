@@ -103,6 +103,9 @@ LOOP_GAINS = ("kp_dp", "kp_ie", "ki_dp", "ki_ie", "torque_rate_dp", "torque_rate
 SHIPPED_GAINS = {**IMPEDANCE_DEFAULTS, "kp_dp": KP_DEFAULT, "kp_ie": KP_DEFAULT, "ki_dp": KI_DEFAULT,
                  "ki_ie": KI_DEFAULT, "torque_rate_dp": KD_DP_DEFAULT, "torque_rate_ie": KD_IE_DEFAULT,
                  "cutoff_hz": CUTOFF_DEFAULT}
+# the motor-side PD's shipped set (what a limiting PD gain is found against): the paper's step gains,
+# config/nominal-params.yaml controller.step_gains
+SHIPPED_PD_GAINS = {"kp": 90.0, "kd": 5.0}
 
 IMPEDANCE = Section({
     "stiffness_dp": non_negative("N m/rad at the ankle", default=IMPEDANCE_DEFAULTS["stiffness_dp"], high=MAX_STIFFNESS),
@@ -280,7 +283,8 @@ SAFETY = Section({
                                     default=20.0, high=ESCON_PEAK_S),
     "oscillation_rms_a": positive("A; a set value's RMS above 20 Hz (either motor) beyond this for "
                                   "safety.oscillation_hold_s is an oscillation fault", default=1.0, high=5.0),
-    "oscillation_hold_s": positive("s the band RMS must stay above safety.oscillation_rms_a to fault", default=0.25,
+    "oscillation_hold_s": positive("s the band RMS must stay above safety.oscillation_rms_a to fault (a stable "
+                                   "loop's saturated step keeps it above for up to ~0.3 s)", default=0.5,
                                    high=2.0),
 }, optional=True)
 

@@ -183,9 +183,13 @@ def test_gain_set_margin_db_names_the_limiting_gain():
     from ankle_rt.paths import default_config_path
 
     cfg = load_config(default_config_path())
+    cfg["controller"]["type"] = "impedance"
     margin, name = gain_set_margin_db(cfg, {})
     assert margin >= REQUIRED_GAIN_MARGIN_DB and name is None
     bad, why = gain_set_margin_db(cfg, {"kp_ie": 100.0})
     assert bad == -math.inf and why == "kp_ie"
     with pytest.raises(ValueError, match="nonsense"):
         gain_set_margin_db(cfg, {"nonsense": 1.0})
+    cfg["controller"]["type"] = "pd"
+    with pytest.raises(ValueError, match="kp_ie"):
+        gain_set_margin_db(cfg, {"kp_ie": 1.0})

@@ -36,8 +36,7 @@ def _variants(base):
     c["controller"]["friction_ff"]["enabled"] = True
     out.append(c)
     c = base.deep_copy()
-    c["controller"]["step_gains"]["kp"] = 2500.0      # unstable: the safety layer must stop it
-    c["controller"]["step_gains"]["kd"] = 0.0
+    c["safety"]["max_sg_step_nm"] = 0.05     # the gauges' noise trips SG_JUMP: the safety layer must stop it
     out.append(c)
     return out
 

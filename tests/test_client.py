@@ -173,7 +173,7 @@ def test_the_example_experiment_runs_against_a_real_time_daemon(daemon, tmp_path
         assert abs(math.degrees(dp[0])) < 1.0                              # from 0
     with AnkleClient(path, 30.0) as ankle:
         status = ankle.status()
-    assert status["state"] == "safe" and status["gains"] == {"kp": 120.0, "kd": 5.0}
+    assert status["state"] == "safe" and status["gains"] == {"kp": 120.0, "kd": 3.0}
 
 
 def test_a_switch_while_a_fault_is_latched_keeps_the_fault_and_the_current_limits(sim_cfg):

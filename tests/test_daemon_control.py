@@ -15,7 +15,7 @@ from ankle_rt.params import TransmissionParams
 from ankle_rt.safety import State
 from ankle_rt.service.protocol import SetGains
 from sim_backend.plant import SimulatedPlant
-from tests.daemon_helpers import lockstep_daemon, run_cycles, variant
+from tests.daemon_helpers import lockstep_daemon, reply, run_cycles, variant
 
 
 def direct_section7(cfg, duration_s: float) -> np.ndarray:
@@ -109,7 +109,7 @@ def test_gain_change_is_bumpless_and_reaches_the_new_gains(sim_cfg):
     d = lockstep_daemon(cfg)
     run_cycles(d, 1500)
     kp_old = d.controller.gains.values[0]
-    d.handle(SetGains(kp=4 * kp_old))
+    reply(d.handle(SetGains(kp=4 * kp_old)))          # checked off the loop thread (the gain margin)
     run_cycles(d, 500)
     rec = d.recorder.records
     i1 = rec["current_cmd_1"]

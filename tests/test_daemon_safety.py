@@ -13,7 +13,7 @@ from ankle_rt.clock import SimClock
 from ankle_rt.daemon import run_lockstep
 from ankle_rt.safety import Fault, State
 from ankle_rt.service import protocol as proto
-from tests.daemon_helpers import InjectingBackend, lockstep_daemon, run_cycles, variant
+from tests.daemon_helpers import InjectingBackend, lockstep_daemon, reply, run_cycles, variant
 
 AT = 300   # cycle of the injection; the daemon is active from cycle 99 (after the 100-sample tare)
 
@@ -225,7 +225,7 @@ def test_commands_with_bad_fields_are_refused_naming_the_field(sim_cfg):
     d = lockstep_daemon(sim_cfg)
     run_cycles(d, 150)
     with pytest.raises(proto.CommandError) as err:
-        d.handle(proto.SetGains(stiffness_dp=10.0))      # the PD has no stiffness
+        reply(d.handle(proto.SetGains(stiffness_dp=10.0)))   # the PD has no stiffness (checked off the loop thread)
     assert err.value.field == "stiffness_dp"
     with pytest.raises(proto.CommandError) as err:
         d.handle(proto.StartProfile("sine", {"frequency_hz": -1.0}))

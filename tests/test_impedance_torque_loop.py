@@ -440,6 +440,7 @@ def test_switching_to_a_torque_loop_without_margin_at_run_time_is_refused_naming
 
     cfg = base.deep_copy()
     cfg["controller"]["rate_hz"] = 250
+    cfg["controller"]["step_gains"]["kd"] = 3.0   # the running PD's margin at 250 Hz (kd 5: 4.9 dB, refused)
     daemon = lockstep_daemon(cfg)
     try:
         before = daemon.controller

@@ -74,14 +74,21 @@ def _no_params(ctx: "ControllerContext", name: str, where: str) -> None:
 
 
 def pd_controller(ctx: "ControllerContext") -> CycleController:
-    """The built-in ``pd``: motor-side PD on the ``controller.pd_gains`` gain set."""
+    """The built-in ``pd``: motor-side PD on the ``controller.pd_gains`` gain set, refused (naming the
+    gain) when it keeps less than the required gain margin."""
+    from ankle_rt.config import ConfigError
+    from ankle_rt.control.gains import GainError
     from ankle_rt.control.pd import MotorPD
 
     _no_params(ctx, "pd", "controller.step_gains / validation_gains")
     c = ctx.cfg["controller"]
-    gains = c[c["pd_gains"] + "_gains"]
-    return MotorPD(ctx.kin, ctx.ref, kp=gains["kp"], kd=gains["kd"], dt=ctx.dt, ramp_s=c["gain_ramp_s"],
-                   soft_start_s=c["soft_start_s"], friction=ctx.friction)
+    section = c["pd_gains"] + "_gains"
+    gains = c[section]
+    try:
+        return MotorPD(ctx.kin, ctx.ref, kp=gains["kp"], kd=gains["kd"], dt=ctx.dt, ramp_s=c["gain_ramp_s"],
+                       soft_start_s=c["soft_start_s"], friction=ctx.friction, margin_cfg=ctx.cfg)
+    except GainError as exc:
+        raise ConfigError(str(exc), getattr(ctx.cfg, "source", None), f"controller.{section}.{exc.gain}") from None
 
 
 def impedance_controller(ctx: "ControllerContext") -> CycleController:

@@ -8,11 +8,12 @@ over ``soft_start_s`` after each activation.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Mapping, Protocol, Sequence
 
 from ankle_rt.control.base import BatchableController
 from ankle_rt.control.friction import FrictionFeedForward
 from ankle_rt.elementwise import all_true, minimum, select, stack
+from ankle_rt.gain_margin import gain_set_refusal, ramp_refusal
 
 if TYPE_CHECKING:
     import numpy as np
@@ -101,16 +102,65 @@ class GainRamp:
 
 class RampedGainController(BatchableController):
     """What the config's controllers share: gains that ramp (bumpless changes, soft start on each
-    activation) and an optional friction feed-forward (off when none is given). Batchable."""
+    activation), an optional friction feed-forward (off when none is given), and gain changes
+    checked before they start: inside ``limits`` and, with ``margin_cfg``, keeping the required gain
+    margin at every checked point of the ramp (:func:`ankle_rt.gain_margin.ramp_refusal`). Batchable."""
+
+    shared = ("ref", "limits", "margin_cfg")
 
     def __init__(self, gains: Mapping[str, float], *, dt: float, ramp_s: float, soft_start_s: float,
-                 friction: FrictionFeedForward | None):
+                 friction: FrictionFeedForward | None, limits: "GainLimits | None" = None,
+                 margin_cfg: Mapping[str, Any] | None = None):
+        """``limits``: gain sets outside them are refused; ``margin_cfg``: the config whose plant every
+        gain set must keep the required gain margin on (None: not checked)."""
+        if limits is not None:
+            raise_refusal(limits.check(gains))
+        if margin_cfg is not None:
+            raise_refusal(gain_set_refusal(margin_cfg, gains))
         self.gains = GainRamp(gains, dt=dt, ramp_s=ramp_s, soft_start_s=soft_start_s)
         self.friction = friction or FrictionFeedForward(0.0, 0.0, 1.0, enabled=False)
+        self.limits = limits
+        self.margin_cfg = margin_cfg
 
     def start(self, est: "Estimate", where: "bool | np.ndarray" = True) -> None:
         self.gains.start(where)
 
+    def check_gains(self, **gains: float) -> None:
+        """Raise GainError naming the gain unless the ramp to ``gains`` stays stable: the target inside
+        the limits and, at every checked point of the ramp from the present gains, the required
+        gain margin. Slow with the margin (~0.1-0.5 s): the daemon runs it off the loop thread.
+        Refused while a ramp runs (its path would then no longer be the one checked)."""
+        self.gains.check(**gains)
+        values = dict(zip(self.gains.names, self.gains.values))
+        targets = dict(zip(self.gains.names, self.gains.targets))
+        targets.update({k: v for k, v in gains.items() if k in targets})
+        if self.limits is not None:
+            raise_refusal(self.limits.check(targets))
+        if self.margin_cfg is not None:
+            if self.gains.ramping:
+                name = next(iter(gains), "cmd")
+                raise GainError(name, "busy: the previous gain ramp is still running (controller.gain_ramp_s)")
+            raise_refusal(ramp_refusal(self.margin_cfg, values, targets))
+
     def set_gains(self, **gains: float) -> None:
-        """Ramp to new gains (names as at construction) without a jump in the command."""
+        """Ramp to new gains (names as at construction) without a jump in the command, after
+        :meth:`check_gains` (else GainError)."""
+        self.check_gains(**gains)
+        self.apply_gains(**gains)
+
+    def apply_gains(self, **gains: float) -> None:
+        """Ramp to gains :meth:`check_gains` accepted (the daemon's second half of a checked change)."""
         self.gains.set_targets(**gains)
+
+
+class GainLimits(Protocol):
+    """A controller's stable set of gains (e.g. the torque loop's :class:`ImpedanceLimits`)."""
+
+    def check(self, gains: Mapping[str, float]) -> tuple[str, str] | None:
+        """(gain, reason) for a gain set outside the limits; None inside."""
+
+
+def raise_refusal(bad: tuple[str, str] | None) -> None:
+    """GainError from a (gain, reason) refusal; nothing for None."""
+    if bad is not None:
+        raise GainError(*bad)

@@ -183,7 +183,7 @@ class GaitPhaseController(ImpedanceController):
             return cls(kin, law, dt=dt, soft_start_s=c["soft_start_s"],
                        ankle_limit=math.radians(cfg["limits"]["ankle_range_deg"]),
                        gain_maxima=c["gain_limits"], friction=friction, torque_loop=loop, limits=limits,
-                       margin_cfg=_estimated_angle(cfg) if loop else None)
+                       margin_cfg=_estimated_angle(cfg))
         except GainError as exc:
             raise ConfigError(str(exc), getattr(cfg, "source", None), f"controller.gait_phase.{exc.gain}") from None
 

@@ -24,7 +24,6 @@ from ankle_rt.control.gains import GainError, RampedGainController
 from ankle_rt.control.torque_loop import ImpedanceLimits, JointTorqueLoop, TorqueLoopGains
 from ankle_rt.config_schema import IMPEDANCE_GAINS, LOOP_GAINS
 from ankle_rt.elementwise import Value, select
-from ankle_rt.gain_margin import gain_set_refusal, ramp_refusal
 from ankle_rt.estimation import Estimate
 from ankle_rt.kinematics import Kinematics
 from ankle_rt.loop_setup import ReflectedActuator, torque_feedback, uses_joint_encoders
@@ -47,23 +46,17 @@ class ImpedanceController(RampedGainController):
         ``limits``: gains outside them are refused (GainError), here and in :meth:`set_gains`.
         ``margin_cfg``: the config whose plant and torque-loop gains every gain set (and every point of
         a ramp) must keep the required gain margin with (:func:`gain_set_refusal`); None: not checked."""
-        if limits is not None:
-            self._check(limits, gains)
         ramped = {k: gains[k] for k in IMPEDANCE_GAINS}
-        if margin_cfg is not None:
-            self._raise(gain_set_refusal(margin_cfg, ramped))
         if torque_loop is not None:   # the loop's gains ramp too (set_gains), from the configured ones
             g = torque_loop.gains
             ramped.update(zip(RUNTIME_LOOP_GAINS, (*g.kp, *g.ki, *g.torque_rate)))
-        super().__init__(ramped,
-                         dt=dt, ramp_s=ramp_s, soft_start_s=soft_start_s, friction=friction)
+        super().__init__(ramped, dt=dt, ramp_s=ramp_s, soft_start_s=soft_start_s, friction=friction,
+                         limits=limits, margin_cfg=margin_cfg)
         self.RiT = kin.R_inv_T.ravel().tolist()
         self.ref = ref
         self.torque_loop = torque_loop
-        self.limits = limits
         self.joint_encoders = joint_encoders
         self.lead0, self.lead1 = torque_loop.lag_s if torque_loop is not None else (0.0, 0.0)
-        self.margin_cfg = margin_cfg
 
     @classmethod
     def from_config(cls, cfg: "Config", kin: Kinematics, ref: np.ndarray,
@@ -82,47 +75,11 @@ class ImpedanceController(RampedGainController):
         try:
             return cls(kin, ref, c["impedance"], dt=1.0 / c["rate_hz"], ramp_s=c["gain_ramp_s"],
                        soft_start_s=c["soft_start_s"], friction=friction, torque_loop=loop, limits=limits,
-                       joint_encoders=joint, margin_cfg=cfg if loop else None)
+                       joint_encoders=joint, margin_cfg=cfg)
         except GainError as exc:
             section = "torque_loop" if exc.gain in c["torque_loop"] else "impedance"
             raise ConfigError(str(exc), getattr(cfg, "source", None), f"controller.{section}.{exc.gain}") from None
 
-    @staticmethod
-    def _check(limits: ImpedanceLimits, gains: Mapping[str, float]) -> None:
-        ImpedanceController._raise(limits.check(gains))
-
-    @staticmethod
-    def _raise(bad: tuple[str, str] | None) -> None:
-        if bad is not None:
-            raise GainError(*bad)
-
-    def check_gains(self, **gains: float) -> None:
-        """Raise GainError naming the gain unless the ramp to ``gains`` stays stable: the target inside
-        the limits and, at every checked point of the ramp from the present gains, the required
-        gain margin. Slow (~0.1-0.5 s): the daemon runs it off the loop thread. Refused while a ramp
-        runs (its path would then no longer be the one checked)."""
-        self.gains.check(**gains)
-        values = dict(zip(self.gains.names, self.gains.values))
-        targets = dict(zip(self.gains.names, self.gains.targets))
-        targets.update({k: v for k, v in gains.items() if k in targets})
-        if self.limits is not None:
-            self._check(self.limits, targets)
-        if self.margin_cfg is not None:
-            if self.gains.ramping:
-                name = next(iter(gains), "cmd")
-                raise GainError(name, "busy: the previous gain ramp is still running (controller.gain_ramp_s)")
-            self._raise(ramp_refusal(self.margin_cfg, values, targets))
-
-    def set_gains(self, **gains: float) -> None:
-        """Ramp to new gains after :meth:`check_gains` (else GainError)."""
-        self.check_gains(**gains)
-        self.apply_gains(**gains)
-
-    def apply_gains(self, **gains: float) -> None:
-        """Ramp to gains :meth:`check_gains` accepted (the daemon's second half of a checked change)."""
-        super().set_gains(**gains)
-
-    shared = ("ref", "limits", "margin_cfg")
     columns = ("RiT",)
 
     def batch_key(self) -> tuple[tuple[str, bool], ...]:

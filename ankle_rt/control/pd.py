@@ -7,6 +7,8 @@ so a reference step does not kick the command. Optional friction feed-forward is
 
 from __future__ import annotations
 
+from typing import Any, Mapping
+
 import numpy as np
 
 from ankle_rt.control.friction import FrictionFeedForward
@@ -20,9 +22,13 @@ class MotorPD(RampedGainController):
     columns = ("R",)
 
     def __init__(self, kin: Kinematics, ref: np.ndarray, *, kp: float, kd: float, dt: float,
-                 ramp_s: float = 0.0, soft_start_s: float = 0.0, friction: FrictionFeedForward | None = None):
-        """``ref``: rad [DP, IE], read every update. ``kp`` N m/rad, ``kd`` N m s/rad, per motor."""
-        super().__init__({"kp": kp, "kd": kd}, dt=dt, ramp_s=ramp_s, soft_start_s=soft_start_s, friction=friction)
+                 ramp_s: float = 0.0, soft_start_s: float = 0.0, friction: FrictionFeedForward | None = None,
+                 margin_cfg: Mapping[str, Any] | None = None):
+        """``ref``: rad [DP, IE], read every update. ``kp`` N m/rad, ``kd`` N m s/rad, per motor.
+        ``margin_cfg``: the config whose plant every gain set (and every point of a ramp) must keep
+        the required gain margin on (GainError naming the gain); None: not checked."""
+        super().__init__({"kp": kp, "kd": kd}, dt=dt, ramp_s=ramp_s, soft_start_s=soft_start_s, friction=friction,
+                         margin_cfg=margin_cfg)
         self.R = kin.R.ravel().tolist()
         self.ref = ref
 
