@@ -29,7 +29,6 @@ import numpy as np
 
 from ankle_rt.config_schema import IMPEDANCE_GAINS, LOOP_GAINS, SHIPPED_GAINS
 from ankle_rt.linear_model import N_X, LinearModel
-from ankle_rt.loop_setup import loop_lag_s
 from ankle_rt.params import PlantParams
 
 AXES = ("dp", "ie")
@@ -344,9 +343,6 @@ class ImpedanceLoop:
     dob_hz: float = 0.0                     # disturbance observer's low-pass (0: no observer)
     dob_inertia: tuple[float, float] = (0.0, 0.0)   # kg m^2, the observer's nominal (ankle-side) inertia
     joint_encoders: bool = False            # the impedance law's angle: joint encoders (else through the cables)
-    motor_velocity: tuple[float, float] = (0.0, 0.0)   # N m s/rad, the inner motor-velocity loop (0: off)
-    joint_rate_hz: float = 200.0            # its joint-encoder rate's low-pass
-    cable_stiffness: tuple[float, float] = (math.inf, math.inf)   # N m/rad, the nominal one the daemon's lead uses
     velocity_cutoff_hz: float = 100.0       # estimation.velocity_cutoff_hz
     dt: float = 1e-3
     delay_cycles: int = 1
@@ -354,23 +350,19 @@ class ImpedanceLoop:
     @classmethod
     def from_config(cls, cfg: dict, *, closed: bool, delay_cycles: int = 1) -> "ImpedanceLoop":
         """The config's impedance gains and (``closed``) torque-loop gains."""
-        from ankle_rt.kinematics import Kinematics
         from ankle_rt.loop_setup import ReflectedActuator, uses_joint_encoders
-        from ankle_rt.params import TransmissionParams
 
         c = cfg["controller"]
         imp, tl = c["impedance"], c["torque_loop"]
         pair = lambda sec, key: (float(sec[key + "_dp"]), float(sec[key + "_ie"])) if closed else (0.0, 0.0)  # noqa: E731
         inertia = ReflectedActuator.from_config(cfg).inertia
         frac = pair(tl, "dob_inertia")
-        K = Kinematics.from_params(TransmissionParams(**cfg["transmission"])).K
         return cls(stiffness=(imp["stiffness_dp"], imp["stiffness_ie"]), damping=(imp["damping_dp"], imp["damping_ie"]),
                    kp=pair(tl, "kp"), ki=pair(tl, "ki"), torque_rate_gain=pair(tl, "torque_rate"),
                    cutoff_hz=tl["cutoff_hz"], dob_hz=float(tl["dob_hz"]) if closed else 0.0,
                    dob_inertia=(frac[0] * inertia[0], frac[1] * inertia[1]), joint_encoders=uses_joint_encoders(cfg),
                    velocity_cutoff_hz=cfg["estimation"]["velocity_cutoff_hz"],
-                   motor_velocity=pair(tl, "motor_velocity"), joint_rate_hz=float(tl["joint_rate_hz"]),
-                   cable_stiffness=(float(K[0, 0]), float(K[1, 1])), dt=1.0 / c["rate_hz"], delay_cycles=delay_cycles)
+                   dt=1.0 / c["rate_hz"], delay_cycles=delay_cycles)
 
 
 def _plant(p: PlantParams, *, foot: str, load_slope: float,
@@ -402,22 +394,17 @@ def _plant(p: PlantParams, *, foot: str, load_slope: float,
 
 
 N_W = 12     # controller states of the model: theta_m prev, v, tau filter, integrator, observer, u
-N_W_VELOCITY = 4   # and with the motor-velocity loop: joint angle prev, joint rate
 
 
 def _controller(lm_kin, K_cable: np.ndarray, c: ImpedanceLoop) -> tuple[np.ndarray, np.ndarray]:
-    """(W, U) over [w_{k-1} (12, or 16 with the velocity loop); y_k (6); r (2)]: the controller states
-    w = [theta_m prev (2), v (2), tau filter (2), integrator (2), observer low-pass (2), ankle-side
-    output u (2) (, joint angle prev (2), joint rate (2))] are w_k = W @ [...], the motor torques
-    U @ [...]; y = [theta_m, tau_j, theta] measured (theta: joint encoders), r a desired joint torque
-    added to the impedance law's (reference 0). The observer (dob_hz > 0): d = LP(u_{k-1} - tau_j -
-    J_n (w_k - w_{k-1}) / dt), w = R^-1 v, added to u; the motor-velocity loop: b_v (LP(joint rate) - w)
-    inside the correction (torque_loop.py)."""
-    velocity = c.motor_velocity != (0.0, 0.0)
-    nw = N_W + (N_W_VELOCITY if velocity else 0)
-    e = np.eye(nw + 8)
+    """(W, U) over [w_{k-1} (12); y_k (6); r (2)]: the controller states w = [theta_m prev (2), v (2),
+    tau filter (2), integrator (2), observer low-pass (2), ankle-side output u (2)] are w_k = W @ [...],
+    the motor torques U @ [...]; y = [theta_m, tau_j, theta] measured (theta: joint encoders), r a
+    desired joint torque added to the impedance law's (reference 0). The observer (dob_hz > 0):
+    d = LP(u_{k-1} - tau_j - J_n (w_k - w_{k-1}) / dt), w = R^-1 v, added to u (torque_loop.py)."""
+    e = np.eye(N_W + 8)
     th_prev, v_prev, f_prev, i_prev, d_prev, u_prev = (e[2 * j:2 * j + 2] for j in range(6))
-    th, tau, joint, r = e[nw:nw + 2], e[nw + 2:nw + 4], e[nw + 4:nw + 6], e[nw + 6:nw + 8]
+    th, tau, joint, r = e[N_W:N_W + 2], e[N_W + 2:N_W + 4], e[N_W + 4:N_W + 6], e[N_W + 6:N_W + 8]
     a_v = 1.0 - math.exp(-2.0 * math.pi * c.velocity_cutoff_hz * c.dt)
     a_f = 1.0 - math.exp(-2.0 * math.pi * c.cutoff_hz * c.dt)
     v = (1.0 - a_v) * v_prev + (a_v / c.dt) * (th - th_prev)
@@ -425,20 +412,12 @@ def _controller(lm_kin, K_cable: np.ndarray, c: ImpedanceLoop) -> tuple[np.ndarr
     Ri = lm_kin.R_inv
     ankle = joint if c.joint_encoders else Ri @ th - np.linalg.inv(K_cable) @ tau
     rate = Ri @ v
-    lead = [c.stiffness[a] * loop_lag_s(c.kp[a], c.torque_rate_gain[a], c.motor_velocity[a], c.cable_stiffness[a])
-            for a in (0, 1)]   # JointTorqueLoop.lag_s
+    lead = [c.stiffness[a] * c.torque_rate_gain[a] / (1.0 + c.kp[a]) for a in (0, 1)]   # JointTorqueLoop.lag_s
     tau_des = -np.diag(c.stiffness) @ ankle - np.diag(np.add(c.damping, lead)) @ rate + r
     err = tau_des - f
     # an axis without integral gain has no integrator (held at zero, not a marginal mode at z = 1)
     integ = np.diag([1.0 if k > 0.0 else 0.0 for k in c.ki]) @ i_prev + np.diag(c.ki) @ err * c.dt
     u_ankle = tau_des + np.diag(c.kp) @ err + integ - np.diag(c.torque_rate_gain) @ (f - f_prev) / c.dt
-    extra = []
-    if velocity:
-        j_prev, jv_prev = e[N_W:N_W + 2], e[N_W + 2:N_W + 4]
-        a_j = 1.0 - math.exp(-2.0 * math.pi * c.joint_rate_hz * c.dt)
-        jv = (1.0 - a_j) * jv_prev + (a_j / c.dt) * (joint - j_prev)
-        u_ankle = u_ankle + np.diag(c.motor_velocity) @ (jv - rate)
-        extra = [joint, jv]
     if c.dob_hz > 0.0:
         a_d = 1.0 - math.exp(-2.0 * math.pi * c.dob_hz * c.dt)
         accel = np.diag(c.dob_inertia) @ (rate - Ri @ v_prev) / c.dt
@@ -446,7 +425,7 @@ def _controller(lm_kin, K_cable: np.ndarray, c: ImpedanceLoop) -> tuple[np.ndarr
         u_ankle = u_ankle + d
     else:
         d = 0.0 * d_prev
-    return np.vstack([th, v, f, integ, d, u_ankle, *extra]), lm_kin.R_inv_T @ u_ankle
+    return np.vstack([th, v, f, integ, d, u_ankle]), lm_kin.R_inv_T @ u_ankle
 
 
 def closed_loop(p: PlantParams, c: ImpedanceLoop, *, foot: str = "free", load_slope: float = 0.0,
@@ -468,7 +447,7 @@ def _assemble(Ad: np.ndarray, Bd: np.ndarray, Cy: np.ndarray, W: np.ndarray, U: 
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(T, G, C_tau) of :func:`closed_loop` from the sampled plant (Ad, Bd, Cy), the controller rows
     (W, U) of :func:`_controller` and ``d`` cycles of delay."""
-    nx, nw = N_X, W.shape[0]
+    nx, nw = N_X, N_W
     n = nx + nw + 2 * d
     # controller rows over z_k and r: [w_{k-1}, y_k = Cy x_k, r]
     ny = Cy.shape[0]
@@ -696,8 +675,7 @@ def _margin_and_limit(p: PlantParams, loop: ImpedanceLoop, coefficient: float,
 
 def _gain_values(loop: ImpedanceLoop) -> tuple[float, ...]:
     """The loop's gains in the order LOOP_GAINS + IMPEDANCE_GAINS."""
-    return (*loop.kp, *loop.ki, *loop.torque_rate_gain, loop.cutoff_hz, *loop.motor_velocity, *loop.stiffness,
-            *loop.damping)
+    return (*loop.kp, *loop.ki, *loop.torque_rate_gain, loop.cutoff_hz, *loop.stiffness, *loop.damping)
 
 
 def _with_gain(loop: ImpedanceLoop, name: str, value: float) -> ImpedanceLoop:

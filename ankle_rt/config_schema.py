@@ -94,20 +94,15 @@ MAX_CORRECTION = 100.0
 DOB_HZ_DEFAULT, DOB_INERTIA_DEFAULT, MAX_OBSERVER_DEFAULT = 0.0, 1.0, 20.0
 TANK_J_DEFAULT, TANK_CREDIT_DEFAULT = 0.5, 0.8
 MAX_DOB_HZ, MAX_OBSERVER, MAX_TANK_J = 200.0, 100.0, 10.0
-# The inner motor-velocity loop (ankle_rt/control/torque_loop.py): off by default; its gain ceiling
-# (N m s/rad at the ankle) is far beyond what the margin allows (a typo is refused; the margin check does the rest).
-MOTOR_VELOCITY_DEFAULT, JOINT_RATE_HZ_DEFAULT, MAX_MOTOR_VELOCITY = 0.0, 200.0, 1000.0
 
 IMPEDANCE_DEFAULTS = {"stiffness_dp": 20.0, "stiffness_ie": 10.0, "damping_dp": 0.5, "damping_ie": 0.25}
 # The gains of a set (what ankle_rt.analysis.gain_set_margin_db checks and set_gains names) and the
 # shipped set (what a limiting gain is found against).
 IMPEDANCE_GAINS = tuple(IMPEDANCE_DEFAULTS)
-LOOP_GAINS = ("kp_dp", "kp_ie", "ki_dp", "ki_ie", "torque_rate_dp", "torque_rate_ie", "cutoff_hz",
-              "motor_velocity_dp", "motor_velocity_ie")
+LOOP_GAINS = ("kp_dp", "kp_ie", "ki_dp", "ki_ie", "torque_rate_dp", "torque_rate_ie", "cutoff_hz")
 SHIPPED_GAINS = {**IMPEDANCE_DEFAULTS, "kp_dp": KP_DEFAULT, "kp_ie": KP_DEFAULT, "ki_dp": KI_DEFAULT,
                  "ki_ie": KI_DEFAULT, "torque_rate_dp": KD_DP_DEFAULT, "torque_rate_ie": KD_IE_DEFAULT,
-                 "cutoff_hz": CUTOFF_DEFAULT, "motor_velocity_dp": MOTOR_VELOCITY_DEFAULT,
-                 "motor_velocity_ie": MOTOR_VELOCITY_DEFAULT}
+                 "cutoff_hz": CUTOFF_DEFAULT}
 
 IMPEDANCE = Section({
     "stiffness_dp": non_negative("N m/rad at the ankle", default=IMPEDANCE_DEFAULTS["stiffness_dp"], high=MAX_STIFFNESS),
@@ -162,13 +157,6 @@ TORQUE_LOOP = Section({
     "tank_friction_credit": Field(float, "share of the identified motor friction's dissipation (actuator.coulomb, "
                                          "damping) the tank is credited with", default=TANK_CREDIT_DEFAULT,
                                   low=0.0, high=1.0),
-    "motor_velocity_dp": non_negative("N m s/rad, inner motor-velocity loop, DP: on the joint-encoder rate minus the "
-                                      "ankle-side motor rate (the cable's stretch rate); needs joint encoders; 0 = off",
-                                      default=MOTOR_VELOCITY_DEFAULT, high=MAX_MOTOR_VELOCITY),
-    "motor_velocity_ie": non_negative("N m s/rad, inner motor-velocity loop, IE", default=MOTOR_VELOCITY_DEFAULT,
-                                      high=MAX_MOTOR_VELOCITY),
-    "joint_rate_hz": Field(float, "Hz, first-order low-pass of the joint-encoder rate the motor-velocity loop "
-                                  "follows", default=JOINT_RATE_HZ_DEFAULT, low=1.0, high=500.0),
 }, optional=True, doc="joint-torque feedback of the impedance controller (docs/daemon.md)")
 
 # The gait-phase controller's shipped parameters, for a 75 kg wearer at normal cadence (tuned on the

@@ -22,20 +22,14 @@ def torque_feedback(cfg: Mapping[str, Any]) -> bool:
     return cfg["backend"] == "sim" or cfg["strain_gauges"]["matrix"] is not None
 
 
-def has_joint_encoders(cfg: Mapping[str, Any]) -> bool:
-    """Whether the device has joint encoders (the simulator's always are: the true joint angle; on
-    hardware ``joint_encoders.counts_per_rev``)."""
-    return cfg["backend"] == "sim" or cfg["joint_encoders"]["counts_per_rev"] is not None
-
-
 def uses_joint_encoders(cfg: Mapping[str, Any]) -> bool:
     """Whether the impedance law takes the ankle angle from joint encoders: ``controller.impedance.
-    angle_source`` joint_encoders/estimated, or auto = when joint encoders are configured
-    (:func:`has_joint_encoders`)."""
+    angle_source`` joint_encoders/estimated, or auto = when joint encoders are configured (the
+    simulator's always are: the true joint angle; on hardware ``joint_encoders.counts_per_rev``)."""
     mode = cfg["controller"]["impedance"]["angle_source"]
     if mode != "auto":
         return mode == "joint_encoders"
-    return has_joint_encoders(cfg)
+    return cfg["backend"] == "sim" or cfg["joint_encoders"]["counts_per_rev"] is not None
 
 
 @dataclass(frozen=True)
@@ -59,11 +53,3 @@ class ReflectedActuator:
         return cls(inertia=(a["inertia"] * col[0], a["inertia"] * col[1]),
                    viscous=(a["damping"] * col[0], a["damping"] * col[1]),
                    coulomb=(a["coulomb"] * math.sqrt(col[0]), a["coulomb"] * math.sqrt(col[1])))
-
-
-def loop_lag_s(kp: float, torque_rate: float, motor_velocity: float, cable_stiffness: float) -> float:
-    """s: the joint-torque loop follows a desired torque as tau_des / (1 + s lag): both its rate terms act
-    on the measured cable (the torque rate ``torque_rate`` s, the motor-velocity loop ``motor_velocity``
-    N m s/rad on the stretch rate, i.e. torque rate / ``cable_stiffness`` N m/rad), divided by 1 + kp.
-    The impedance law leads it by K lag of damping (a lag turns a stiffness K into negative damping)."""
-    return (torque_rate + motor_velocity / cable_stiffness) / (1.0 + kp)

@@ -27,7 +27,7 @@ from ankle_rt.elementwise import Value, select
 from ankle_rt.gain_margin import gain_set_refusal, ramp_refusal
 from ankle_rt.estimation import Estimate
 from ankle_rt.kinematics import Kinematics
-from ankle_rt.loop_setup import ReflectedActuator, has_joint_encoders, torque_feedback, uses_joint_encoders
+from ankle_rt.loop_setup import ReflectedActuator, torque_feedback, uses_joint_encoders
 
 if TYPE_CHECKING:
     from ankle_rt.config import Config
@@ -75,7 +75,7 @@ class ImpedanceController(RampedGainController):
 
         c = cfg["controller"]
         joint = uses_joint_encoders(cfg)
-        if joint and not has_joint_encoders(cfg):
+        if joint and cfg["backend"] != "sim" and cfg["joint_encoders"]["counts_per_rev"] is None:
             raise ConfigError("angle_source joint_encoders needs joint encoders (joint_encoders.counts_per_rev)",
                               getattr(cfg, "source", None), "controller.impedance.angle_source")
         loop, limits, friction = actuation_from_config(cfg, friction)
@@ -126,14 +126,12 @@ class ImpedanceController(RampedGainController):
     columns = ("RiT",)
 
     def batch_key(self) -> tuple[tuple[str, bool], ...]:
-        loop = self.torque_loop
-        return (("controller.impedance.torque_feedback", loop is not None),
-                ("controller.torque_loop.motor_velocity_dp", loop is not None and loop.velocity_loop))
+        return (("controller.impedance.torque_feedback", self.torque_loop is not None),)
 
     def start(self, est: Estimate, where: bool | np.ndarray = True) -> None:
         super().start(est, where)
         if self.torque_loop is not None:
-            self.torque_loop.reset_state(est.sg_dp, est.sg_ie, est.dp_vel, est.ie_vel, where, est.joint_dp, est.joint_ie)
+            self.torque_loop.reset_state(est.sg_dp, est.sg_ie, est.dp_vel, est.ie_vel, where)
 
     def law(self, est: Estimate, ref_dp: Value, ref_ie: Value) -> tuple[Value, Value]:
         g = self.gains
@@ -165,7 +163,7 @@ class ImpedanceController(RampedGainController):
         j0, j1 = est.sg_dp, est.sg_ie
         loop = self.torque_loop
         if loop is not None:
-            t0, t1 = loop.update(t0, t1, j0, j1, est.dp_vel, est.ie_vel, s >= 1.0, est.joint_dp, est.joint_ie)
+            t0, t1 = loop.update(t0, t1, j0, j1, est.dp_vel, est.ie_vel, s >= 1.0)
         RiT = self.RiT
         ff = self.friction
         return (s * (RiT[0] * t0 + RiT[1] * t1 + ff.torque(est.mv1, RiT[0] * j0 + RiT[1] * j1)),
@@ -176,19 +174,10 @@ def actuation_from_config(cfg: "Config", friction: FrictionFeedForward | None
                           ) -> tuple[JointTorqueLoop | None, ImpedanceLimits | None, FrictionFeedForward | None]:
     """The impedance actuation's pieces from ``cfg``: the joint-torque loop and its stable set when
     :func:`torque_feedback` says so (the feed-forward's viscous terms then left out), else None, None
-    and ``friction`` as given. Raises ConfigError for a motor-velocity loop without joint encoders."""
-    from ankle_rt.config import ConfigError
-    from ankle_rt.params import TransmissionParams
-
+    and ``friction`` as given."""
     if not torque_feedback(cfg):
         return None, None, friction
     c = cfg["controller"]
-    gains = TorqueLoopGains.from_config(c["torque_loop"])
-    if gains.motor_velocity != (0.0, 0.0) and not has_joint_encoders(cfg):
-        raise ConfigError("the motor-velocity loop follows the joint encoders' rate: it needs joint encoders "
-                          "(joint_encoders.counts_per_rev)", getattr(cfg, "source", None),
-                          "controller.torque_loop.motor_velocity_dp")
-    K = Kinematics.from_params(TransmissionParams(**cfg["transmission"])).K
-    loop = JointTorqueLoop(gains, 1.0 / c["rate_hz"], ReflectedActuator.from_config(cfg),
-                           (float(K[0, 0]), float(K[1, 1])))
+    loop = JointTorqueLoop(TorqueLoopGains.from_config(c["torque_loop"]), 1.0 / c["rate_hz"],
+                           ReflectedActuator.from_config(cfg))
     return loop, ImpedanceLimits.from_config(cfg), friction.without_viscous() if friction is not None else None

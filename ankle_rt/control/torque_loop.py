@@ -40,20 +40,6 @@ drained by what the observer puts in (d w); empty, the observer may only brake (
 observer never gives the wearer more energy than the physical friction it cancels takes out, plus
 the tank's ``tank_j``.
 
-An **inner motor-velocity loop** (``motor_velocity`` > 0, joint encoders needed) adds
-
-    b_v (LP_j(d theta_joint / dt) - w)        (clamped to ``max_correction_nm`` on its own)
-
-the velocity loop of a cascaded series-elastic actuator (Pratt and Williamson; Vallery et al. 2008)
-whose set value follows the ankle's own rate from the joint encoders. ``theta_joint - q`` is minus the
-cable stretch, so the term is a damping on the stretch rate measured by the encoders instead of the
-low-passed strain-gauge rate: it damps the held-foot mode with less lag, which leaves room for a
-larger ``kp`` (less felt inertia and friction) at the same margin. Its integral would be the torque
-loop's integral again (``ki``, bounded by the same Routh condition), so it has none. It is clamped
-to ``max_correction_nm`` apart from the torque correction (a wrong joint reading moves ``u`` by at
-most that). Experimental: with ``torque_rate`` 0 the loop needs this term for its stability, and a
-fast push saturates it (docs/daemon.md, "Why, in numbers").
-
 Stability margins across cable stiffness +/- 30 % and the friction range come from the linear model:
 :func:`ankle_rt.analysis.torque_loop_margins`. Everything per cycle is plain floats (no allocation)
 for one device, arrays over the batch in the batched daemon cycle (:class:`JointTorqueLoop`).
@@ -66,7 +52,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 from ankle_rt.elementwise import Value, clip, select, stack
-from ankle_rt.loop_setup import ReflectedActuator, loop_lag_s
+from ankle_rt.loop_setup import ReflectedActuator
 
 if TYPE_CHECKING:
     import numpy as np
@@ -94,8 +80,6 @@ class TorqueLoopGains:
     max_observer_nm: tuple[float, float] = (0.0, 0.0)   # |d| at most this
     tank_j: float = 0.0                      # J, the energy tank's capacity
     tank_friction_credit: float = 0.0        # share of the identified friction's dissipation the tank gets
-    motor_velocity: tuple[float, float] = (0.0, 0.0)   # N m s/rad, the inner motor-velocity loop's gain; 0: off
-    joint_rate_hz: float = 200.0             # first-order low-pass of the joint-encoder rate it follows
 
     @classmethod
     def from_config(cls, c: Mapping[str, Any]) -> "TorqueLoopGains":
@@ -104,8 +88,7 @@ class TorqueLoopGains:
         return cls(kp=pair("kp"), ki=pair("ki"), torque_rate=pair("torque_rate"),
                    cutoff_hz=float(c["cutoff_hz"]), max_correction_nm=pair("max_correction"),
                    dob_hz=float(c["dob_hz"]), dob_inertia=pair("dob_inertia"), max_observer_nm=pair("max_observer"),
-                   tank_j=float(c["tank_j"]), tank_friction_credit=float(c["tank_friction_credit"]),
-                   motor_velocity=pair("motor_velocity"), joint_rate_hz=float(c["joint_rate_hz"]))
+                   tank_j=float(c["tank_j"]), tank_friction_credit=float(c["tank_friction_credit"]))
 
 
 class JointTorqueLoop:
@@ -115,19 +98,10 @@ class JointTorqueLoop:
     batch of devices (:meth:`stack`, the batched daemon cycle) they are arrays over the batch and the
     same :meth:`update` runs once for all of them."""
 
-    def __init__(self, gains: TorqueLoopGains, dt: float, actuator: ReflectedActuator | None = None,
-                 cable_stiffness: tuple[float, float] = (math.inf, math.inf)):
-        """``actuator``: needed with the observer (``gains.dob_hz`` > 0). ``cable_stiffness``: N m/rad
-        [DP, IE] at the ankle, needed with the motor-velocity loop (its lag, :attr:`lag_s`)."""
+    def __init__(self, gains: TorqueLoopGains, dt: float, actuator: ReflectedActuator | None = None):
+        """``actuator``: needed with the observer (``gains.dob_hz`` > 0)."""
         self.gains = gains
         self.dt = dt
-        self.velocity_loop = gains.motor_velocity != (0.0, 0.0)   # a bool, as the observer's
-        if self.velocity_loop and math.inf in cable_stiffness:
-            raise ValueError("JointTorqueLoop: the motor-velocity loop needs the cable stiffness")
-        self.bv0, self.bv1 = gains.motor_velocity
-        self.kc0, self.kc1 = cable_stiffness
-        self.aj = 1.0 - math.exp(-2.0 * math.pi * gains.joint_rate_hz * dt)
-        self.jp0 = self.jp1 = self.jv0 = self.jv1 = 0.0
         self.set_gains(*gains.kp, *gains.ki, *gains.torque_rate)
         self.lim0, self.lim1 = gains.max_correction_nm
         self.alpha = 1.0 - math.exp(-2.0 * math.pi * gains.cutoff_hz * dt)
@@ -160,10 +134,9 @@ class JointTorqueLoop:
     def lag_s(self) -> tuple[Value, Value]:
         """s [DP, IE]: the loop follows a desired torque as tau_des / (1 + s kd / (1 + kp)) (the rate
         term acts on the measured torque), a lag that turns a commanded stiffness K into K kd / (1 + kp)
-        of negative damping (-0.86 N m s/rad at K_ie 100: the IE ankle gave energy back at 2 Hz); the
-        motor-velocity loop adds b_v / k_cable to kd. The impedance law leads it by that much damping."""
-        return (loop_lag_s(self.kp0, self.kdr0 * self.dt, self.bv0, self.kc0),
-                loop_lag_s(self.kp1, self.kdr1 * self.dt, self.bv1, self.kc1))
+        of negative damping (-0.86 N m s/rad at K_ie 100: the IE ankle gave energy back at 2 Hz). The
+        impedance law leads it by that much damping."""
+        return self.kdr0 * self.dt / (1.0 + self.kp0), self.kdr1 * self.dt / (1.0 + self.kp1)
 
     @classmethod
     def stack(cls, loops: Sequence["JointTorqueLoop"]) -> "JointTorqueLoop":
@@ -172,12 +145,11 @@ class JointTorqueLoop:
         return stack(loops, shared=("gains",))
 
     def reset_state(self, tau_dp: Value, tau_ie: Value, w_dp: Value = 0.0, w_ie: Value = 0.0,
-                    where: bool | np.ndarray = True, j_dp: Value = 0.0, j_ie: Value = 0.0) -> None:
-        """Start from the measured torques (N m), the ankle-side motor rates ``w`` (rad/s, what
-        :meth:`update` is given) and the joint-encoder angles ``j`` (rad) with an empty integrator (on
-        activation); for a batch, only where ``where`` (bool per device) holds. The observer and the
-        velocity loop difference from the last cycle: a rate or angle left from before a deactivation
-        would read as a disturbance J_n dw/dt, or a joint rate, on activation."""
+                    where: bool | np.ndarray = True) -> None:
+        """Start from the measured torques (N m) and the ankle-side motor rates ``w`` (rad/s, what
+        :meth:`update` is given) with an empty integrator (on activation); for a batch, only where
+        ``where`` (bool per device) holds. The observer differences the rate from the last cycle: a
+        rate left from before a deactivation would read as a disturbance J_n dw/dt on activation."""
         self.f0 = select(where, tau_dp, self.f0)
         self.f1 = select(where, tau_ie, self.f1)
         self.i0 = select(where, 0.0, self.i0)
@@ -190,18 +162,12 @@ class JointTorqueLoop:
         self.u1 = select(where, tau_ie, self.u1)
         self.e0 = select(where, self.tank_max, self.e0)
         self.e1 = select(where, self.tank_max, self.e1)
-        if self.velocity_loop:
-            self.jp0 = select(where, j_dp, self.jp0)
-            self.jp1 = select(where, j_ie, self.jp1)
-            self.jv0 = select(where, 0.0, self.jv0)
-            self.jv1 = select(where, 0.0, self.jv1)
 
     def update(self, tau_dp: Value, tau_ie: Value, sg_dp: Value, sg_ie: Value, w_dp: Value, w_ie: Value,
-               integrate: bool | np.ndarray, j_dp: Value = 0.0, j_ie: Value = 0.0) -> tuple[Value, Value]:
-        """Desired joint torques and tared strain-gauge torques (N m, [DP, IE]), the ankle-side motor
-        rates R^-1 motor_vel (rad/s) and the joint-encoder angles (rad; read only by the velocity loop)
-        in, the ankle-side motor torques (N m, [DP, IE]) out. ``integrate`` False holds the integrator
-        and keeps the observer out (soft start)."""
+               integrate: bool | np.ndarray) -> tuple[Value, Value]:
+        """Desired joint torques and tared strain-gauge torques (N m, [DP, IE]) and the ankle-side
+        motor rates R^-1 motor_vel (rad/s) in, the ankle-side motor torques (N m, [DP, IE]) out.
+        ``integrate`` False holds the integrator and keeps the observer out (soft start)."""
         a = self.alpha
         p0, p1 = self.f0, self.f1
         f0 = p0 + a * (sg_dp - p0)
@@ -212,24 +178,11 @@ class JointTorqueLoop:
                                   self.lim0, integrate)
         c1, i1 = self._correction(e1, self.kp1 * e1 - self.kdr1 * (f1 - p1), self.i1 + self.kidt1 * e1, self.i1,
                                   self.lim1, integrate)
-        if self.velocity_loop:
-            v0, v1 = self._velocity_loop(j_dp, j_ie, w_dp, w_ie)
-            c0, c1 = c0 + v0, c1 + v1
         self.i0, self.i1 = i0, i1
         u0 = tau_dp + c0 + self._observe(0, sg_dp, w_dp, integrate)
         u1 = tau_ie + c1 + self._observe(1, sg_ie, w_ie, integrate)
         self.u0, self.u1 = u0, u1
         return u0, u1
-
-    def _velocity_loop(self, j_dp: Value, j_ie: Value, w_dp: Value, w_ie: Value) -> tuple[Value, Value]:
-        """b_v (LP(joint rate) - w) per axis [DP, IE], N m, each clamped to the axis's max correction:
-        the motor-velocity loop's torque."""
-        a, idt = self.aj, 1.0 / self.dt
-        r0 = self.jv0 + a * ((j_dp - self.jp0) * idt - self.jv0)
-        r1 = self.jv1 + a * ((j_ie - self.jp1) * idt - self.jv1)
-        self.jp0, self.jp1, self.jv0, self.jv1 = j_dp, j_ie, r0, r1
-        return (clip(self.bv0 * (r0 - w_dp), -self.lim0, self.lim0),
-                clip(self.bv1 * (r1 - w_ie), -self.lim1, self.lim1))
 
     @staticmethod
     def _correction(e: Value, pd: Value, i_new: Value, i_old: Value, lim: Value,
@@ -283,7 +236,7 @@ class ImpedanceLimits:
     max_stiffness: tuple[float, float]    # N m/rad
     kp: tuple[float, float]
     ki: tuple[float, float]
-    lag: tuple[float, float] = (0.0, 0.0)    # s, loop_lag_s: the law adds K lag of damping
+    lag: tuple[float, float] = (0.0, 0.0)    # s, kd / (1 + kp): the law adds K lag of damping
 
     @classmethod
     def from_config(cls, cfg: "Config") -> "ImpedanceLimits":
@@ -299,8 +252,7 @@ class ImpedanceLimits:
                    max_stiffness=(MAX_STIFFNESS_FRACTION[0] * float(kin.K[0, 0]),
                                   MAX_STIFFNESS_FRACTION[1] * float(kin.K[1, 1])),
                    kp=(tl["kp_dp"], tl["kp_ie"]), ki=(tl["ki_dp"], tl["ki_ie"]),
-                   lag=tuple(loop_lag_s(tl[f"kp_{n}"], tl[f"torque_rate_{n}"], tl[f"motor_velocity_{n}"],
-                                        float(kin.K[a, a])) for a, n in enumerate(("dp", "ie"))))
+                   lag=(tl["torque_rate_dp"] / (1.0 + tl["kp_dp"]), tl["torque_rate_ie"] / (1.0 + tl["kp_ie"])))
 
     def min_damping(self, axis: int, stiffness: float) -> float:
         """N m s/rad: the least commanded damping for ``stiffness`` N m/rad on ``axis`` (0 DP, 1 IE)."""
