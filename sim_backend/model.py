@@ -111,15 +111,23 @@ class CompliantModel:
         return (Ri[0] * s[2] + Ri[1] * s[3] - s[0], Ri[2] * s[2] + Ri[3] * s[3] - s[1],
                 Ri[0] * s[6] + Ri[1] * s[7] - s[4], Ri[2] * s[6] + Ri[3] * s[7] - s[5])
 
+    def cable_corrections(self, s: list[float]) -> tuple[float, float]:
+        """N m [DP, IE]: the cable effects' corrections to the linear joint torque at the state ``s``."""
+        p0, p1, d0, d1 = self.cable_state(s)
+        dt0 = dt1 = 0.0
+        for fx in self._cable_fx:
+            c0, c1 = fx(p0, p1, d0, d1)
+            dt0 = dt0 + c0
+            dt1 = dt1 + c1
+        return dt0, dt1
+
     def with_cable_effects(self, s: list[float], t0: float, t1: float) -> tuple[float, float]:
         """The linear joint torque ``t0, t1`` (N m) of the state ``s`` plus the cable effects'
         corrections: what the cables deliver (what the strain gauges measure). Element-wise."""
         if self._cable_fx:
-            p0, p1, d0, d1 = self.cable_state(s)
-            for fx in self._cable_fx:
-                c0, c1 = fx(p0, p1, d0, d1)
-                t0 = t0 + c0
-                t1 = t1 + c1
+            c0, c1 = self.cable_corrections(s)
+            t0 = t0 + c0
+            t1 = t1 + c1
         return t0, t1
 
     def generalized_forces(self, s: list[float], tau1: float, tau2: float,
@@ -138,12 +146,7 @@ class CompliantModel:
         f2, f3 = tau1, tau2
         d2 = d3 = tc1 = tc2 = 0.0
         if self._cable_fx:
-            p0, p1, d0, d1 = self.cable_state(s)
-            dt0 = dt1 = 0.0
-            for fx in self._cable_fx:
-                c0, c1 = fx(p0, p1, d0, d1)
-                dt0 = dt0 + c0
-                dt1 = dt1 + c1
+            dt0, dt1 = self.cable_corrections(s)
             RiT = self._RiT
             f0 = f0 + dt0
             f1 = f1 + dt1
