@@ -78,6 +78,14 @@ def stack_effects(effects: Sequence[Effect]):
     return PlantByPlant(effects)
 
 
+def stacked_matrix(matrices: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray | None]:
+    """One matrix per plant as (rows, columns, plants), einsum's fast layout, and the one matrix
+    when every plant has the same (None otherwise)."""
+    stacked = np.array(matrices)
+    shared = stacked[0] if np.all(stacked == stacked[0]) else None
+    return np.ascontiguousarray(stacked.transpose(1, 2, 0)), shared
+
+
 class BatchModel(CompliantModel):
     """The compliant model of ``len(models)`` plants; ``x`` is (8, plants). Same equations, same
     Heun substeps as :class:`CompliantModel` (whose force code it runs on arrays)."""
@@ -100,15 +108,16 @@ class BatchModel(CompliantModel):
         def rows(name: str) -> np.ndarray:   # (entries, plants)
             return np.array([np.atleast_1d(getattr(m, name)) for m in models], dtype=float).T.copy()
 
-        self._Ri, self._RiT, self._K = rows("_Ri"), rows("_RiT"), rows("_K")
+        self._Ri, self._RiT = rows("_Ri"), rows("_RiT")
         self._motor_cable = rows("_motor_cable")
         self._beta, self._grav = rows("_beta")[0], rows("_grav")[0]
-        phis = np.array([m._phi for m in models])              # (plants, 8, 12)
-        self._phi_shared = phis[0] if np.all(phis == phis[0]) else None
-        self._phi = np.ascontiguousarray(phis.transpose(1, 2, 0))   # (8, 12, plants): einsum's fast layout
-        self._z = np.zeros((12, n))
+        self._predict, self._predict_shared = stacked_matrix([m._predict for m in models])
+        self._correct, self._correct_shared = stacked_matrix([m._correct for m in models])
+        self._torque_rows, self._torque_rows_shared = stacked_matrix([m._torque_rows for m in models])
+        self._z = np.zeros((16, n))      # [x; f; g], as CompliantModel's
         self._x_next = np.zeros((8, n))
         self.x = self._z[:8]
+        self._xf = self._z[:12]          # [x; f]: what the prediction reads
         self.tau_applied = [np.zeros(n), np.zeros(n)]
         self.load = None
 
@@ -119,32 +128,32 @@ class BatchModel(CompliantModel):
         for e in self.effects:
             e.reset()
 
-    def _linear(self, z: np.ndarray, out: np.ndarray) -> None:
-        if self._phi_shared is not None:
-            np.dot(self._phi_shared, z, out=out)
+    @staticmethod
+    def _linear(stacked: np.ndarray, shared: np.ndarray | None, z: np.ndarray, out: np.ndarray) -> None:
+        """out = each plant's matrix @ its column of z (one product when all plants share it)."""
+        if shared is not None:
+            np.dot(shared, z, out=out)
         else:
-            np.einsum("ijn,jn->in", self._phi, z, out=out)
+            np.einsum("ijn,jn->in", stacked, z, out=out)
 
     def step(self, tau1, tau2, td_dp=0.0, td_ie=0.0) -> None:
         """Advance every plant one control tick; torques and disturbances are arrays (plants,) or floats."""
         tau1, tau2 = self.command_torque(tau1, tau2)
         self.tau_applied[0], self.tau_applied[1] = tau1, tau2
         z, x, x_next = self._z, self.x, self._x_next
-        forces = self.generalized_forces
-        for _ in range(self.substeps):
-            f = forces(x, tau1, tau2, td_dp, td_ie)       # Heun, as CompliantModel.step
-            z[8], z[9], z[10], z[11] = f
-            self._linear(z, x_next)
-            g = forces(x_next, tau1, tau2, td_dp, td_ie)
-            z[8] = 0.5 * (f[0] + g[0])
-            z[9] = 0.5 * (f[1] + g[1])
-            z[10] = 0.5 * (f[2] + g[2])
-            z[11] = 0.5 * (f[3] + g[3])
-            self._linear(z, x_next)
+        forces, linear = self.generalized_forces, self._linear
+        for _ in range(self.substeps):     # Heun, as CompliantModel.step
+            z[8], z[9], z[10], z[11] = forces(x, tau1, tau2, td_dp, td_ie)
+            linear(self._predict, self._predict_shared, self._xf, x_next)
+            z[12], z[13], z[14], z[15] = forces(x_next, tau1, tau2, td_dp, td_ie)
+            linear(self._correct, self._correct_shared, z, x_next)
             x[:] = x_next
 
     def joint_torque(self) -> tuple[np.ndarray, np.ndarray]:
-        return self.joint_torque_of(self.x)
+        """N m [DP, IE] per plant, as CompliantModel.joint_torque (new arrays)."""
+        t = np.empty((2, self.n))
+        self._linear(self._torque_rows, self._torque_rows_shared, self.x, t)
+        return self.with_cable_effects(self.x, t[0], t[1])
 
 
 class BatchPlant:
@@ -196,11 +205,8 @@ class BatchPlant:
         self._noise_i = NOISE_BLOCK
         self.current = [np.zeros(n), np.zeros(n)]
         self.ticks = 0
+        self.t = 0.0      # s, ticks * dt (kept with ticks: read every tick)
         self.model.reset()
-
-    @property
-    def t(self) -> float:
-        return self.ticks * self.dt
 
     def disturbance(self) -> tuple[np.ndarray | float, np.ndarray | float]:
         """N m at the ankle [DP, IE] per plant at the current time."""
@@ -221,6 +227,7 @@ class BatchPlant:
             self.walking.advance(self.t)
         self.model.step(self.kt * i1, self.kt * i2, dp, ie)
         self.ticks += 1
+        self.t = self.ticks * self.dt
 
     # -- sensors ---------------------------------------------------------------------------------
     def motor_positions(self) -> tuple[np.ndarray, np.ndarray]:

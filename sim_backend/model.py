@@ -13,7 +13,6 @@ as the reference solution in the tests.
 from __future__ import annotations
 
 import math
-from array import array
 
 import numpy as np
 
@@ -31,10 +30,20 @@ def baseline_friction(p: PlantParams, dt: float) -> CoulombFriction:
                             "smoothing_velocity": p.actuator.friction_smoothing_velocity}, p, dt)
 
 
-def float_buffer(n: int) -> tuple[array, np.ndarray]:
-    """``n`` zeros as an array.array and a numpy array sharing its memory."""
-    buf = array("d", bytes(8 * n))
+def float_buffer(n: int) -> tuple[memoryview, np.ndarray]:
+    """``n`` zeros as a memoryview of doubles and a numpy array sharing its memory. The memoryview
+    reads and sets single entries as plain floats (~1/3 cheaper than numpy's or array.array's
+    item access)."""
+    buf = memoryview(bytearray(8 * n)).cast("d")
     return buf, np.frombuffer(buf)
+
+
+def heun_matrices(linear: LinearModel, h: float) -> tuple[np.ndarray, np.ndarray]:
+    """The exact discretisation (ZOH) of the linear part over a substep ``h`` (s) as Heun's two
+    products: ``predict @ [x; f]`` holds the forces f of the substep's start, ``correct @ [x; f; g]``
+    the mean of f and of g, the forces at the predicted end (one product each, no mean formed)."""
+    Ad, Bd = zoh(linear.A, linear.B, h)
+    return np.hstack([Ad, Bd]), np.hstack([Ad, 0.5 * Bd, 0.5 * Bd])
 
 
 class CompliantModel:
@@ -58,21 +67,23 @@ class CompliantModel:
         kin = self.linear.kin
         self._Ri = kin.R_inv.ravel().tolist()          # phi = Ri theta_m - theta
         self._RiT = kin.R_inv_T.ravel().tolist()
-        self._K = [kin.K[0, 0], kin.K[1, 1]] if cables else [0.0, 0.0]
         self._beta = params.transmission.stiffness_proportional_damping
         self._motor_cable = self.linear.cable_Kq[2:4].ravel().tolist()  # motor-felt cable torque rows
         self._grav = params.foot.gravity_gain if gravity else 0.0
+        self._torque_rows = self.linear.joint_torque_rows(self._beta)   # linear joint torque = rows @ x
+        self._torque_buf, self._torque = float_buffer(2)
 
-        Ad, Bd = zoh(self.linear.A, self.linear.B, dt / self.substeps)
-        self._phi = np.hstack([Ad, Bd])  # x[k+1] = phi @ [x[k]; f]
-        # z = [x; f]: numpy views of array.array buffers, so the substeps index and set the entries
-        # as plain floats through the buffer (~2x cheaper than numpy item access, and no tolist)
-        self._zbuf, self._z = float_buffer(N_X + 4)
+        self._predict, self._correct = heun_matrices(self.linear, dt / self.substeps)
+        # z = [x; f; g]: numpy views of float buffers, so the substeps index and set the entries as
+        # plain floats through the buffer (cheaper than numpy item access, and no tolist)
+        self._zbuf, self._z = float_buffer(N_X + 8)
         self._next_buf, self._x_next = float_buffer(N_X)
         self.x = self._z[:N_X]  # a view: the state lives in the first 8 entries of z
+        self.x_floats = self._zbuf[:N_X]   # the same entries, read as plain floats (the sensors)
+        self._xf = self._z[:N_X + 4]   # [x; f]: what the prediction reads
         # the substeps alternate between z and this second buffer (no copy of the state per substep)
-        self._zbuf_alt, self._z_alt = float_buffer(N_X + 4)
-        self._x_alt = self._z_alt[:N_X]
+        self._zbuf_alt, self._z_alt = float_buffer(N_X + 8)
+        self._x_alt, self._xf_alt = self._z_alt[:N_X], self._z_alt[:N_X + 4]
         self.tau_applied = [0.0, 0.0]   # N m, motor torque command after command effects (last tick)
         # an external load on the foot that depends on its state (the walking scenario's body), or
         # None: ``load.torque(th_dp, th_ie, w_dp, w_ie)`` -> N m [DP, IE], evaluated at every substep
@@ -100,13 +111,21 @@ class CompliantModel:
         return (Ri[0] * s[2] + Ri[1] * s[3] - s[0], Ri[2] * s[2] + Ri[3] * s[3] - s[1],
                 Ri[0] * s[6] + Ri[1] * s[7] - s[4], Ri[2] * s[6] + Ri[3] * s[7] - s[5])
 
-    def joint_torque_of(self, s: list[float]) -> tuple[float, float]:
-        """N m: the joint torque the cables deliver (what the strain gauges measure), effects included."""
+    def cable_corrections(self, s: list[float]) -> tuple[float, float]:
+        """N m [DP, IE]: the cable effects' corrections to the linear joint torque at the state ``s``."""
         p0, p1, d0, d1 = self.cable_state(s)
-        K, b = self._K, self._beta
-        t0, t1 = K[0] * (p0 + b * d0), K[1] * (p1 + b * d1)
+        dt0 = dt1 = 0.0
         for fx in self._cable_fx:
             c0, c1 = fx(p0, p1, d0, d1)
+            dt0 = dt0 + c0
+            dt1 = dt1 + c1
+        return dt0, dt1
+
+    def with_cable_effects(self, s: list[float], t0: float, t1: float) -> tuple[float, float]:
+        """The linear joint torque ``t0, t1`` (N m) of the state ``s`` plus the cable effects'
+        corrections: what the cables deliver (what the strain gauges measure). Element-wise."""
+        if self._cable_fx:
+            c0, c1 = self.cable_corrections(s)
             t0 = t0 + c0
             t1 = t1 + c1
         return t0, t1
@@ -127,12 +146,7 @@ class CompliantModel:
         f2, f3 = tau1, tau2
         d2 = d3 = tc1 = tc2 = 0.0
         if self._cable_fx:
-            p0, p1, d0, d1 = self.cable_state(s)
-            dt0 = dt1 = 0.0
-            for fx in self._cable_fx:
-                c0, c1 = fx(p0, p1, d0, d1)
-                dt0 = dt0 + c0
-                dt1 = dt1 + c1
+            dt0, dt1 = self.cable_corrections(s)
             RiT = self._RiT
             f0 = f0 + dt0
             f1 = f1 + dt1
@@ -166,27 +180,19 @@ class CompliantModel:
         self.tau_applied[0] = tau1
         self.tau_applied[1] = tau2
         x, x_next, next_buf = self.x, self._x_next, self._next_buf
-        z, zb, x_now = self._z, self._zbuf, x          # zb: z's buffer, read and set as floats
-        z_alt, zb_alt, x_alt = self._z_alt, self._zbuf_alt, self._x_alt
-        linear = self._phi.dot   # x_next = phi @ z (the bound method: ~1/3 cheaper a call than np.dot)
+        z, zb, xf, x_now = self._z, self._zbuf, self._xf, x     # zb: z's buffer, read and set as floats
+        z_alt, zb_alt, xf_alt, x_alt = self._z_alt, self._zbuf_alt, self._xf_alt, self._x_alt
+        predict, correct = self._predict.dot, self._correct.dot   # bound: ~1/3 cheaper a call than np.dot
         forces = self.generalized_forces
         for _ in range(self.substeps):
             # Heun on the non-linear forces (the linear part is exact): predict the substep holding f
             # from its start, then redo it holding the mean of f at both ends. Holding f alone is first
             # order, and for cable effects (slack, hardening) on the stiff modes it can go unstable.
-            f0, f1, f2, f3 = forces(zb, tau1, tau2, td_dp, td_ie)
-            zb[8] = f0
-            zb[9] = f1
-            zb[10] = f2
-            zb[11] = f3
-            linear(z, x_next)
-            g0, g1, g2, g3 = forces(next_buf, tau1, tau2, td_dp, td_ie)
-            zb[8] = 0.5 * (f0 + g0)
-            zb[9] = 0.5 * (f1 + g1)
-            zb[10] = 0.5 * (f2 + g2)
-            zb[11] = 0.5 * (f3 + g3)
-            linear(z, x_alt)   # the corrected state, into the other buffer
-            z, zb, x_now, z_alt, zb_alt, x_alt = z_alt, zb_alt, x_alt, z, zb, x_now
+            zb[8], zb[9], zb[10], zb[11] = forces(zb, tau1, tau2, td_dp, td_ie)
+            predict(xf, x_next)
+            zb[12], zb[13], zb[14], zb[15] = forces(next_buf, tau1, tau2, td_dp, td_ie)
+            correct(z, x_alt)   # the corrected state, into the other buffer
+            z, zb, xf, x_now, z_alt, zb_alt, xf_alt, x_alt = z_alt, zb_alt, xf_alt, x_alt, z, zb, xf, x_now
         if x_now is not x:     # an odd number of substeps ended in the second buffer
             x[:] = x_now
 
@@ -197,7 +203,11 @@ class CompliantModel:
 
     # -- outputs ---------------------------------------------------------------------------------
     def joint_torque(self) -> tuple[float, float]:
-        return self.joint_torque_of(self._zbuf)   # x's own buffer: its entries as floats
+        """N m [DP, IE]: the joint torque the cables deliver, effects included. The linear part
+        K (phi + beta phi') is one product with the state (cheaper than the expression in floats)."""
+        self._torque_rows.dot(self.x, self._torque)
+        t = self._torque_buf
+        return self.with_cable_effects(self.x_floats, t[0], t[1])
 
     def energy(self) -> float:
         """J: kinetic + cable + gravity energy (meaningful for the reciprocal transmission)."""

@@ -46,23 +46,20 @@ class SimulatedPlant:
         check_disturbances(self.disturbances, source)
         self._pulses = [(d["start"], d["stop"], d["torque_dp"], d["torque_ie"]) for d in self.disturbances]
         self.rng = np.random.default_rng(sim["seed"])
-        # [DP, IE] per sample, drawn into a numpy view of an array.array read as plain floats
+        # [DP, IE] per sample, drawn into a numpy view of a buffer read as plain floats
         self._noise_buf, noise = float_buffer(2 * NOISE_BLOCK)
         self._noise = noise.reshape(NOISE_BLOCK, 2)
         self._noise_i = 2 * NOISE_BLOCK   # index of the next DP sample in _noise_buf (steps of 2)
         self.extra_disturbance = [0.0, 0.0]  # N m at the ankle [DP, IE], set by tests and tools
         self.current = [0.0, 0.0]            # A actually driven in the last tick
         self.ticks = 0
+        self.t = 0.0      # s, ticks * dt (kept with ticks: read every tick)
         self.walking = None
         if sim["scenario"] == "walking":
             from sim_backend.walking import WalkingScenario
 
             self.walking = self.model.load = WalkingScenario(sim["walking"])
         self.model.set_rest_at((0.0, 0.0))
-
-    @property
-    def t(self) -> float:
-        return self.ticks * self.dt
 
     def disturbance(self) -> tuple[float, float]:
         """N m at the ankle [DP, IE] at the current time."""
@@ -86,21 +83,22 @@ class SimulatedPlant:
             self.walking.advance(self.t)
         self.model.step(self.kt * i1, self.kt * i2, dp, ie)
         self.ticks += 1
+        self.t = self.ticks * self.dt
 
     # -- sensors ---------------------------------------------------------------------------------
     def encoder_counts(self) -> tuple[int, int]:
         """Quadrature counts at the gearbox output (floor, as a counter does)."""
-        x = self.model.x   # .item: plain floats (numpy scalar arithmetic costs ~3x)
+        x = self.model.x_floats   # plain floats (numpy scalar arithmetic costs ~3x)
         c = self.counts_per_rad
-        return math.floor(x.item(2) * c), math.floor(x.item(3) * c)
+        return math.floor(x[2] * c), math.floor(x[3] * c)
 
     def motor_positions(self) -> tuple[float, float]:
         """rad: what the encoders report (quantised if configured)."""
         if self.quantize:
             c1, c2 = self.encoder_counts()
             return c1 / self.counts_per_rad, c2 / self.counts_per_rad
-        x = self.model.x
-        return x.item(2), x.item(3)
+        x = self.model.x_floats
+        return x[2], x[3]
 
     def strain_gauge_torques(self) -> tuple[float, float]:
         """N m [DP, IE]: joint torque plus the sensor's offset and noise."""
@@ -120,5 +118,5 @@ class SimulatedPlant:
 
     def ankle_positions(self) -> tuple[float, float]:
         """rad [DP, IE]: the true joint angles (a bench's joint encoders)."""
-        x = self.model.x
-        return x.item(0), x.item(1)
+        x = self.model.x_floats
+        return x[0], x[1]

@@ -113,7 +113,8 @@ def _compare_with_rk4(params, effects, ticks=1000, load=8.0):
         a1, a2 = ref.command_torque(tau1, tau2)
         for _ in range(40):
             x = rk4_step(ref, x, DT / 40, a1, a2, *td)
-        truth = np.array(ref.joint_torque_of(x.tolist()))
+        ref.x[:] = x
+        truth = np.array(ref.joint_torque())
         err.append(truth - np.array(model.joint_torque()))
         size.append(truth)
     return np.sqrt(np.mean(np.square(err))), np.sqrt(np.mean(np.square(size)))
