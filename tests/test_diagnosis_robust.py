@@ -241,3 +241,40 @@ def test_unknown_beside_a_named_effect_needs_the_remainder_on_the_validation_dat
     held_out, gain, reduction = replicates(diag.detail["validation_models"]["motor"], specs, catch_all_motor)
     assert held_out == shows and (reduction > 0.5) == shows, (gain, reduction, msg)
     assert sorted(diag.causes) == sorted(["asymmetric_friction"] + (["unknown"] if shows else [])), msg
+
+
+def test_friction_asymmetry_of_its_own_size_per_motor_is_not_a_load_offset():
+    """Two motors never share their friction: asymmetries of 0.05 and 0.12 N m. A shared coefficient
+    leaves the difference as a constant per motor while they move, which read as ``torque_offset``."""
+    truth = {"type": "asymmetric_friction", "coulomb_asymmetry": 0.05, "coulomb_asymmetry_2": 0.12}
+    _, diag, msg = _diagnose(seed=76, plant="ankle", cause="asymmetric_friction", effects=[truth])
+    assert diag.causes == ["asymmetric_friction"], msg
+    for key in ("coulomb_asymmetry", "coulomb_asymmetry_2"):
+        assert diag.parameters[key]["value"] == pytest.approx(truth[key], rel=0.15), msg
+
+
+@pytest.mark.parametrize("seed,kinds,controller,motion", [
+    (1045, ["asymmetric_friction"], "impedance", "walking"),
+    (1042, ["load_dependent_friction", "stribeck"], "pd", "multisine"),
+])
+def test_generator_b_friction_forms_are_named_exactly(seed, kinds, controller, motion):
+    """Generator B's own forms: a Coulomb asymmetry of its own size per motor (walking under the impedance
+    law: no spurious ``torque_offset``); a Stribeck term of exponent 1 beside load-dependent friction
+    (no ``unknown`` left at the reversals, named with its exponent)."""
+    case = make_case_b(seed, kinds, controller, motion)
+    diag = diagnose(case.ident, case.valid, plant="ankle", cfg=case.nominal_cfg)
+    msg = f"{case.describe()} -> {diag.causes} {[e['effect'] for e in diag.effects]} {diag.notes}"
+    assert sorted(diag.causes) == list(case.causes), msg
+    stribeck = next((c for c in case.conditions if c["kind"] == "stribeck"), None)
+    if stribeck is not None:
+        found = next(e for e in diag.effects if e["type"] == "stribeck")
+        assert found["effect"]["exponent"] == stribeck["exponent"], msg
+
+
+def test_stribeck_with_an_exponential_decay_is_named_with_its_shape():
+    """exp(-|w / vs|) instead of the Gaussian: still ``stribeck``, with exponent 1 and its size."""
+    truth = {"type": "stribeck", "static_excess": 0.2, "stribeck_velocity": 0.08, "exponent": 1.0}
+    _, diag, msg = _diagnose(seed=77, plant="ankle", cause="stribeck", effects=[truth])
+    assert diag.causes == ["stribeck"], msg
+    assert diag.effect["exponent"] == 1.0, msg
+    assert diag.parameters["static_excess"]["value"] == pytest.approx(0.2, rel=0.15), msg

@@ -74,30 +74,63 @@ def _sd(cov: np.ndarray, i: int) -> float:
 
 
 class Stribeck(Candidate):
+    """Friction above the Coulomb level at low speed, ``a exp(-|w / vs|^e) tanh(w / v_eps)``: the shape
+    exponent e is a form (2 Gaussian here; measured curves take 0.5-2), vs on a grid."""
+
     cause = "stribeck"
     nonlinear = "stribeck_velocity"
+    exponent = 2.0
 
     def grid(self, ch):
         v99 = float(np.percentile(np.abs(ch.vel), 99))
         return list(np.geomspace(2.0 * ch.v_eps, max(0.3 * v99, 4.0 * ch.v_eps), 18))
 
     def design(self, ch, nl):
-        return Design(ch.filt(ch.step_mean(lambda v: np.exp(-(v / nl) ** 2) * np.tanh(v / ch.v_eps)))[:, None])
+        e = self.exponent
+        return Design(ch.filt(ch.step_mean(lambda v: np.exp(-np.abs(v / nl) ** e) * np.tanh(v / ch.v_eps)))[:, None])
 
     def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
-        return {"static_excess": (float(coef[0]), _sd(cov, 0)), "stribeck_velocity": (nl, nl_sd)}
+        return {"static_excess": (float(coef[0]), _sd(cov, 0)), "stribeck_velocity": (nl, nl_sd),
+                "exponent": (self.exponent, 0.0)}
+
+
+class StribeckExponential(Stribeck):
+    """The Stribeck form with an exponential decay (e = 1): a sharper breakaway and a longer tail than
+    the Gaussian, which leaves a remainder at every reversal when it is fitted the Gaussian way."""
+
+    exponent = 1.0
 
 
 class AsymmetricFriction(Candidate):
+    """Direction-dependent friction ``dc |tanh(w / v_eps)| + dv |w|``, coefficients shared by the motors."""
+
     cause = "asymmetric_friction"
+    per_motor = False
+
+    def applies(self, ch):
+        return not self.per_motor or ch.m > 1
 
     def design(self, ch, nl):
-        return Design(np.column_stack([ch.filt(ch.step_mean(lambda v: np.abs(np.tanh(v / ch.v_eps)))),
-                                       ch.filt(np.abs(ch.vel))]))
+        shapes = [ch.step_mean(lambda v: np.abs(np.tanh(v / ch.v_eps))), np.abs(ch.vel)]
+        if self.per_motor:
+            return Design(np.hstack([ch.per_column(ch.sm.smooth(x)) for x in shapes]))
+        return Design(np.column_stack([ch.filt(x) for x in shapes]))
 
     def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
-        return {"coulomb_asymmetry": (float(coef[0]), _sd(cov, 0)),
-                "viscous_asymmetry": (float(coef[1]), _sd(cov, 1))}
+        k = ch.m if self.per_motor else 1
+        out = {}
+        for i in range(k):
+            suffix = "" if i == 0 else f"_{i + 1}"
+            out["coulomb_asymmetry" + suffix] = (float(coef[i]), _sd(cov, i))
+            out["viscous_asymmetry" + suffix] = (float(coef[k + i]), _sd(cov, k + i))
+        return out
+
+
+class AsymmetricFrictionPerMotor(AsymmetricFriction):
+    """Direction-dependent friction of its own size per motor (two motors never share their friction):
+    with a shared coefficient the motors' difference reads as a load offset on each (``torque_offset``)."""
+
+    per_motor = True
 
 
 class LoadDependentFriction(Candidate):
@@ -421,8 +454,9 @@ class HardeningStiffness(Candidate):
         return super().rejection(params, coef, base_coef)
 
 
-MOTOR_CANDIDATES: tuple[Candidate, ...] = (Stribeck(), AsymmetricFriction(), LoadDependentFriction(),
-                                           Cogging(), Delay(), TorqueOffset(), TorqueConstantScale())
+MOTOR_CANDIDATES: tuple[Candidate, ...] = (Stribeck(), StribeckExponential(), AsymmetricFriction(),
+                                           AsymmetricFrictionPerMotor(), LoadDependentFriction(), Cogging(), Delay(),
+                                           TorqueOffset(), TorqueConstantScale())
 CABLE_CANDIDATES: tuple[Candidate, ...] = (Backlash(), CableBacklash(), HardeningStiffness(), EncoderScale())
 
 MIN_COGGING_PERIODS = 2.0
