@@ -278,3 +278,23 @@ def test_stribeck_with_an_exponential_decay_is_named_with_its_shape():
     assert diag.causes == ["stribeck"], msg
     assert diag.effect["exponent"] == 1.0, msg
     assert diag.parameters["static_excess"]["value"] == pytest.approx(0.2, rel=0.15), msg
+
+
+@pytest.mark.parametrize("seed,per", [(78, "axis"), (79, "cable")])
+def test_a_cable_with_slack_that_stiffens_on_its_taut_stretch_is_both(seed, per):
+    """Backlash and a k (1 + |z| / s0) law on the stretch beyond it: with the law on the whole stretch the
+    dead zone's width absorbed the stiffening and only ``backlash`` was named."""
+    effects = [{"type": "backlash", "half_width": 2e-4, "per": per},
+               {"type": "stiffness_nonlinear", "hardening_stretch": 4e-4, "exponent": 2.0, "slack": 2e-4, "per": per}]
+    _, diag, msg = _diagnose(seed=seed, plant="ankle", cause=["backlash", "stiffness_nonlinear"], effects=effects)
+    assert sorted(diag.causes) == ["backlash", "stiffness_nonlinear"], msg
+    found = {e["type"]: e for e in diag.effects}
+    assert found["backlash"]["parameters"]["half_width"]["value"] == pytest.approx(2e-4, rel=0.15), msg
+    assert found["stiffness_nonlinear"]["effect"]["slack"] == pytest.approx(2e-4, rel=0.25), msg
+    assert found["stiffness_nonlinear"]["effect"]["per"] == per, msg
+
+
+def test_generator_b_backlash_per_cable_with_stiffening_names_both():
+    case = make_case_b(1002, ["stiffening", "backlash"], "pd", "multisine")
+    diag = diagnose(case.ident, case.valid, plant="ankle", cfg=case.nominal_cfg)
+    assert sorted(diag.causes) == list(case.causes), f"{case.describe()} -> {diag.causes} {diag.notes}"

@@ -277,6 +277,11 @@ def select_channel(name: str, ch: Channel, candidates: tuple[Candidate, ...], ca
         if [t.nl for t in chosen] == before:
             break
         chosen, out.nl_sd = _refine(models, chosen, n_eff)
+    # the drop-one test again at the re-searched values: a block chosen while another's value was biased
+    # (a dead zone too wide before the stiffening took its share) may have nothing left to explain
+    pruned = _prune(models, list(chosen), n_eff)
+    if len(pruned) < len(chosen):
+        chosen, out.nl_sd = _refine(models, pruned, n_eff)
     chosen = _with_richer_forms(models, chosen, n_eff)
     out.terms = [_term_stats(models, chosen, i, pool, n_eff, base.rss) for i in range(len(chosen))]
     out.model = models.fit(chosen)
@@ -315,11 +320,29 @@ def _regrid(models: ChannelModels, chosen: list[Term], integer_only: bool = Fals
                 continue
             others = chosen[:i] + chosen[i + 1:]
             s = models.best_of(t.candidate, others, models.fit(others).residual, t.nl)
-            moved |= s.nl != t.nl
+            before = [u.nl for u in chosen]
             chosen[i] = models.term(t.candidate, s.nl)
+            chosen = _linked_together(models, chosen, i)
+            moved |= [u.nl for u in chosen] != before
         if not moved:
             break
     return chosen
+
+
+def _linked_together(models: ChannelModels, chosen: list[Term], i: int) -> list[Term]:
+    """Term ``i`` and the terms linked to it (:meth:`Candidate.linked`: the same slack) moved together to
+    the grid value where the model fits best, when that beats their present values: one parameter at a
+    time cannot follow the valley along which both must agree (backlash and the stiffening beyond it)."""
+    t = chosen[i]
+    moving = {i} | {j for j, o in enumerate(chosen) if j != i and t.candidate.linked(o.candidate)}
+    if len(moving) == 1:
+        return chosen
+    best, best_rss = chosen, models.rss(chosen)
+    for v in t.candidate.grid(models.ch):
+        trial = [models.term(o.candidate, v) if j in moving else o for j, o in enumerate(chosen)]
+        if (rss := models.rss(trial)) < best_rss:
+            best, best_rss = trial, rss
+    return best
 
 
 def _with_richer_forms(models: ChannelModels, chosen: list[Term], n_eff: float) -> list[Term]:
