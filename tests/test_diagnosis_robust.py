@@ -176,6 +176,23 @@ def test_a_controller_clamp_below_the_amplifier_peak_is_not_a_rail():
     assert not railed.good.all() and any("amplifier's limit" in w for w in railed.warnings)
 
 
+def test_every_sample_at_a_gauge_rail_is_masked_also_a_single_touch():
+    """A rail held in runs makes every sample at that value suspect: one that only touches it may be
+    clipped too (its true value beyond), and is masked with the runs."""
+    cols = _actuator_log()
+    t = cols["t"]
+    gauge = 3.0 * np.sin(2 * np.pi * 0.7 * t) + 0.01 * np.random.default_rng(5).standard_normal(t.size)
+    level = 2.0
+    gauge = np.clip(gauge, -level, level)
+    touch = 3000 + int(np.argmin(np.abs(gauge[3000:3700])))   # a zero crossing, far from the runs ...
+    gauge[touch] = level                                        # ... where a glitch reads the rail once
+    cols["sg_torque_dp"], cols["sg_torque_ie"] = gauge, 0.5 * gauge.copy()
+    scr = screen(Recording(cols, "clipped"), 1e-3, 15.0)
+    assert any("clipped" in w for w in scr.warnings)
+    assert not scr.good[touch]
+    assert not scr.good[np.abs(gauge) >= level].any()
+
+
 def test_a_constant_command_with_the_motor_at_rest_is_not_a_held_sample():
     cols = _actuator_log()
     pos, cur = cols["motor_pos_1"], cols["current_cmd_1"]
