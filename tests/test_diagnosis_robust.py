@@ -315,3 +315,14 @@ def test_generator_b_backlash_per_cable_with_stiffening_names_both():
     case = make_case_b(1002, ["stiffening", "backlash"], "pd", "multisine")
     diag = diagnose(case.ident, case.valid, plant="ankle", cfg=case.nominal_cfg)
     assert sorted(diag.causes) == list(case.causes), f"{case.describe()} -> {diag.causes} {diag.notes}"
+
+
+def test_a_cubic_cable_beside_backlash_keeps_the_form_that_fits_beside_it():
+    """The cubic law on the whole stretch beside a dead zone: alone, the taut-stretch form fits best, and
+    with the dead zone in the cubic one does (the forms compete again at the final values; left as
+    picked first, the remainder read as ``unknown`` and nothing was named)."""
+    effects = [{"type": "backlash", "half_width": 2.45e-4}, {"type": "stiffness_nonlinear", "hardening_stretch": 6.4e-4}]
+    _, diag, msg = _diagnose(seed=80, plant="ankle", cause=["backlash", "stiffness_nonlinear"], effects=effects)
+    assert sorted(diag.causes) == ["backlash", "stiffness_nonlinear"], msg
+    stiff = next(e for e in diag.effects if e["type"] == "stiffness_nonlinear")
+    assert stiff["effect"]["exponent"] == 3.0 and "slack" not in stiff["effect"], msg
