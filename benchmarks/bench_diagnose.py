@@ -85,6 +85,7 @@ def readme_rotor_cogging() -> str:
 class Row:
     """One benchmark file: its truth, what diagnose said (None: no verdict, ``error`` says why), its time."""
 
+    seed: int
     truth: tuple[str, ...]
     diag: Diagnosis | None
     seconds: float
@@ -105,14 +106,23 @@ def flagged(diag: Diagnosis) -> bool:
     return bool(diag.data_warnings or diag.calibration)
 
 
-def run_case(ident, valid, plant: str, cfg, truth, expect_flag: bool = False) -> Row:
+def run_case(seed: int, ident, valid, plant: str, cfg, truth, expect_flag: bool = False) -> Row:
     """Diagnose one case; an exception is a file without a verdict (counted, never fatal)."""
     t0 = time.perf_counter()
     try:
         diag, error = diagnose(ident, valid, plant=plant, cfg=cfg), ""
     except Exception as exc:   # noqa: BLE001 - the benchmark counts it as "no verdict"
         diag, error = None, f"{type(exc).__name__}: {exc}"
-    return Row(tuple(truth), diag, time.perf_counter() - t0, expect_flag, error)
+    return Row(seed, tuple(truth), diag, time.perf_counter() - t0, expect_flag, error)
+
+
+def print_misses(name: str, rows: list[Row]) -> None:
+    """Every case whose named set differs from its truth, or that expected a flag and got none."""
+    missed = [r for r in rows if not r.exact or (r.expect_flag and not (r.diag and flagged(r.diag)))]
+    print(f"generator {name} misses: {len(missed)}")
+    for r in missed:
+        flag = "  (no flag)" if r.expect_flag and not (r.diag and flagged(r.diag)) else ""
+        print(f"  seed {r.seed}: truth {','.join(sorted(r.truth))} -> named {','.join(r.named) or r.error}{flag}")
 
 
 def summary(rows: list[Row]) -> dict[str, str]:
@@ -149,7 +159,7 @@ def generator_a(args: argparse.Namespace) -> list[Row]:
     for i in range(args.n):
         spec = draw_scenario(args.seed + i)
         case = make_case(**spec)
-        row = run_case(case.ident, case.valid, case.plant, case.nominal_cfg, case.causes)
+        row = run_case(case.seed, case.ident, case.valid, case.plant, case.nominal_cfg, case.causes)
         rows.append(row)
         cases.append(case)
         mark = "" if row.exact else "  <-- differs"
@@ -205,7 +215,7 @@ def generator_b(args: argparse.Namespace) -> list[Row]:
             with open(args.save_b / "truth.txt", "a") as f:
                 f.write(f"b{case.seed}: causes {','.join(case.causes)}; flag expected {case.expect_flag}; "
                         f"{case.describe()}\n")
-        row = run_case(case.ident, case.valid, "ankle", case.nominal_cfg, case.causes, case.expect_flag)
+        row = run_case(case.seed, case.ident, case.valid, "ankle", case.nominal_cfg, case.causes, case.expect_flag)
         rows.append(row)
         flag = "" if not case.expect_flag else (" flag ok" if row.diag and flagged(row.diag) else " NO FLAG")
         mark = "" if row.exact else "  <-- differs"
@@ -215,7 +225,7 @@ def generator_b(args: argparse.Namespace) -> list[Row]:
     if args.runtime_s > 0:   # walking under the impedance law: slow motor reversals widen the cogging search
         case = make_case_b(args.seed - 1, ["stribeck", "asymmetric_friction"], "impedance", "walking",
                            ident_s=args.runtime_s, valid_s=args.runtime_s / 3)
-        row = run_case(case.ident, case.valid, "ankle", case.nominal_cfg, case.causes)
+        row = run_case(case.seed, case.ident, case.valid, "ankle", case.nominal_cfg, case.causes)
         print(f"\nruntime, generator B: diagnose on a {args.runtime_s:g} s walking file under the impedance law "
               f"(+ {args.runtime_s / 3:g} s validation): {row.seconds:.1f} s = {row.seconds / REF_S[0]:.3g} ref steps "
               f"(goal <= 20 s); named {row.named}")
@@ -237,13 +247,17 @@ def main() -> int:
     REF_S[0] = reference_step_s()     # the machine-independent unit (ankle_rt.timing_reference)
     print(f"reference step (plain-Python RK4 of the cable model): {REF_S[0] * 1e6:.1f} us on this machine")
 
-    results = {}
+    results, rows = {}, {}
     if args.generator in ("a", "both"):
-        results["A"] = summary(generator_a(args))
+        rows["A"] = generator_a(args)
         print()
     if args.generator in ("b", "both"):
-        results["B"] = summary(generator_b(args))
+        rows["B"] = generator_b(args)
         print()
+    for name, generated in rows.items():
+        results[name] = summary(generated)
+        print_misses(name, generated)
+    print()
     keys = list(dict.fromkeys(k for s in results.values() for k in s if not k.startswith("recall")))
     keys += sorted({k for s in results.values() for k in s if k.startswith("recall")})
     print(f"{'':<34}" + "".join(f"{'generator ' + g:<40}" for g in results))

@@ -104,6 +104,8 @@ class Plant:
             C, Kc, b = self.C, self.Kc, bl["half_width"]
             s = (C[0, 0] * p0 + C[0, 1] * p1, C[1, 0] * p0 + C[1, 1] * p1)
             z = tuple(x - b if x > b else (x + b if x < -b else 0.0) for x in s)
+            if st is not None:  # each cable stiffens on its own taut stretch, k (1 + |z| / s0)
+                z = tuple(x * (1.0 + abs(x) / st["s0"]) for x in z)
             f0 = Kc[0, 0] * z[0] + Kc[0, 1] * z[1]
             f1 = Kc[1, 0] * z[0] + Kc[1, 1] * z[1]
             return C[0, 0] * f0 + C[1, 0] * f1, C[0, 1] * f0 + C[1, 1] * f1

@@ -77,6 +77,38 @@ def test_asymmetric_friction_makes_the_two_directions_differ(params):
     assert back == pytest.approx(-(1.0 - kc + 0.1) / (D - 0.02), rel=0.02)
 
 
+def test_asymmetric_friction_and_stribeck_take_their_per_motor_sizes_and_shape(params):
+    """Motor 2's own asymmetry (default motor 1's); the Stribeck shape exponent (2 Gaussian, 1 exponential)."""
+    asym, = build_effects([{"type": "asymmetric_friction", "coulomb_asymmetry": 0.05,
+                            "coulomb_asymmetry_2": 0.12, "viscous_asymmetry": 0.01}], params, DT)
+    t1, t2 = asym.motor_torque(0.0, 0.0, 2.0, -2.0, 0.0, 0.0)
+    assert t1 == pytest.approx(0.05 + 0.02, rel=1e-3) and t2 == pytest.approx(0.12 + 0.02, rel=1e-3)
+    w, vs = 0.1, 0.05
+    for e in (2.0, 1.0):
+        strib, = build_effects([{"type": "stribeck", "static_excess": 0.2, "stribeck_velocity": vs,
+                                 "exponent": e}], params, DT)
+        assert strib.motor_torque(0.0, 0.0, w, w, 0.0, 0.0)[0] == pytest.approx(
+            0.2 * math.exp(-(w / vs) ** e) * math.tanh(w / params.actuator.friction_smoothing_velocity))
+
+
+@pytest.mark.parametrize("per", ["axis", "cable"])
+def test_stiffening_with_slack_acts_on_the_taut_stretch_only(params, per):
+    """Beside a dead zone of the same half-width the law acts on the stretch beyond it: nothing inside, the
+    plain law at the stretch less the slack per axis outside (per cable: on each cable's own stretch)."""
+    slack, s_h = 2e-4, 4e-4
+    law = {"type": "stiffness_nonlinear", "hardening_stretch": s_h, "exponent": 2.0, "per": per}
+    taut, = build_effects([{**law, "slack": slack}], params, DT)
+    whole, = build_effects([law], params, DT)
+    tr = params.transmission
+    lever = tr.lever_dp      # a DP rotation alone stretches both cables by lever_dp x phi (m)
+    inside = 0.5 * slack / lever
+    assert taut.cable_torque(inside, 0.0, 0.0, 0.0) == (0.0, 0.0)
+    outside = 3.0 * slack / lever
+    tdp = taut.cable_torque(outside, 0.0, 0.0, 0.0)[0]
+    assert tdp == pytest.approx(whole.cable_torque(outside - slack / lever, 0.0, 0.0, 0.0)[0], rel=1e-9)
+    assert tdp > 0.0
+
+
 def test_torque_offset_shifts_both_directions_the_same_way(params):
     """Unlike friction asymmetry, a load torque keeps its sign when the motion reverses."""
     eff = [{"type": "torque_offset", "torque_1": 0.1}]

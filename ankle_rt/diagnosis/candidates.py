@@ -51,6 +51,12 @@ class Candidate:
         ``design(value)`` gives the candidate's (cached) design at a value."""
         return self.grid(ch)
 
+    def linked(self, other: "Candidate") -> bool:
+        """Whether ``other``'s nonlinear value, when it is in the model, is one of this candidate's too (the
+        same physical quantity: a slack): it is then scored beside the grid, so a search one parameter at
+        a time can reach the point where both agree."""
+        return False
+
     def design(self, ch: Channel, nl: float) -> Design:
         raise NotImplementedError
 
@@ -74,30 +80,63 @@ def _sd(cov: np.ndarray, i: int) -> float:
 
 
 class Stribeck(Candidate):
+    """Friction above the Coulomb level at low speed, ``a exp(-|w / vs|^e) tanh(w / v_eps)``: the shape
+    exponent e is a form (2 Gaussian here; measured curves take 0.5-2), vs on a grid."""
+
     cause = "stribeck"
     nonlinear = "stribeck_velocity"
+    exponent = 2.0
 
     def grid(self, ch):
         v99 = float(np.percentile(np.abs(ch.vel), 99))
         return list(np.geomspace(2.0 * ch.v_eps, max(0.3 * v99, 4.0 * ch.v_eps), 18))
 
     def design(self, ch, nl):
-        return Design(ch.filt(ch.step_mean(lambda v: np.exp(-(v / nl) ** 2) * np.tanh(v / ch.v_eps)))[:, None])
+        e = self.exponent
+        return Design(ch.filt(ch.step_mean(lambda v: np.exp(-np.abs(v / nl) ** e) * np.tanh(v / ch.v_eps)))[:, None])
 
     def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
-        return {"static_excess": (float(coef[0]), _sd(cov, 0)), "stribeck_velocity": (nl, nl_sd)}
+        return {"static_excess": (float(coef[0]), _sd(cov, 0)), "stribeck_velocity": (nl, nl_sd),
+                "exponent": (self.exponent, 0.0)}
+
+
+class StribeckExponential(Stribeck):
+    """The Stribeck form with an exponential decay (e = 1): a sharper breakaway and a longer tail than
+    the Gaussian, which leaves a remainder at every reversal when it is fitted the Gaussian way."""
+
+    exponent = 1.0
 
 
 class AsymmetricFriction(Candidate):
+    """Direction-dependent friction ``dc |tanh(w / v_eps)| + dv |w|``, coefficients shared by the motors."""
+
     cause = "asymmetric_friction"
+    per_motor = False
+
+    def applies(self, ch):
+        return not self.per_motor or ch.m > 1
 
     def design(self, ch, nl):
-        return Design(np.column_stack([ch.filt(ch.step_mean(lambda v: np.abs(np.tanh(v / ch.v_eps)))),
-                                       ch.filt(np.abs(ch.vel))]))
+        shapes = [ch.step_mean(lambda v: np.abs(np.tanh(v / ch.v_eps))), np.abs(ch.vel)]
+        if self.per_motor:
+            return Design(np.hstack([ch.per_column(ch.sm.smooth(x)) for x in shapes]))
+        return Design(np.column_stack([ch.filt(x) for x in shapes]))
 
     def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
-        return {"coulomb_asymmetry": (float(coef[0]), _sd(cov, 0)),
-                "viscous_asymmetry": (float(coef[1]), _sd(cov, 1))}
+        k = ch.m if self.per_motor else 1
+        out = {}
+        for i in range(k):
+            suffix = "" if i == 0 else f"_{i + 1}"
+            out["coulomb_asymmetry" + suffix] = (float(coef[i]), _sd(cov, i))
+            out["viscous_asymmetry" + suffix] = (float(coef[k + i]), _sd(cov, k + i))
+        return out
+
+
+class AsymmetricFrictionPerMotor(AsymmetricFriction):
+    """Direction-dependent friction of its own size per motor (two motors never share their friction):
+    with a shared coefficient the motors' difference reads as a load offset on each (``torque_offset``)."""
+
+    per_motor = True
 
 
 class LoadDependentFriction(Candidate):
@@ -353,6 +392,9 @@ class Backlash(Candidate):
     def grid(self, ch):
         return list(np.geomspace(1e-5, 2e-3, 28))
 
+    def linked(self, other):
+        return isinstance(other, TautHardening)
+
     def clipped(self, ch, half_width: float) -> np.ndarray:
         """The stretch inside the dead zone per axis (samples x axes): the spring force it takes away / K."""
         b = half_width / ch.geometry.levers
@@ -381,11 +423,17 @@ class CableBacklash(Backlash):
     form = {"per": "cable"}
 
     def clipped(self, ch, half_width):
-        R = np.linalg.inv(ch.geometry.R_inv)
-        r = float(ch.geometry.levers[0] / R[0, 0])            # pulley radius, m
+        R, r = cable_map(ch)
         b = half_width / r
         c = np.clip(ch.phi @ R.T, -b, b)
         return (c @ R) / np.sum(R * R, axis=0)
+
+
+def cable_map(ch: CableChannel) -> tuple[np.ndarray, float]:
+    """(R, r): each cable's stretch is r (R phi)_i m; a law g per cable reaches axis a as
+    K_a (R^T g)_a / (R^T R)_aa (R^T R is diagonal: the cables pull symmetrically)."""
+    R = np.linalg.inv(ch.geometry.R_inv)
+    return R, float(ch.geometry.levers[0] / R[0, 0])            # r: the pulley radius, m
 
 
 class HardeningStiffness(Candidate):
@@ -400,20 +448,33 @@ class HardeningStiffness(Candidate):
     def grid(self, ch):
         return [2.0, 3.0, 4.0]
 
+    def exponent(self, nl: float) -> float:
+        return nl
+
+    def shape(self, ch, nl: float) -> np.ndarray:
+        """The correction / K per axis for s_h = 1 m (samples x axes): z |R_axis z|^(e - 1), z the stretch."""
+        return ch.phi * np.abs(ch.geometry.levers * ch.phi) ** (self.exponent(nl) - 1.0)
+
     def design(self, ch, nl):
         # nominal K per axis: both axes scale with the one cable stiffness k, so one shared coefficient
         # (k_true / k_nominal) / s_h^(e - 1) fits both, whatever k is
-        return Design(ch.filt(ch.geometry.K * ch.phi * np.abs(ch.geometry.levers * ch.phi) ** (nl - 1.0))[:, None])
+        return Design(ch.filt(ch.geometry.K * self.shape(ch, nl))[:, None])
 
     def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
         # the extended fit's own K (coefficients of phi) gives k_true / k_nominal
         ratio = float(np.mean(ch.geometry.K / base_coef[[0, 3]]))
         c, sd = float(coef[0]) * ratio, _sd(cov, 0) * ratio
+        e = self.exponent(nl)
+        shape = {"exponent": (e, 0.0), **self.slack(nl, nl_sd)}
         if c <= 0.0:
-            return {"hardening_stretch": (float("inf"), float("inf")), "exponent": (nl, 0.0)}
-        p = nl - 1.0
+            return {"hardening_stretch": (float("inf"), float("inf")), **shape}
+        p = e - 1.0
         s = c ** (-1.0 / p)
-        return {"hardening_stretch": (s, s * sd / (p * c)), "exponent": (nl, 0.0)}
+        return {"hardening_stretch": (s, s * sd / (p * c)), **shape}
+
+    def slack(self, nl: float, nl_sd: float) -> dict[str, tuple[float, float]]:
+        """The slack parameter of the form (none: the law acts on the whole stretch)."""
+        return {}
 
     def rejection(self, params, coef, base_coef):
         if not math.isfinite(params["hardening_stretch"][0]):
@@ -421,9 +482,53 @@ class HardeningStiffness(Candidate):
         return super().rejection(params, coef, base_coef)
 
 
-MOTOR_CANDIDATES: tuple[Candidate, ...] = (Stribeck(), AsymmetricFriction(), LoadDependentFriction(),
-                                           Cogging(), Delay(), TorqueOffset(), TorqueConstantScale())
-CABLE_CANDIDATES: tuple[Candidate, ...] = (Backlash(), CableBacklash(), HardeningStiffness(), EncoderScale())
+class TautHardening(HardeningStiffness):
+    """Stiffening of a cable with slack: the force law acts on the taut stretch beyond the dead zone,
+    z = phi - clip(phi, +/- slack / R_axis) per axis, k z (1 + |z| / s0) (exponent 2). With the law on the
+    whole stretch beside a dead zone, the dead zone's width absorbs the stiffening (a slack 25 % too wide
+    explained 98.5 % and left nothing the plain form could fit). The slack is searched on the backlash
+    grid with the dead zone in, so it settles where the cable goes taut."""
+
+    nonlinear = "slack"
+    integer = False
+    form = {"per": "axis"}
+
+    def grid(self, ch):
+        return Backlash().grid(ch)
+
+    def linked(self, other):
+        return isinstance(other, Backlash)
+
+    def exponent(self, nl):
+        return 2.0
+
+    def shape(self, ch, nl):
+        b = nl / ch.geometry.levers
+        z = ch.phi - np.clip(ch.phi, -b, b)
+        return z * np.abs(ch.geometry.levers * z)
+
+    def slack(self, nl, nl_sd):
+        return {"slack": (nl, nl_sd)}
+
+
+class CableTautHardening(TautHardening):
+    """The taut-stretch stiffening on each cable's own stretch (beside backlash per cable): the law on
+    z_i = s_i - clip(s_i, +/- slack / r), s = R phi, mapped back to the axes (:func:`cable_map`)."""
+
+    form = {"per": "cable"}
+
+    def shape(self, ch, nl):
+        R, r = cable_map(ch)
+        s = ch.phi @ R.T
+        z = s - np.clip(s, -nl / r, nl / r)
+        return ((z * np.abs(r * z)) @ R) / np.sum(R * R, axis=0)
+
+
+MOTOR_CANDIDATES: tuple[Candidate, ...] = (Stribeck(), StribeckExponential(), AsymmetricFriction(),
+                                           AsymmetricFrictionPerMotor(), LoadDependentFriction(), Cogging(), Delay(),
+                                           TorqueOffset(), TorqueConstantScale())
+CABLE_CANDIDATES: tuple[Candidate, ...] = (Backlash(), CableBacklash(), HardeningStiffness(), TautHardening(),
+                                           CableTautHardening(), EncoderScale())
 
 MIN_COGGING_PERIODS = 2.0
 SCALE_RANGE = (0.5, 2.0)           # plausible torque-constant calibration scales (true / configured)

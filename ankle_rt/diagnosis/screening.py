@@ -54,14 +54,15 @@ def _runs(flags: np.ndarray) -> list[tuple[int, int]]:
 
 
 def _flat_at_extreme(x: np.ndarray) -> np.ndarray:
-    """Samples equal to the column's maximum or minimum, where that extreme is held in runs (a rail)."""
+    """Samples equal to the column's maximum or minimum, where that extreme is held in runs (a rail).
+    Once the rail is known every sample at it is masked, also a single one where the signal only touched
+    it: its true value may lie beyond (left in, such touches made a saturating spring fit the cable)."""
     out = np.zeros(len(x), dtype=bool)
     for v in (np.max(x), np.min(x)):
         at = x == v
         runs = [(a, b) for a, b in _runs(at) if b - a >= RAIL_RUN]
         if sum(b - a for a, b in runs) >= max(RAIL_RUN, RAIL_SHARE * len(x)):
-            for a, b in runs:
-                out[a:b] = True
+            out |= at
     return out
 
 

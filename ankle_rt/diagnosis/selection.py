@@ -267,8 +267,27 @@ def select_channel(name: str, ch: Channel, candidates: tuple[Candidate, ...], ca
         if not added:
             break
     chosen = _prune(models, chosen, n_eff)
+    chosen, out.nl_sd = _settle(models, chosen, n_eff)
+    forms = _best_forms(models, list(chosen), pool, n_eff)
+    if [type(t.candidate) for t in forms] != [type(t.candidate) for t in chosen]:
+        chosen, out.nl_sd = _settle(models, forms, n_eff)
+    # the drop-one test again at the re-searched values: a block chosen while another's value was biased
+    # (a dead zone too wide before the stiffening took its share) may have nothing left to explain
+    pruned = _prune(models, list(chosen), n_eff)
+    if len(pruned) < len(chosen):
+        chosen, out.nl_sd = _refine(models, pruned, n_eff)
+    chosen = _with_richer_forms(models, chosen, n_eff)
+    out.terms = [_term_stats(models, chosen, i, pool, n_eff, base.rss) for i in range(len(chosen))]
+    out.model = models.fit(chosen)
+    _catch_all_on_top(out, models, chosen, C, groups, n_eff, base)
+    return out
+
+
+def _settle(models: ChannelModels, chosen: list[Term], n_eff: float) -> tuple[list[Term], list[float]]:
+    """Every chosen value searched again with the others in, the continuous ones refined, and the integer
+    ones re-searched with the refined values in until they stay: (terms, sd of each nonlinear value)."""
     chosen = _regrid(models, chosen)
-    chosen, out.nl_sd = _refine(models, chosen, n_eff)
+    chosen, sds = _refine(models, chosen, n_eff)
     for _ in range(REGRID_PASSES):
         # an integer value (never refined) chosen beside an unrefined continuous one may be off: re-grid
         # the integers with the refined values in, and refine again, until they stay
@@ -276,12 +295,8 @@ def select_channel(name: str, ch: Channel, candidates: tuple[Candidate, ...], ca
         chosen = _regrid(models, chosen, integer_only=True)
         if [t.nl for t in chosen] == before:
             break
-        chosen, out.nl_sd = _refine(models, chosen, n_eff)
-    chosen = _with_richer_forms(models, chosen, n_eff)
-    out.terms = [_term_stats(models, chosen, i, pool, n_eff, base.rss) for i in range(len(chosen))]
-    out.model = models.fit(chosen)
-    _catch_all_on_top(out, models, chosen, C, groups, n_eff, base)
-    return out
+        chosen, sds = _refine(models, chosen, n_eff)
+    return chosen, sds
 
 
 def _drop_score(models: ChannelModels, chosen: list[Term], i: int, n_eff: float) -> Score:
@@ -315,11 +330,51 @@ def _regrid(models: ChannelModels, chosen: list[Term], integer_only: bool = Fals
                 continue
             others = chosen[:i] + chosen[i + 1:]
             s = models.best_of(t.candidate, others, models.fit(others).residual, t.nl)
-            moved |= s.nl != t.nl
+            before = [u.nl for u in chosen]
             chosen[i] = models.term(t.candidate, s.nl)
+            chosen = _linked_together(models, chosen, i)
+            moved |= [u.nl for u in chosen] != before
         if not moved:
             break
     return chosen
+
+
+def _best_forms(models: ChannelModels, chosen: list[Term], pool: list[Candidate], n_eff: float) -> list[Term]:
+    """Each chosen term in the form of its cause that fits best with the others in, by the criterion, every
+    value settled again around it (:func:`_settle`): the forms compete once more at the final values,
+    since the form picked first, while another effect was still out of the model, need not be the one that
+    fits beside it (stiffening on the taut stretch picked alone, where a dead zone then explains the slack
+    and the cubic law the rest; the dead zone's width moves with the form)."""
+    def ic(terms: list[Term]) -> float:
+        return information_criterion(models.rss(terms), models.n, models.k(terms), n_eff)
+
+    for i, t in enumerate(chosen):
+        others = chosen[:i] + chosen[i + 1:]
+        residual = models.fit(others).residual
+        for c in pool:
+            if c.cause != t.cause or c is chosen[i].candidate:
+                continue
+            trial = chosen[:i] + [models.term(c, models.best_of(c, others, residual).nl)] + chosen[i + 1:]
+            trial = _settle(models, trial, n_eff)[0]
+            if ic(trial) < ic(chosen):
+                chosen = trial
+    return chosen
+
+
+def _linked_together(models: ChannelModels, chosen: list[Term], i: int) -> list[Term]:
+    """Term ``i`` and the terms linked to it (:meth:`Candidate.linked`: the same slack) moved together to
+    the grid value where the model fits best, when that beats their present values: one parameter at a
+    time cannot follow the valley along which both must agree (backlash and the stiffening beyond it)."""
+    t = chosen[i]
+    moving = {i} | {j for j, o in enumerate(chosen) if j != i and t.candidate.linked(o.candidate)}
+    if len(moving) == 1:
+        return chosen
+    best, best_rss = chosen, models.rss(chosen)
+    for v in t.candidate.grid(models.ch):
+        trial = [models.term(o.candidate, v) if j in moving else o for j, o in enumerate(chosen)]
+        if (rss := models.rss(trial)) < best_rss:
+            best, best_rss = trial, rss
+    return best
 
 
 def _with_richer_forms(models: ChannelModels, chosen: list[Term], n_eff: float) -> list[Term]:

@@ -31,6 +31,9 @@ from ankle_rt.config import ConfigError, Section, validate
 from ankle_rt.params import PlantParams
 from ankle_rt.elementwise import stack
 
+#: the type of an optional number in a PARAMS field (written null, or left out, for "as motor 1's")
+OPTIONAL_FLOAT = (float, type(None))
+
 EFFECTS: dict[str, type["Effect"]] = {}
 
 

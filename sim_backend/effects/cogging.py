@@ -5,9 +5,7 @@ from __future__ import annotations
 import math
 
 from ankle_rt.config import Field, Section, non_negative
-from sim_backend.effects.base import Effect, register_effect
-
-_OPTIONAL = (float, type(None))
+from sim_backend.effects.base import OPTIONAL_FLOAT, Effect, register_effect
 
 
 @register_effect("cogging")
@@ -23,11 +21,11 @@ class Cogging(Effect):
         "amplitude": non_negative("N m, motor 1 (and motor 2 unless amplitude_2)"),
         "periods_per_rev": Field(int, "ripple periods per output revolution", low=1),
         "phase": Field(float, "rad, motor 1 (and motor 2 unless phase_2)", default=0.0),
-        "amplitude_2": Field(_OPTIONAL, "N m, motor 2 (default: amplitude)", default=None, low=0.0),
-        "phase_2": Field(_OPTIONAL, "rad, motor 2 (default: phase)", default=None),
+        "amplitude_2": Field(OPTIONAL_FLOAT, "N m, motor 2 (default: amplitude)", default=None, low=0.0),
+        "phase_2": Field(OPTIONAL_FLOAT, "rad, motor 2 (default: phase)", default=None),
         "harmonic_amplitude": non_negative("N m of the second harmonic (2 n periods per revolution)", default=0.0),
         "harmonic_phase": Field(float, "rad, second harmonic of motor 1", default=0.0),
-        "harmonic_phase_2": Field(_OPTIONAL, "rad, second harmonic of motor 2 (default: harmonic_phase)",
+        "harmonic_phase_2": Field(OPTIONAL_FLOAT, "rad, second harmonic of motor 2 (default: harmonic_phase)",
                                   default=None),
     })
     cause = "cogging"
