@@ -265,10 +265,10 @@ class Daemon:
                 raise GainError(name, f"{what} {problem}")
 
     def _set_gains_checked(self, gains: dict[str, float]) -> dict | proto.Pending:
-        """The set_gains command. A controller whose gain check is slow (``check_gains``: the
-        impedance controller's stability margins over the whole ramp) is checked by the background
-        loader, off the loop thread, and the gains applied when the check passes (Pending reply);
-        any other controller's gains are set at once."""
+        """The set_gains command. A controller whose gain check is slow (``check_gains``: the built-in
+        controllers' stability margins over the whole ramp) is checked by the background loader, off
+        the loop thread, and the gains applied when the check passes (Pending reply); any other
+        controller's gains (a plugin without the check) are set at once."""
         check = getattr(self.controller, "check_gains", None)
         if check is None:
             self.set_gains(**gains)
