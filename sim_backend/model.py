@@ -21,6 +21,7 @@ from ankle_rt.params import PlantParams
 from ankle_rt.discretize import zoh
 from sim_backend.effects import Effect
 from ankle_rt.elementwise import sin
+from ankle_rt.float_buffer import float_buffer
 from sim_backend.effects.friction import CoulombFriction
 
 
@@ -28,14 +29,6 @@ def baseline_friction(p: PlantParams, dt: float) -> CoulombFriction:
     """The nominal Coulomb friction of the actuator parameters, as an effects-library entry."""
     return CoulombFriction({"coulomb": p.actuator.coulomb,
                             "smoothing_velocity": p.actuator.friction_smoothing_velocity}, p, dt)
-
-
-def float_buffer(n: int) -> tuple[memoryview, np.ndarray]:
-    """``n`` zeros as a memoryview of doubles and a numpy array sharing its memory. The memoryview
-    reads and sets single entries as plain floats (~1/3 cheaper than numpy's or array.array's
-    item access)."""
-    buf = memoryview(bytearray(8 * n)).cast("d")
-    return buf, np.frombuffer(buf)
 
 
 def heun_matrices(linear: LinearModel, h: float) -> tuple[np.ndarray, np.ndarray]:

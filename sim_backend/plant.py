@@ -11,10 +11,11 @@ import math
 import numpy as np
 
 from ankle_rt.config import ConfigError
+from ankle_rt.float_buffer import float_buffer
 from ankle_rt.params import PlantParams
 from sim_backend.amplifier import EsconCurrentLimit
 from sim_backend.effects import build_effects
-from sim_backend.model import CompliantModel, float_buffer
+from sim_backend.model import CompliantModel
 
 NOISE_BLOCK = 4096  # strain-gauge noise samples drawn at a time (refilled in place, no allocation)
 
