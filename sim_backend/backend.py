@@ -52,9 +52,12 @@ class SimBackend(Backend):
             # skips a sample. The plant's time starts at this first read.
             self.start_ns = now - self.period_ns // 2
         due = (now - self.start_ns) // self.period_ns
-        todo = min(due - plant.ticks, MAX_CATCH_UP_TICKS)
-        for _ in range(todo):
+        todo = due - plant.ticks
+        if todo > MAX_CATCH_UP_TICKS:
+            todo = MAX_CATCH_UP_TICKS
+        while todo > 0:       # usually once (lockstep): no range object or min() call per cycle
             plant.step(self.set_values[0], self.set_values[1])
+            todo -= 1
         frame.t = plant.t
         frame.seq = plant.ticks
         v = frame.values   # [motor 1, motor 2, sg DP, sg IE, ankle DP, ankle IE], set as plain floats
