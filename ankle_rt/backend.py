@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 
 from ankle_rt.config import ConfigError
+from ankle_rt.float_buffer import float_buffer
 
 if TYPE_CHECKING:
     from ankle_rt.clock import Clock
@@ -60,16 +61,21 @@ class SensorFrame:
 
     Units: t in s (the backend's sample time), angles in rad, torques in N m. Motor quantities are
     at the gearbox output. ``ankle_pos`` is NaN when the device has no joint encoders.
+    ``values`` holds the three pairs in that order, [motor 1, motor 2, sg DP, sg IE, ankle DP,
+    ankle IE], as a memoryview: the cycle's own reads and writes go through it as plain floats
+    (the arrays are views of the same memory).
     """
 
-    __slots__ = ("t", "seq", "motor_pos", "sg_torque", "ankle_pos", "amp_ready", "faults")
+    __slots__ = ("t", "seq", "values", "motor_pos", "sg_torque", "ankle_pos", "amp_ready", "faults")
 
     def __init__(self) -> None:
         self.t = 0.0
         self.seq = 0
-        self.motor_pos = np.zeros(2)          # rad, [motor 1, motor 2]
-        self.sg_torque = np.zeros(2)          # N m, [DP, IE] from the strain gauges (tared)
-        self.ankle_pos = np.full(2, np.nan)   # rad, [DP, IE] joint encoders, if any
+        self.values, pairs = float_buffer(6)
+        self.motor_pos = pairs[0:2]           # rad, [motor 1, motor 2]
+        self.sg_torque = pairs[2:4]           # N m, [DP, IE] from the strain gauges (tared)
+        self.ankle_pos = pairs[4:6]           # rad, [DP, IE] joint encoders, if any
+        self.ankle_pos[:] = np.nan
         self.amp_ready = [True, True]
         self.faults = BackendFault.NONE
 

@@ -28,6 +28,7 @@ from ankle_rt.control.gains import GainError
 from ankle_rt.control.base import BatchableController
 from ankle_rt.control.gait_phase import PHASES, GaitPhaseController
 from ankle_rt.estimation import Estimate, Estimator
+from ankle_rt.float_buffer import float_buffer
 from ankle_rt.interchange import InterchangeError
 from ankle_rt.kinematics import Kinematics
 from ankle_rt.log.memory import MemoryRecorder
@@ -87,7 +88,8 @@ class Daemon:
         self.max_reference_step = cfg["reference"]["max_rate_rad_s"] * self.dt   # rad per cycle, commanded
         self.gain_maxima = gain_maxima(cfg["controller"]["gain_limits"])
         self.loader = BackgroundLoader()
-        self.torque = np.zeros(2)
+        # N m [motor 1, motor 2]: the controller sets ``torque``, the cycle reads ``_torque_values``
+        self._torque_values, self.torque = float_buffer(2)
         self.recorder = recorder
         self.lsl: "LslPublisher | None" = None   # set by open_log when lsl.enabled
         self.log_fault = cfg["logging"]["fault_on_error"]
@@ -121,11 +123,12 @@ class Daemon:
                 self.activate()
                 state = ACTIVE
             if code == 0 and state == ACTIVE and self.own_controller:
-                ref = self.reference.ref
-                code = safety.check_reference(ref.item(0), ref.item(1))
+                ref = self.reference.values
+                code = safety.check_reference(ref[0], ref[1])
             if code == 0 and state == ACTIVE:
                 self._controller.update(est, torque)   # the attribute (no property call per cycle)
-                code = safety.limit_currents(torque.item(0) * self.inv_kt, torque.item(1) * self.inv_kt)
+                tau = self._torque_values
+                code = safety.limit_currents(tau[0] * self.inv_kt, tau[1] * self.inv_kt)
                 if code == 0:
                     code = safety.check_gauges(est)
                 if code == 0:
@@ -137,10 +140,10 @@ class Daemon:
         if self.service is not None:
             self._service_tick(t_start_ns * 1e-9)
         if self.recorder is not None:
-            ref = self.reference.ref
+            ref, tau = self.reference.values, self._torque_values    # memoryviews: plain floats
             self.recorder.append(
                 est.t, est.mp1, est.mp2, est.mv1, est.mv2, est.sg_dp, est.sg_ie, est.joint_dp, est.joint_ie,
-                est.dp, est.ie, ref.item(0), ref.item(1), torque.item(0), torque.item(1),   # .item: floats
+                est.dp, est.ie, ref[0], ref[1], tau[0], tau[1],
                 safety.current[0], safety.current[1],
                 (t_start_ns - loop.start_ns) * 1e-9, frame.seq, loop.last_period_ns * 1e-3, latency_ns * 1e-3,
                 loop.stats.overruns, safety.state, safety.fault, frame.faults, self.gait_phase())

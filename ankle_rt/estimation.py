@@ -116,8 +116,8 @@ class Estimator:
 
     def update(self, frame: SensorFrame, est: Estimate) -> None:
         """Estimate from ``frame`` into ``est`` (no allocation)."""
-        mp, sg, j = frame.motor_pos, frame.sg_torque, frame.ankle_pos
-        self.estimate(frame.t, mp.item(0), mp.item(1), sg.item(0), sg.item(1), j.item(0), j.item(1), est)
+        v = frame.values
+        self.estimate(frame.t, v[0], v[1], v[2], v[3], v[4], v[5], est)
 
     def estimate(self, t: float, p1: Value, p2: Value, s0: Value, s1: Value, j0: Value, j1: Value,
                  est: Estimate) -> None:

@@ -18,6 +18,7 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
+from ankle_rt.float_buffer import float_buffer
 from ankle_rt.schema import ConfigError, Field, Section, non_negative, positive, validate
 from ankle_rt.interchange import InterchangeError, read_columns
 
@@ -312,7 +313,9 @@ class ReferenceGenerator:
     """The loop's ankle reference: the active profile, started at an absolute sample time."""
 
     def __init__(self, profile: Profile, t0: float = 0.0):
-        self.ref = np.zeros(2)       # rad [DP, IE], refreshed by update(); controllers read it
+        # rad [DP, IE], refreshed by update(); controllers read ``ref``, the cycle the same two
+        # entries as plain floats through the memoryview ``values``
+        self.values, self.ref = float_buffer(2)
         self.base = (0.0, 0.0)
         self.profile = profile
         self.t0 = t0
@@ -338,9 +341,9 @@ class ReferenceGenerator:
         if p.relative:
             dp += self.base[0]
             ie += self.base[1]
-        step, ref = self.max_step, self.ref
+        step, ref = self.max_step, self.values
         if step != math.inf:         # rate limit (a NaN passes through: the safety layer faults on it)
-            r0, r1 = ref.item(0), ref.item(1)
+            r0, r1 = ref[0], ref[1]
             dp = r0 + step if dp > r0 + step else (r0 - step if dp < r0 - step else dp)
             ie = r1 + step if ie > r1 + step else (r1 - step if ie < r1 - step else ie)
         ref[0] = dp

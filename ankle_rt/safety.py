@@ -239,8 +239,8 @@ class Safety:
                     return code
         if self.state == _ACTIVE and not (frame.amp_ready[0] and frame.amp_ready[1]):
             return _AMP_NOT_READY
-        mp, sg = frame.motor_pos, frame.sg_torque
-        code = self.check_values(frame.t, mp.item(0), mp.item(1), sg.item(0), sg.item(1), est)
+        v = frame.values
+        code = self.check_values(frame.t, v[0], v[1], v[2], v[3], est)
         if code:
             return code
         seq = frame.seq

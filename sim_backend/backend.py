@@ -52,14 +52,18 @@ class SimBackend(Backend):
             # skips a sample. The plant's time starts at this first read.
             self.start_ns = now - self.period_ns // 2
         due = (now - self.start_ns) // self.period_ns
-        todo = min(due - plant.ticks, MAX_CATCH_UP_TICKS)
-        for _ in range(todo):
+        todo = due - plant.ticks
+        if todo > MAX_CATCH_UP_TICKS:
+            todo = MAX_CATCH_UP_TICKS
+        while todo > 0:       # usually once (lockstep): no range object or min() call per cycle
             plant.step(self.set_values[0], self.set_values[1])
+            todo -= 1
         frame.t = plant.t
         frame.seq = plant.ticks
-        frame.motor_pos[0], frame.motor_pos[1] = plant.motor_positions()
-        frame.sg_torque[0], frame.sg_torque[1] = plant.strain_gauge_torques()
-        frame.ankle_pos[0], frame.ankle_pos[1] = plant.ankle_positions()
+        v = frame.values   # [motor 1, motor 2, sg DP, sg IE, ankle DP, ankle IE], set as plain floats
+        v[0], v[1] = plant.motor_positions()
+        v[2], v[3] = plant.strain_gauge_torques()
+        v[4], v[5] = plant.ankle_positions()
         injected = self.injected   # usually NONE: skip the flag arithmetic (~0.5 us per IntFlag "&")
         ready = not (injected and injected & BackendFault.AMP_NOT_READY)
         frame.amp_ready[0] = frame.amp_ready[1] = ready

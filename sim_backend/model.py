@@ -21,6 +21,7 @@ from ankle_rt.params import PlantParams
 from ankle_rt.discretize import zoh
 from sim_backend.effects import Effect
 from ankle_rt.elementwise import sin
+from ankle_rt.float_buffer import float_buffer
 from sim_backend.effects.friction import CoulombFriction
 
 
@@ -28,14 +29,6 @@ def baseline_friction(p: PlantParams, dt: float) -> CoulombFriction:
     """The nominal Coulomb friction of the actuator parameters, as an effects-library entry."""
     return CoulombFriction({"coulomb": p.actuator.coulomb,
                             "smoothing_velocity": p.actuator.friction_smoothing_velocity}, p, dt)
-
-
-def float_buffer(n: int) -> tuple[memoryview, np.ndarray]:
-    """``n`` zeros as a memoryview of doubles and a numpy array sharing its memory. The memoryview
-    reads and sets single entries as plain floats (~1/3 cheaper than numpy's or array.array's
-    item access)."""
-    buf = memoryview(bytearray(8 * n)).cast("d")
-    return buf, np.frombuffer(buf)
 
 
 def heun_matrices(linear: LinearModel, h: float) -> tuple[np.ndarray, np.ndarray]:
@@ -71,19 +64,25 @@ class CompliantModel:
         self._motor_cable = self.linear.cable_Kq[2:4].ravel().tolist()  # motor-felt cable torque rows
         self._grav = params.foot.gravity_gain if gravity else 0.0
         self._torque_rows = self.linear.joint_torque_rows(self._beta)   # linear joint torque = rows @ x
-        self._torque_buf, self._torque = float_buffer(2)
 
         self._predict, self._correct = heun_matrices(self.linear, dt / self.substeps)
+        # the correction with two rows more: the linear joint torque of the corrected state, in the
+        # same product (the sensors read it after the step: no product of their own)
+        self._correct_torque = np.vstack([self._correct, self._torque_rows @ self._correct])
         # z = [x; f; g]: numpy views of float buffers, so the substeps index and set the entries as
-        # plain floats through the buffer (cheaper than numpy item access, and no tolist)
+        # plain floats through the buffer (cheaper than numpy item access, and no tolist). Between
+        # steps f's first two entries hold the linear joint torque of x (f is worked out afresh
+        # before the next step reads it).
         self._zbuf, self._z = float_buffer(N_X + 8)
         self._next_buf, self._x_next = float_buffer(N_X)
+        self._xt = self._z[:N_X + 2]   # [x; joint torque]: what a correction writes
         self.x = self._z[:N_X]  # a view: the state lives in the first 8 entries of z
+        self.x.flags.writeable = False    # set it with set_state (which keeps the torque beside it)
         self.x_floats = self._zbuf[:N_X]   # the same entries, read as plain floats (the sensors)
         self._xf = self._z[:N_X + 4]   # [x; f]: what the prediction reads
         # the substeps alternate between z and this second buffer (no copy of the state per substep)
         self._zbuf_alt, self._z_alt = float_buffer(N_X + 8)
-        self._x_alt, self._xf_alt = self._z_alt[:N_X], self._z_alt[:N_X + 4]
+        self._xt_alt, self._xf_alt = self._z_alt[:N_X + 2], self._z_alt[:N_X + 4]
         self.tau_applied = [0.0, 0.0]   # N m, motor torque command after command effects (last tick)
         # an external load on the foot that depends on its state (the walking scenario's body), or
         # None: ``load.torque(th_dp, th_ie, w_dp, w_ie)`` -> N m [DP, IE], evaluated at every substep
@@ -91,11 +90,16 @@ class CompliantModel:
 
     # -- state -----------------------------------------------------------------------------------
     def reset(self, x0: np.ndarray | None = None) -> None:
+        """State ``x0`` (default: zeros), effects restarted."""
         self._z[:] = 0.0
-        if x0 is not None:
-            self._z[:N_X] = x0
+        self.set_state(np.zeros(N_X) if x0 is None else x0)
         for e in self.effects:
             e.reset()
+
+    def set_state(self, x: np.ndarray) -> None:
+        """Set the state (8 entries: rad, rad/s); the effects keep theirs."""
+        self._z[:N_X] = x
+        self._torque_rows.dot(self._z[:N_X], self._z[N_X:N_X + 2])
 
     def set_rest_at(self, theta: tuple[float, float]) -> None:
         """Put the foot at ankle angles ``theta`` (rad) with slack-free cables and no motion."""
@@ -179,10 +183,10 @@ class CompliantModel:
             tau1, tau2 = self.command_torque(tau1, tau2)
         self.tau_applied[0] = tau1
         self.tau_applied[1] = tau2
-        x, x_next, next_buf = self.x, self._x_next, self._next_buf
-        z, zb, xf, x_now = self._z, self._zbuf, self._xf, x     # zb: z's buffer, read and set as floats
-        z_alt, zb_alt, xf_alt, x_alt = self._z_alt, self._zbuf_alt, self._xf_alt, self._x_alt
-        predict, correct = self._predict.dot, self._correct.dot   # bound: ~1/3 cheaper a call than np.dot
+        xt, x_next, next_buf = self._xt, self._x_next, self._next_buf
+        z, zb, xf, xt_now = self._z, self._zbuf, self._xf, xt    # zb: z's buffer, read and set as floats
+        z_alt, zb_alt, xf_alt, xt_alt = self._z_alt, self._zbuf_alt, self._xf_alt, self._xt_alt
+        predict, correct = self._predict.dot, self._correct_torque.dot   # bound: ~1/3 cheaper a call than np.dot
         forces = self.generalized_forces
         for _ in range(self.substeps):
             # Heun on the non-linear forces (the linear part is exact): predict the substep holding f
@@ -191,10 +195,10 @@ class CompliantModel:
             zb[8], zb[9], zb[10], zb[11] = forces(zb, tau1, tau2, td_dp, td_ie)
             predict(xf, x_next)
             zb[12], zb[13], zb[14], zb[15] = forces(next_buf, tau1, tau2, td_dp, td_ie)
-            correct(z, x_alt)   # the corrected state, into the other buffer
-            z, zb, xf, x_now, z_alt, zb_alt, xf_alt, x_alt = z_alt, zb_alt, xf_alt, x_alt, z, zb, xf, x_now
-        if x_now is not x:     # an odd number of substeps ended in the second buffer
-            x[:] = x_now
+            correct(z, xt_alt)   # the corrected state and its joint torque, into the other buffer
+            z, zb, xf, xt_now, z_alt, zb_alt, xf_alt, xt_alt = z_alt, zb_alt, xf_alt, xt_alt, z, zb, xf, xt_now
+        if xt_now is not xt:     # an odd number of substeps ended in the second buffer
+            xt[:] = xt_now
 
     def derivative(self, x: np.ndarray, tau1: float, tau2: float, td_dp: float, td_ie: float) -> np.ndarray:
         """dx/dt of the full model, for the RK4 reference (torques already through command effects)."""
@@ -204,10 +208,9 @@ class CompliantModel:
     # -- outputs ---------------------------------------------------------------------------------
     def joint_torque(self) -> tuple[float, float]:
         """N m [DP, IE]: the joint torque the cables deliver, effects included. The linear part
-        K (phi + beta phi') is one product with the state (cheaper than the expression in floats)."""
-        self._torque_rows.dot(self.x, self._torque)
-        t = self._torque_buf
-        return self.with_cable_effects(self.x_floats, t[0], t[1])
+        K (phi + beta phi') comes with the state from its last correction (or set_state)."""
+        t = self._zbuf
+        return self.with_cable_effects(self.x_floats, t[N_X], t[N_X + 1])
 
     def energy(self) -> float:
         """J: kinetic + cable + gravity energy (meaningful for the reciprocal transmission)."""

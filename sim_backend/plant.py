@@ -11,10 +11,11 @@ import math
 import numpy as np
 
 from ankle_rt.config import ConfigError
+from ankle_rt.float_buffer import float_buffer
 from ankle_rt.params import PlantParams
 from sim_backend.amplifier import EsconCurrentLimit
 from sim_backend.effects import build_effects
-from sim_backend.model import CompliantModel, float_buffer
+from sim_backend.model import CompliantModel
 
 NOISE_BLOCK = 4096  # strain-gauge noise samples drawn at a time (refilled in place, no allocation)
 
@@ -45,6 +46,8 @@ class SimulatedPlant:
         self.disturbances = sim["disturbances"]
         check_disturbances(self.disturbances, source)
         self._pulses = [(d["start"], d["stop"], d["torque_dp"], d["torque_ie"]) for d in self.disturbances]
+        self._pulse_torque = (0.0, 0.0)   # N m [DP, IE]: the pulses on, summed, until _next_switch
+        self._next_switch = 0.0           # s: when a pulse next switches on or off (time only grows)
         self.rng = np.random.default_rng(sim["seed"])
         # [DP, IE] per sample, drawn into a numpy view of a buffer read as plain floats
         self._noise_buf, noise = float_buffer(2 * NOISE_BLOCK)
@@ -63,13 +66,24 @@ class SimulatedPlant:
 
     def disturbance(self) -> tuple[float, float]:
         """N m at the ankle [DP, IE] at the current time."""
+        if self.t >= self._next_switch:
+            self._switch_pulses()
         dp, ie = self.extra_disturbance
+        p_dp, p_ie = self._pulse_torque
+        return dp + p_dp, ie + p_ie
+
+    def _switch_pulses(self) -> None:
+        """Sum the pulses on at the current time, and find when one next switches on or off (the
+        pulses are not scanned every tick)."""
         t = self.t
+        dp = ie = 0.0
         for start, stop, t_dp, t_ie in self._pulses:
             if start <= t < stop:
                 dp += t_dp
                 ie += t_ie
-        return dp, ie
+        self._pulse_torque = dp, ie
+        edges = [edge for pulse in self._pulses for edge in pulse[:2] if edge > t]
+        self._next_switch = min(edges, default=math.inf)
 
     def step(self, current_1: float, current_2: float) -> None:
         """Advance one tick with the set values (A) held; the amplifiers clamp them."""

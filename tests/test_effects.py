@@ -145,7 +145,7 @@ def _compare_with_rk4(params, effects, ticks=1000, load=8.0):
         a1, a2 = ref.command_torque(tau1, tau2)
         for _ in range(40):
             x = rk4_step(ref, x, DT / 40, a1, a2, *td)
-        ref.x[:] = x
+        ref.set_state(x)
         truth = np.array(ref.joint_torque())
         err.append(truth - np.array(model.joint_torque()))
         size.append(truth)

@@ -37,8 +37,7 @@ class RecordingBackend(ForwardingBackend):
 
     def read(self, frame: SensorFrame) -> None:
         self.inner.read(frame)
-        m, s, j = frame.motor_pos, frame.sg_torque, frame.ankle_pos
-        self.rows.append((frame.t, frame.seq, m.item(0), m.item(1), s.item(0), s.item(1), j.item(0), j.item(1)))
+        self.rows.append((frame.t, frame.seq, *frame.values))
 
 
 class ReplayBackend(Backend):
@@ -63,14 +62,8 @@ class ReplayBackend(Backend):
         k = self.next
         if k < len(self.rows) - 1:
             self.next = k + 1
-        frame.t, frame.seq, p1, p2, s0, s1, j0, j1 = self.rows[k]
-        m, s, j = frame.motor_pos, frame.sg_torque, frame.ankle_pos
-        m[0] = p1
-        m[1] = p2
-        s[0] = s0
-        s[1] = s1
-        j[0] = j0
-        j[1] = j1
+        v = frame.values
+        frame.t, frame.seq, v[0], v[1], v[2], v[3], v[4], v[5] = self.rows[k]
 
 
 def record_frames(cfg: "Config", seconds: float) -> list[Row]:
