@@ -46,9 +46,10 @@ ACTUATOR = Section({
 
 TRANSMISSION = Section({
     "cable_stiffness": positive("N/m, k = EA/L", high=1e8),
-    "pulley_radius": positive("m, r", high=0.5),
-    "lever_dp": positive("m, R_DP", high=0.5),
-    "lever_ie": positive("m, R_IE", high=0.5),
+    # plausible geometry, not only positive: a 1e-300 m pulley made the motor reference 1e298 rad
+    "pulley_radius": Field(float, "m, r", low=1e-3, high=0.5),
+    "lever_dp": Field(float, "m, R_DP", low=5e-3, high=0.5),
+    "lever_ie": Field(float, "m, R_IE", low=5e-3, high=0.5),
     "stiffness_proportional_damping": non_negative("s, beta", high=0.1),
     "form": Field(str, "motor-side cable torque: 'reciprocal' R^-T tau_j, or the paper's eq. 4 k r^2 (theta_m - R theta)",
                   default="reciprocal", choices=("reciprocal", "paper")),

@@ -32,6 +32,8 @@ def test_shipped_config_loads_with_nominal_values():
     ({"backend": "sim", "actuator": {"inertia": "heavy"}}, "actuator.inertia", "expected a number"),
     ({"backend": "sim", "controller": {"rate_hz": 0}}, "controller.rate_hz", "must be >= 250"),
     ({"backend": "sim", "transmission": {"form": "magic"}}, "transmission.form", "expected one of"),
+    ({"backend": "sim", "transmission": {"pulley_radius": 1e-300}}, "transmission.pulley_radius", "must be >= 0.001"),
+    ({"backend": "sim", "transmission": {"lever_ie": 1e-9}}, "transmission.lever_ie", "must be >= 0.005"),
     ({"backend": "sim", "sim": {"strain_gauge_offset": [0.1]}}, "sim.strain_gauge_offset", "2 items"),
     ({}, "backend", "missing key"),
 ])
