@@ -491,13 +491,28 @@ def closed_loop(p: PlantParams, c: ImpedanceLoop, *, foot: str = "free", load_sl
     """The sampled closed loop z_{k+1} = T z_k + G r with the controller output scaled by ``gain``
     (the loop broken at both motor torque inputs at once); returns (T, G, C_tau), C_tau giving the
     measured joint torque at z_k. z_k = [x_k, w_{k-1}, u_{k-1}, ..., u_{k-d}]."""
+    Ad, Bd, Cy, kin = _sampled_plant(p, c.dt, foot=foot, load_slope=load_slope, ground=ground)
+    W, U = c.rows(kin, kin.K)
+    return _assemble(Ad, Bd, Cy, W, gain * U, c.delay_cycles)
+
+
+def _sampled_plant(p: PlantParams, dt: float, *, foot: str, load_slope: float,
+                   ground: tuple[tuple[float, float], float] | None = None) -> tuple:
+    """(Ad, Bd, Cy, kin): the plant of :func:`_plant` sampled with a zero-order hold over ``dt`` s, and
+    its kinematics (what the controller rows are built from)."""
     from ankle_rt.discretize import zoh
 
     A, Bm, Cy = _plant(p, foot=foot, load_slope=load_slope, **({} if ground is None else {"ground": ground}))
-    Ad, Bd = zoh(A, Bm, c.dt)
-    lm = LinearModel.from_params(p)
-    W, U = c.rows(lm.kin, lm.kin.K)
-    return _assemble(Ad, Bd, Cy, W, gain * U, c.delay_cycles)
+    return (*zoh(A, Bm, dt), Cy, LinearModel.from_params(p).kin)
+
+
+def _affine_loop(sampled: tuple, c: "ImpedanceLoop | MotorPDLoop") -> tuple[np.ndarray, np.ndarray]:
+    """(T0, dT) of the sampled plant ``sampled`` (:func:`_sampled_plant`) closed by ``c``: the gain g
+    scales only the controller's output rows, so the transition matrix is affine in it, T0 + g dT."""
+    Ad, Bd, Cy, kin = sampled
+    W, U = c.rows(kin, kin.K)
+    T0 = _assemble(Ad, Bd, Cy, W, 0.0 * U, c.delay_cycles)[0]
+    return T0, _assemble(Ad, Bd, Cy, W, U, c.delay_cycles)[0] - T0
 
 
 def _assemble(Ad: np.ndarray, Bd: np.ndarray, Cy: np.ndarray, W: np.ndarray, U: np.ndarray, d: int,
@@ -550,11 +565,9 @@ def spectral_radius(T: np.ndarray) -> float:
 
 def loop_in_gain(p: PlantParams, c: ImpedanceLoop, *, foot: str = "free",
                  load_slope: float = 0.0) -> Callable[[float], np.ndarray]:
-    """T(g), the transition matrix of :func:`closed_loop` at controller gain g, from two builds of the
-    loop (linear model, ZOH, controller) instead of one per gain: the gain scales only the
-    controller's output rows, so T is affine in it, T(g) = T(0) + g (T(1) - T(0))."""
-    T0 = closed_loop_matrix(p, c, foot=foot, load_slope=load_slope, gain=0.0)
-    dT = closed_loop_matrix(p, c, foot=foot, load_slope=load_slope, gain=1.0) - T0
+    """T(g), the transition matrix of :func:`closed_loop` at controller gain g, from one build of the
+    sampled plant and controller instead of one per gain (:func:`_affine_loop`)."""
+    T0, dT = _affine_loop(_sampled_plant(p, c.dt, foot=foot, load_slope=load_slope), c)
     return lambda g: T0 + g * dT
 
 
@@ -633,25 +646,14 @@ def _sampled_plants(p: PlantParams, dt: float, load_coefficient: float) -> tuple
     """Per case of the margin sweep (as :func:`torque_loop_margins`: STIFFNESS_FACTORS x VISCOUS_FACTORS
     x load slope x FOOT_CONDITIONS): (Ad, Bd, Cy, kin) of the sampled plant, built once per plant and
     period, not per gain set tried."""
-    from ankle_rt.discretize import zoh
-
-    out = []
-    for _, _, slope, foot, pp in _plant_cases(p, load_coefficient):
-        A, Bm, Cy = _plant(pp, foot=foot, load_slope=slope)
-        kin = LinearModel.from_params(pp).kin
-        out.append((*zoh(A, Bm, dt), Cy, kin))
-    return tuple(out)
+    return tuple(_sampled_plant(pp, dt, foot=foot, load_slope=slope)
+                 for _, _, slope, foot, pp in _plant_cases(p, load_coefficient))
 
 
 def _loop_matrices(p: PlantParams, c: ImpedanceLoop, load_coefficient: float) -> tuple[np.ndarray, np.ndarray]:
     """(T0, Tu), each (cases, n, n): the closed loop of every sweep case is T0 + g Tu with the
-    controller output scaled by g (T is affine in the controller's output rows, :func:`loop_in_gain`)."""
-    T0, Tu = [], []
-    for Ad, Bd, Cy, kin in _sampled_plants(p, c.dt, load_coefficient):
-        W, U = c.rows(kin, kin.K)
-        t0 = _assemble(Ad, Bd, Cy, W, 0.0 * U, c.delay_cycles)[0]
-        T0.append(t0)
-        Tu.append(_assemble(Ad, Bd, Cy, W, U, c.delay_cycles)[0] - t0)
+    controller output scaled by g (:func:`_affine_loop`)."""
+    T0, Tu = zip(*(_affine_loop(sampled, c) for sampled in _sampled_plants(p, c.dt, load_coefficient)))
     return np.array(T0), np.array(Tu)
 
 
