@@ -23,7 +23,7 @@ from ankle_rt.elementwise import stack
 from ankle_rt.params import PlantParams
 from sim_backend.effects import Effect, build_effects
 from sim_backend.model import CompliantModel
-from sim_backend.plant import SimulatedPlant, check_disturbances
+from sim_backend.plant import SimulatedPlant, advance, check_disturbances
 
 # strain-gauge noise drawn per plant this many samples at a time: the same stream as the single
 # plant's larger blocks (a generator's normals do not depend on the chunking), and the transpose to
@@ -219,15 +219,7 @@ class BatchPlant:
 
     def step(self, current_1, current_2) -> None:
         """Advance one tick with the set values (A, arrays over the plants) held."""
-        i1 = self.amps[0].apply(current_1)
-        i2 = self.amps[1].apply(current_2)
-        self.current[0], self.current[1] = i1, i2
-        dp, ie = self.disturbance()
-        if self.walking is not None:
-            self.walking.advance(self.t)
-        self.model.step(self.kt * i1, self.kt * i2, dp, ie)
-        self.ticks += 1
-        self.t = self.ticks * self.dt
+        advance(self, current_1, current_2)
 
     # -- sensors ---------------------------------------------------------------------------------
     def motor_positions(self) -> tuple[np.ndarray, np.ndarray]:

@@ -7,6 +7,7 @@ the same plant. Stepped once per control tick with the amplifier set values held
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -16,6 +17,9 @@ from ankle_rt.params import PlantParams
 from sim_backend.amplifier import EsconCurrentLimit
 from sim_backend.effects import build_effects
 from sim_backend.model import CompliantModel
+
+if TYPE_CHECKING:
+    from sim_backend.batch import BatchPlant
 
 NOISE_BLOCK = 4096  # strain-gauge noise samples drawn at a time (refilled in place, no allocation)
 
@@ -88,16 +92,7 @@ class SimulatedPlant:
     def step(self, current_1: float, current_2: float) -> None:
         """Advance one tick with the set values (A) held; the amplifiers clamp them."""
         # plain floats from here on: numpy scalars (the daemon's set values) cost ~3x per operation
-        i1 = self.amps[0].apply(float(current_1))
-        i2 = self.amps[1].apply(float(current_2))
-        self.current[0] = i1
-        self.current[1] = i2
-        dp, ie = self.disturbance()
-        if self.walking is not None:
-            self.walking.advance(self.t)
-        self.model.step(self.kt * i1, self.kt * i2, dp, ie)
-        self.ticks += 1
-        self.t = self.ticks * self.dt
+        advance(self, float(current_1), float(current_2))
 
     # -- sensors ---------------------------------------------------------------------------------
     def encoder_counts(self) -> tuple[int, int]:
@@ -134,3 +129,19 @@ class SimulatedPlant:
         """rad [DP, IE]: the true joint angles (a bench's joint encoders)."""
         x = self.model.x_floats
         return x[0], x[1]
+
+
+def advance(plant: "SimulatedPlant | BatchPlant", current_1: Any, current_2: Any) -> None:
+    """One tick of ``plant`` with the set values (A) held: the amplifiers clamp them, the disturbance
+    pulses and the walking load act, the model steps. Written element-wise: plain floats for one
+    plant, arrays over the plants for a :class:`~sim_backend.batch.BatchPlant`."""
+    i1 = plant.amps[0].apply(current_1)
+    i2 = plant.amps[1].apply(current_2)
+    plant.current[0] = i1
+    plant.current[1] = i2
+    dp, ie = plant.disturbance()
+    if plant.walking is not None:
+        plant.walking.advance(plant.t)
+    plant.model.step(plant.kt * i1, plant.kt * i2, dp, ie)
+    plant.ticks += 1
+    plant.t = plant.ticks * plant.dt

@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-from ankle_rt.config import Field, Section, non_negative
-from ankle_rt.kinematics import Kinematics
-from sim_backend.effects.base import Effect, register_effect
+from ankle_rt.config import Section, non_negative
 from ankle_rt.elementwise import clip
+from sim_backend.effects.base import PER_AXIS_OR_CABLE, CableStretchEffect, register_effect
 
 
 @register_effect("backlash")
-class Backlash(Effect):
+class Backlash(CableStretchEffect):
     """Slack of ``half_width`` metres of cable each way. ``per: axis`` (default): the cables carry no
     stiffness force until the stretch of an ankle axis exceeds half_width / R_axis (rad), i.e. the
     spring term becomes K dz(phi) with dz the dead-zone function; the correction to the linear joint
@@ -19,8 +18,7 @@ class Backlash(Effect):
 
     PARAMS = Section({
         "half_width": non_negative("m of cable length, dead zone +/- half_width"),
-        "per": Field(str, "where the dead zone acts: each ankle axis, or each cable", default="axis",
-                     choices=("axis", "cable")),
+        "per": PER_AXIS_OR_CABLE,
     })
     cause = "backlash"
     elementwise = True
@@ -29,19 +27,16 @@ class Backlash(Effect):
     def __init__(self, params, plant, dt):
         super().__init__(params, plant, dt)
         tr = plant.transmission
-        kin = Kinematics.from_params(tr)
-        self.k_dp, self.k_ie = float(kin.K[0, 0]), float(kin.K[1, 1])
-        self.per_cable = params["per"] == "cable"
         self.b_dp = params["half_width"] / tr.lever_dp
         self.b_ie = params["half_width"] / tr.lever_ie
         self.b_cable = params["half_width"] / tr.pulley_radius          # motor rad
-        self.a_dp, self.a_ie = float(kin.R[0, 0]), float(kin.R[0, 1])   # R = [[a_dp, a_ie], [a_dp, -a_ie]]
+
+    def cable_law(self, stretch):
+        return clip(stretch, -self.b_cable, self.b_cable)
 
     def cable_torque(self, phi_dp, phi_ie, dphi_dp, dphi_ie):
         if self.per_cable:
-            b, a0, a1 = self.b_cable, self.a_dp, self.a_ie
-            c1 = clip(a0 * phi_dp + a1 * phi_ie, -b, b)
-            c2 = clip(a0 * phi_dp - a1 * phi_ie, -b, b)
-            return -self.k_dp * (c1 + c2) / (2.0 * a0), -self.k_ie * (c1 - c2) / (2.0 * a1)
+            c_dp, c_ie = self.per_cable_terms(phi_dp, phi_ie)
+            return -self.k_dp * c_dp, -self.k_ie * c_ie
         b0, b1 = self.b_dp, self.b_ie
         return -self.k_dp * clip(phi_dp, -b0, b0), -self.k_ie * clip(phi_ie, -b1, b1)

@@ -27,7 +27,8 @@ from __future__ import annotations
 
 from typing import Any, ClassVar, Sequence
 
-from ankle_rt.config import ConfigError, Section, validate
+from ankle_rt.config import ConfigError, Field, Section, validate
+from ankle_rt.kinematics import Kinematics
 from ankle_rt.params import PlantParams
 from ankle_rt.elementwise import stack
 
@@ -90,6 +91,35 @@ class Effect:
     @classmethod
     def uses(cls, hook: str) -> bool:
         return getattr(cls, hook) is not getattr(Effect, hook)
+
+
+#: ``per`` of an effect on the cables' stretch: each ankle axis's stretch, or each cable's own
+PER_AXIS_OR_CABLE = Field(str, "where the law acts: each ankle axis, or each cable", default="axis",
+                          choices=("axis", "cable"))
+
+
+class CableStretchEffect(Effect):
+    """An effect whose law acts on the cables' stretch, per ankle axis or per cable (``per``): the
+    transmission's numbers and the per-cable mapping, written once."""
+
+    def __init__(self, params: dict[str, Any], plant: PlantParams, dt: float):
+        super().__init__(params, plant, dt)
+        kin = Kinematics.from_params(plant.transmission)    # numbers only kept: a batch stacks them
+        self.per_cable = params["per"] == "cable"
+        self.k_dp, self.k_ie = float(kin.K[0, 0]), float(kin.K[1, 1])   # N m/rad, the cables at the ankle
+        self.a_dp, self.a_ie = float(kin.R[0, 0]), float(kin.R[0, 1])   # R = [[a_dp, a_ie], [a_dp, -a_ie]]
+
+    def cable_law(self, stretch):
+        """The law on one cable's stretch r (R phi)_i (motor rad), for ``per: cable``."""
+        raise NotImplementedError
+
+    def per_cable_terms(self, phi_dp, phi_ie):
+        """``cable_law`` on each cable, mapped back to the axes: (R^T g)_a / (R^T R)_aa, which is phi
+        itself for a law g(x) = x."""
+        a0, a1 = self.a_dp, self.a_ie
+        g1 = self.cable_law(a0 * phi_dp + a1 * phi_ie)
+        g2 = self.cable_law(a0 * phi_dp - a1 * phi_ie)
+        return (g1 + g2) / (2.0 * a0), (g1 - g2) / (2.0 * a1)
 
 
 def build_effects(entries: list[dict], plant: PlantParams, dt: float, source: str = "config") -> list[Effect]:
