@@ -40,8 +40,8 @@ TOLERANCE_FRACTION = 0.3   # of |c|: load-dependent cable friction (0.12 identif
 HOLD_S = 0.05              # s the residual must stay beyond the tolerance
 FAST_CUTOFF_HZ = 20.0      # the fast residual: a gauge stepped far off trips at once (no hold)
 FAST_TOLERANCE_NM = 12.0   # N m above the slow residual's tolerance
-FAST_HOLD_S = 0.04         # s the fast residual must stay beyond it (an unmodelled actuation delay of a
-                           # few ms makes a torque step look like a mismatch for about that long)
+FAST_HOLD_S = 0.04         # s the fast residual must stay beyond it (an actuation lag the model leaves
+                           # out makes a torque step look like a mismatch for about that long)
 
 
 class GaugeCrossCheck:
