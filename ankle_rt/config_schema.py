@@ -287,6 +287,9 @@ SAFETY = Section({
     "oscillation_hold_s": positive("s the band RMS must stay above safety.oscillation_rms_a to fault (a stable "
                                    "loop's saturated step keeps it above for up to ~0.3 s)", default=0.5,
                                    high=2.0),
+    "max_actuation_delay_s": non_negative("s between a set value and the motor torque it makes (amplifier, bus, "
+                                          "bridge) that the strain-gauge cross-check allows for", default=0.012,
+                                          high=0.05),
 }, optional=True)
 
 LOGGING = Section({

@@ -83,6 +83,29 @@ def pick(buffer, index):
     return buffer[index]
 
 
+def outside(x, buffer):
+    """How far ``x`` lies outside the range of a ring buffer's values: x - max above it, x - min
+    below it, 0 within. One plant: a number and a list; a batch: one value per plant and
+    (slots, plants)."""
+    if buffer.__class__ is _ARRAY:
+        return x - np.minimum(np.maximum(x, buffer.min(axis=0)), buffer.max(axis=0))
+    low = min(buffer)
+    if x < low:
+        return x - low
+    high = max(buffer)
+    return x - high if x > high else 0.0
+
+
+def fill(buffer, value: float, where=True) -> None:
+    """Every slot of a ring buffer set to ``value``, in place; for a batch ((slots, plants)), only
+    the plants where ``where`` (bool per plant) holds."""
+    if buffer.__class__ is _ARRAY:
+        buffer[:, where] = value
+    elif where:
+        for i in range(len(buffer)):
+            buffer[i] = value
+
+
 def lookup(table, position):
     """Linear interpolation in ``table`` (a 1-D numpy array of samples at 0, 1, 2, ...) at
     ``position`` (0 <= position < len(table) - 1; an array of positions over a batch)."""
@@ -103,8 +126,8 @@ def stack(objects, shared: tuple[str, ...] = (), columns: tuple[str, ...] = (), 
     that is itself stackable (its class has ``stack``) is stacked by it; a flag (bool) stays a plain
     bool where it is the same on every object (code may branch on it) and becomes a bool array where
     it differs; anything else must be equal on every object (else ValueError: the caller runs them
-    one by one), except the ``shared`` attributes, which are descriptive only and taken from the
-    first object."""
+    one by one), except the ``shared`` attributes, which are taken from the first object: descriptive
+    only, or moving in step for the whole batch (a ring buffer's length and head)."""
     first = objects[0]
     out = object.__new__(type(first))
     owner = type(first).__name__

@@ -171,7 +171,8 @@ class Safety:
         if self.check_estimated_ankle and (cfg["backend"] == "sim" or cfg["strain_gauges"]["matrix"] is not None):
             R = motor_ratio(TransmissionParams(**cfg["transmission"]))
             self.gauges = GaugeCrossCheck(self.dt, R.tolist(), a["inertia"], a["damping"], a["coulomb"],
-                                          cfg["estimation"]["velocity_cutoff_hz"])
+                                          cfg["estimation"]["velocity_cutoff_hz"],
+                                          max_delay_s=_configured(cfg, "safety.max_actuation_delay_s"))
         self.state = State.CONFIGURED
         self.fault = Fault.NONE
         self.fault_time = math.nan

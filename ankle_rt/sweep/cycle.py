@@ -78,10 +78,12 @@ def _controller_key(cfg: Mapping[str, Any], ctl: BatchableController) -> tuple[t
 
 def batch_key(cfg: Mapping[str, Any]) -> tuple:
     """Configs with equal keys can run in one :class:`BatchRun`: the plant's structure, the
-    controller type and the controller's own ``batch_key()``. Raises ConfigError naming
-    ``controller.type`` for a controller the batch does not run (a plugin)."""
+    controller type and the controller's own ``batch_key()``, the gauge cross-check's delay window
+    (its rings are one length across a batch). Raises ConfigError naming ``controller.type`` for a
+    controller the batch does not run (a plugin)."""
     plant = batch_plant_class(cfg["backend"], getattr(cfg, "source", None)).structure_key(cfg)
-    return plant + _controller_key(cfg, _parts(cfg)[2])
+    window = (("safety.max_actuation_delay_s", cfg["safety"]["max_actuation_delay_s"]),)
+    return plant + window + _controller_key(cfg, _parts(cfg)[2])
 
 
 class BatchRun:
