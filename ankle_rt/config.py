@@ -193,23 +193,19 @@ def config_from_data(data: dict, origin: Callable[[KeyPath], str], source: str) 
     """Merged config data validated key by key and across keys: the Config a run uses (``origin``:
     the file each key came from, for errors; ``source``: the config's name)."""
     cfg = Config(validate(data, SCHEMA, origin))
-    cfg.source = source      # before the checks: the friction feed-forward's model file is relative to it
     check_consistency(cfg, origin)
     _check_gain_margin(cfg, origin)
+    cfg.source = source
     return cfg
 
 
 def _check_gain_margin(cfg: Config, origin: Callable[[KeyPath], str]) -> None:
     """The impedance controller (with or without the joint-torque loop) and the motor-side PD (the
     gain set ``controller.pd_gains`` picks; choosing the other is a config change, checked again):
-    the configured gain set, with the friction feed-forward's viscous term, must keep the required
-    gain margin over the plant range (ConfigError naming the gain that limits it, or the feed-forward
-    when the gains alone keep it). The feed-forward may not exceed the stated friction
-    (:meth:`FrictionFeedForward.check_not_beyond`; every controller type)."""
-    from ankle_rt.control.friction import FrictionFeedForward
+    the configured gain set must keep the required gain margin over the plant range (ConfigError
+    naming the gain that limits it)."""
     from ankle_rt.gain_margin import gain_set_refusal
 
-    ff = FrictionFeedForward.from_config(cfg)
     ctl = cfg["controller"]
     if ctl["type"] == "pd":
         section = ctl["pd_gains"] + "_gains"
@@ -219,11 +215,8 @@ def _check_gain_margin(cfg: Config, origin: Callable[[KeyPath], str]) -> None:
     else:
         return
     for section, gains in checks:
-        bad = gain_set_refusal(cfg, gains, ff.viscous_slope)
+        bad = gain_set_refusal(cfg, gains)
         if bad is not None:
             name, reason = bad
             section = section or ("torque_loop" if name in ctl["torque_loop"] else "impedance")
-            if ff.viscous_slope > 0.0 and gain_set_refusal(cfg, gains) is None:   # stable without the feed-forward
-                section, name = "friction_ff", ("model_file" if ctl["friction_ff"]["model"] == "identified"
-                                                and ctl["friction_ff"]["model_file"] else "viscous")
             raise ConfigError(reason, origin(("controller", section, name)), f"controller.{section}.{name}")
