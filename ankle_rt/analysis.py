@@ -344,12 +344,15 @@ class ImpedanceLoop:
     dob_inertia: tuple[float, float] = (0.0, 0.0)   # kg m^2, the observer's nominal (ankle-side) inertia
     joint_encoders: bool = False            # the impedance law's angle: joint encoders (else through the cables)
     velocity_cutoff_hz: float = 100.0       # estimation.velocity_cutoff_hz
+    ff_viscous: float = 0.0                 # N m s/rad per motor: the friction feed-forward's viscous slope
     dt: float = 1e-3
     delay_cycles: int = 1
 
     @classmethod
-    def from_config(cls, cfg: dict, *, closed: bool, delay_cycles: int = 1) -> "ImpedanceLoop":
-        """The config's impedance gains and (``closed``) torque-loop gains."""
+    def from_config(cls, cfg: dict, *, closed: bool, delay_cycles: int = 1, ff_viscous: float = 0.0) -> "ImpedanceLoop":
+        """The config's impedance gains and (``closed``) torque-loop gains; ``ff_viscous``: the friction
+        feed-forward's viscous slope (FrictionFeedForward.viscous_slope), which the torque loop leaves
+        out (ankle_rt.control.impedance.actuation_from_config)."""
         from ankle_rt.loop_setup import ReflectedActuator, uses_joint_encoders
 
         c = cfg["controller"]
@@ -362,7 +365,7 @@ class ImpedanceLoop:
                    cutoff_hz=tl["cutoff_hz"], dob_hz=float(tl["dob_hz"]) if closed else 0.0,
                    dob_inertia=(frac[0] * inertia[0], frac[1] * inertia[1]), joint_encoders=uses_joint_encoders(cfg),
                    velocity_cutoff_hz=cfg["estimation"]["velocity_cutoff_hz"],
-                   dt=1.0 / c["rate_hz"], delay_cycles=delay_cycles)
+                   ff_viscous=0.0 if closed else ff_viscous, dt=1.0 / c["rate_hz"], delay_cycles=delay_cycles)
 
     GAINS = (*LOOP_GAINS, *IMPEDANCE_GAINS)
 
@@ -393,27 +396,30 @@ class MotorPDLoop:
     kp: float
     kd: float
     velocity_cutoff_hz: float = 100.0       # estimation.velocity_cutoff_hz
+    ff_viscous: float = 0.0                 # N m s/rad: the friction feed-forward's viscous slope
     dt: float = 1e-3
     delay_cycles: int = 1
 
     GAINS = ("kp", "kd")
 
     @classmethod
-    def from_config(cls, cfg: Mapping[str, Any], gains: Mapping[str, float], *, delay_cycles: int = 1) -> "MotorPDLoop":
+    def from_config(cls, cfg: Mapping[str, Any], gains: Mapping[str, float], *, delay_cycles: int = 1,
+                    ff_viscous: float = 0.0) -> "MotorPDLoop":
         return cls(kp=float(gains["kp"]), kd=float(gains["kd"]),
-                   velocity_cutoff_hz=cfg["estimation"]["velocity_cutoff_hz"],
+                   velocity_cutoff_hz=cfg["estimation"]["velocity_cutoff_hz"], ff_viscous=ff_viscous,
                    dt=1.0 / cfg["controller"]["rate_hz"], delay_cycles=delay_cycles)
 
     def rows(self, kin, K_cable: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(W, U) as :func:`_controller`'s: w keeps theta_m prev and the filtered velocity v (the other
-        controller states held at zero); u = kp (R r - theta_m) - kd v, r the ankle reference."""
+        controller states held at zero); u = kp (R r - theta_m) - (kd - ff_viscous) v, r the ankle
+        reference (the feed-forward's viscous term pushes with the motion: negative damping)."""
         e = np.eye(N_W + 8)
         th_prev, v_prev = e[0:2], e[2:4]
         th, r = e[N_W:N_W + 2], e[N_W + 6:N_W + 8]
         a_v = 1.0 - math.exp(-2.0 * math.pi * self.velocity_cutoff_hz * self.dt)
         v = (1.0 - a_v) * v_prev + (a_v / self.dt) * (th - th_prev)
         held = np.zeros((2 * (N_W // 2 - 2), N_W + 8))
-        return np.vstack([th, v, held]), self.kp * (kin.R @ r - th) - self.kd * v
+        return np.vstack([th, v, held]), self.kp * (kin.R @ r - th) - (self.kd - self.ff_viscous) * v
 
     def gain_values(self) -> tuple[float, ...]:
         return self.kp, self.kd
@@ -482,7 +488,7 @@ def _controller(lm_kin, K_cable: np.ndarray, c: ImpedanceLoop) -> tuple[np.ndarr
         u_ankle = u_ankle + d
     else:
         d = 0.0 * d_prev
-    return np.vstack([th, v, f, integ, d, u_ankle]), lm_kin.R_inv_T @ u_ankle
+    return np.vstack([th, v, f, integ, d, u_ankle]), lm_kin.R_inv_T @ u_ankle + c.ff_viscous * v
 
 
 def closed_loop(p: PlantParams, c: ImpedanceLoop, *, foot: str = "free", load_slope: float = 0.0,
@@ -702,7 +708,8 @@ def _load_coefficient(cfg: Mapping[str, Any]) -> float:
     return max([LOAD_FRICTION_RANGE, *found])
 
 
-def gain_set_margin_db(cfg_like: Mapping[str, Any], gains: Mapping[str, float]) -> tuple[float, str | None]:
+def gain_set_margin_db(cfg_like: Mapping[str, Any], gains: Mapping[str, float], *,
+                       ff_viscous: float = 0.0) -> tuple[float, str | None]:
     """The smallest gain margin (dB, at most 12; -inf: unstable) of the impedance controller's closed
     loop with the joint-torque loop as the daemon runs it (lead on the loop's lag, the angle source,
     the disturbance observer: :class:`ImpedanceLoop`), with ``gains`` (keys of ``controller.impedance``
@@ -712,7 +719,10 @@ def gain_set_margin_db(cfg_like: Mapping[str, Any], gains: Mapping[str, float]) 
     REQUIRED_GAIN_MARGIN_DB, the gain that limits it: of the gains away from the shipped values, the
     one whose shipped value restores the most margin (None when the margin is met). Without the
     joint-torque loop, the impedance law alone; for ``controller.type`` pd, the motor-side PD with
-    ``gains`` (kp, kd) in place of the active set's (``controller.pd_gains``)."""
+    ``gains`` (kp, kd) in place of the active set's (``controller.pd_gains``). ``ff_viscous``: the
+    friction feed-forward's viscous slope (N m s/rad per motor, FrictionFeedForward.viscous_slope), a
+    negative damping on the motors, in the loop wherever the controller adds it (not under the
+    joint-torque loop)."""
     from ankle_rt.loop_setup import torque_feedback
 
     ctl = cfg_like["controller"]
@@ -721,11 +731,12 @@ def gain_set_margin_db(cfg_like: Mapping[str, Any], gains: Mapping[str, float]) 
         if unknown:
             raise ValueError(f"gain_set_margin_db: {unknown[0]!r} is not a motor-side PD gain (kp, kd)")
         pd = {**ctl[ctl["pd_gains"] + "_gains"], **gains}
-        return _margin_and_limit(PlantParams.from_config(cfg_like), MotorPDLoop.from_config(cfg_like, pd),
+        return _margin_and_limit(PlantParams.from_config(cfg_like),
+                                 MotorPDLoop.from_config(cfg_like, pd, ff_viscous=ff_viscous),
                                  _load_coefficient(cfg_like), tuple(SHIPPED_PD_GAINS.values()))
     cfg = _with_gains(cfg_like, gains)
     closed = torque_feedback(cfg)
-    loop = ImpedanceLoop.from_config(cfg, closed=closed)
+    loop = ImpedanceLoop.from_config(cfg, closed=closed, ff_viscous=ff_viscous)
     # open loop: only the impedance gains can limit it (the torque loop's stay at their zeros)
     shipped = tuple(SHIPPED_GAINS[k] if closed or k in IMPEDANCE_GAINS else v
                     for k, v in zip(loop.GAINS, loop.gain_values()))
@@ -742,7 +753,10 @@ def _margin_and_limit(p: PlantParams, loop: "ImpedanceLoop | MotorPDLoop", coeff
         return margin, None
     names = loop.GAINS
     values = dict(zip(names, loop.gain_values()))
-    moved = [k for k, v in zip(names, shipped) if values[k] != v] or list(names)
+    # the gains away from their shipped values; none: those the loop uses (a zero gain is absent, as the
+    # torque loop's are open loop; the cutoff is never zero and acts only on the torque loop)
+    moved = [k for k, v in zip(names, shipped) if values[k] != v] \
+        or [k for k in names if values[k] != 0.0 and k != "cutoff_hz"] or list(names)
     restored = {k: loop_margin_db(p, loop.with_gain(k, shipped[names.index(k)]), load_coefficient=coefficient)
                 for k in moved}
     return margin, max(moved, key=lambda k: restored[k])

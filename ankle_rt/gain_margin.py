@@ -14,17 +14,18 @@ from typing import Any, Mapping
 RAMP_CHECK_POINTS = 8    # a gain ramp is checked at this many evenly spaced points, its end included
 
 
-def gain_set_refusal(cfg: Mapping[str, Any], gains: Mapping[str, float]) -> tuple[str, str] | None:
-    """(gain name, reason) when the closed loop with ``gains`` in place of the config's keeps less than
-    the required gain margin over the plant range (:func:`ankle_rt.analysis.gain_set_margin_db`);
-    None when it keeps it."""
+def gain_set_refusal(cfg: Mapping[str, Any], gains: Mapping[str, float], ff_viscous: float = 0.0
+                     ) -> tuple[str, str] | None:
+    """(gain name, reason) when the closed loop with ``gains`` in place of the config's (and the friction
+    feed-forward's viscous slope ``ff_viscous``, N m s/rad) keeps less than the required gain margin
+    over the plant range (:func:`ankle_rt.analysis.gain_set_margin_db`); None when it keeps it."""
     import numpy as np
 
     from ankle_rt.analysis import REQUIRED_GAIN_MARGIN_DB, gain_set_margin_db
 
     try:
         with np.errstate(all="ignore"):
-            margin, name = gain_set_margin_db(cfg, gains)
+            margin, name = gain_set_margin_db(cfg, gains, ff_viscous=ff_viscous)
     except (np.linalg.LinAlgError, ValueError, ZeroDivisionError, OverflowError) as exc:
         # degenerate physical parameters (a cable stiffness or lever of 1e-300): not provably stable
         name = next(iter(gains), "kp_dp")
@@ -35,17 +36,19 @@ def gain_set_refusal(cfg: Mapping[str, Any], gains: Mapping[str, float]) -> tupl
     c = cfg["controller"]
     value = gains.get(name, c["torque_loop"].get(name, c["impedance"].get(name)))
     how = "is unstable in some case" if margin == -math.inf else f"keeps only {margin:.1f} dB of gain margin"
-    return name, (f"{name} {value:g}: the closed loop {how} over cable stiffness +/-30 %, the friction range "
+    ff = f" with the friction feed-forward's viscous {ff_viscous:g} N m s/rad" if ff_viscous > 0.0 else ""
+    return name, (f"{name} {value:g}: the closed loop{ff} {how} over cable stiffness +/-30 %, the friction range "
                   f"and foot free and held (at least {REQUIRED_GAIN_MARGIN_DB:g} dB required; docs/daemon.md)")
 
 
-def ramp_refusal(cfg: Mapping[str, Any], start: Mapping[str, float], end: Mapping[str, float]) -> tuple[str, str] | None:
+def ramp_refusal(cfg: Mapping[str, Any], start: Mapping[str, float], end: Mapping[str, float],
+                 ff_viscous: float = 0.0) -> tuple[str, str] | None:
     """:func:`gain_set_refusal` at RAMP_CHECK_POINTS evenly spaced points of the linear ramp from the
     gains ``start`` to ``end`` (the end first), naming the point of the ramp that fails."""
     for k in range(RAMP_CHECK_POINTS, 0, -1):
         f = k / RAMP_CHECK_POINTS
         point = {n: start[n] + f * (end[n] - start[n]) for n in end}
-        bad = gain_set_refusal(cfg, point)
+        bad = gain_set_refusal(cfg, point, ff_viscous)
         if bad is not None:
             return bad if k == RAMP_CHECK_POINTS else (bad[0], f"at {f:.0%} of the ramp: {bad[1]}")
     return None

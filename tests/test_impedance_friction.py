@@ -70,14 +70,16 @@ def test_standstill_band_is_continuous_and_bounded(cfg):
 
 def test_model_file_as_diagnose_writes_it(tmp_path):
     """``model_file``: a complete config (include + actuator + sim.effects, what `diagnose
-    --write-model` writes); a relative path is relative to the config file."""
+    --write-model` writes); a relative path is relative to the config file. The running config states
+    the same plant (it includes the model): a model with more friction than the config states is
+    refused (test_friction_ff_safety.py)."""
     base = default_config_path()
     (tmp_path / "model.yaml").write_text(yaml.safe_dump({
         "include": [str(base)], "actuator": {"coulomb": 0.31, "damping": 0.09},
         "sim": {"effects": [MODEL[0], MODEL[2]]}}))
     (tmp_path / "run.yaml").write_text(yaml.safe_dump({
-        "include": [str(base)], "controller": {"friction_ff": {"enabled": True, "model": "identified",
-                                                               "model_file": "model.yaml"}}}))
+        "include": ["model.yaml"], "controller": {"friction_ff": {"enabled": True, "model": "identified",
+                                                                  "model_file": "model.yaml"}}}))
     c = load_config(tmp_path / "run.yaml")
     ff = FrictionFeedForward.from_config(c)
     assert (ff.kc, ff.d, ff.a, ff.mu, ff.dc) == (0.31, 0.09, 0.15, 0.12, 0.0)
@@ -112,7 +114,9 @@ def test_torque_loop_leaves_the_viscous_compensation_out(cfg):
     c = cfg.deep_copy()
     c["controller"]["type"] = "impedance"
     closed = build_controller(c, kin, np.zeros(2)).friction
-    c["controller"]["impedance"]["torque_feedback"] = "off"
+    # open loop the viscous terms are a negative damping on the motors: the law's must outweigh them
+    # (the gain margin counts them; test_friction_ff_safety.py)
+    c["controller"]["impedance"].update(torque_feedback="off", damping_dp=5.0, damping_ie=2.0)
     opened = build_controller(c, kin, np.zeros(2)).friction
     assert (closed.d, closed.dv) == (0.0, 0.0)
     assert (opened.d, opened.dv) == (cfg["actuator"]["damping"], 0.01)

@@ -407,7 +407,7 @@ def test_a_ramp_is_checked_along_its_path_not_only_at_its_ends(base, monkeypatch
 
     seen = []
 
-    def spy(cfg, gains):
+    def spy(cfg, gains, ff_viscous=0.0):
         seen.append(gains["kp_dp"])
         return ("kp_dp", "refused in the middle") if 7.0 < gains["kp_dp"] < 9.0 else None
     monkeypatch.setattr(torque_loop, "gain_set_refusal", spy)

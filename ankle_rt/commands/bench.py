@@ -362,7 +362,7 @@ def bench_impedance(args: argparse.Namespace) -> int:
 
     from ankle_rt import jsonout
     from ankle_rt.bench.impedance import Experiment, simulated_s
-    from ankle_rt.config import load_config
+    from ankle_rt.config import ConfigError, load_config
     from ankle_rt.paths import default_config_path
     from ankle_rt.timing_reference import reference_step_s
     from ankle_rt.progress import Progress
@@ -379,7 +379,7 @@ def bench_impedance(args: argparse.Namespace) -> int:
         for name in ("coulomb_viscous", "identified"):
             plan[f"closed loop, {name} ff"] = ("auto", name)
             plan[f"open loop, {name} ff"] = ("off", name)
-    variants = {}
+    variants, refused = {}, {}
     ref_s = reference_step_s()
     t0 = time.perf_counter()
     with Progress("bench impedance", len(plan)) as bar:
@@ -387,8 +387,14 @@ def bench_impedance(args: argparse.Namespace) -> int:
             if not args.json:
                 print(f"{name} ...", flush=True)
             bar.update(k, name)
-            variants[name] = impedance_variant(cfg, args.stiffness, args.stiffness_ie, tuple(args.damping), effects,
-                                               feedback=feedback, friction_ff=f, experiment=exp, keep_loops=True)
+            try:
+                variants[name] = impedance_variant(cfg, args.stiffness, args.stiffness_ie, tuple(args.damping),
+                                                   effects, feedback=feedback, friction_ff=f, experiment=exp,
+                                                   keep_loops=True)
+            except ConfigError as exc:   # a study variant the controller refuses (e.g. an unstable feed-forward)
+                if name in ("closed loop", "open loop"):
+                    raise
+                refused[name] = str(exc)
     # wall time per simulated cycle, the lockstep runs with their analysis (and the margin checks)
     cycle_s = (time.perf_counter() - t0) / (len(plan) * len(args.stiffness) * round(simulated_s(exp) * cfg["controller"]["rate_hz"]))
     ref_s = 0.5 * (ref_s + reference_step_s())
@@ -403,7 +409,7 @@ def bench_impedance(args: argparse.Namespace) -> int:
                   commanded_stiffness_dp=args.stiffness, damping=args.damping, plant_effects=effects,
                   variants={name: {**v["summary"], "runs": [{k: r[k] for k in r if k != "_result"} for r in v["runs"]]}
                             for name, v in variants.items()},
-                  plot=note, cycle_us=cycle_s * 1e6, reference_step_us=ref_s * 1e6, cycle_ref_steps=cycle_s / ref_s)
+                  refused_variants=refused, plot=note, cycle_us=cycle_s * 1e6, reference_step_us=ref_s * 1e6, cycle_ref_steps=cycle_s / ref_s)
     if args.json:
         print(jsonout.dumps(result))
         return 0
@@ -418,6 +424,8 @@ def bench_impedance(args: argparse.Namespace) -> int:
               f"{s['damping_error_max_pct']:7.0f} {s['torque_step_overshoot_pct']:9.1f} {s['apparent_inertia_kg_m2']:7.3f} "
               f"{str(s['passive']):>7s} {s['hysteresis_j_per_cycle']:6.3f} {s['stability_margin_db']:9.1f} "
               f"{s['torque_tracking_rms_nm']:7.2f}  {','.join(s['faults'])}")
+    for name, reason in refused.items():
+        print(f"{name:32s} refused: {reason}")
     for name in ("closed loop", "open loop"):
         for run in variants[name]["runs"]:
             c = run["commanded"]

@@ -30,6 +30,10 @@ if TYPE_CHECKING:
     from ankle_rt.config import Config
 
 FRICTION_EFFECTS = ("stribeck", "asymmetric_friction", "load_dependent_friction")
+# where a feed-forward is held to the stated friction (check_not_beyond): both directions from within the
+# standstill band to 10 rad/s, unloaded and at a cable torque beyond any the device carries
+CHECK_VELOCITIES = tuple(s * 10.0 ** (k / 4.0) for s in (-1.0, 1.0) for k in range(-16, 5))
+CHECK_CABLE_TORQUES = (0.0, 500.0)
 
 
 class FrictionFeedForward:
@@ -60,13 +64,51 @@ class FrictionFeedForward:
             a, effects, source = identified_model(cfg, f["model_file"])
         kc = a["coulomb"] if f["coulomb"] is None else f["coulomb"]
         d = a["damping"] if f["viscous"] is None else f["viscous"]
-        return cls(kc, d, f["velocity_band"], f["enabled"], **effect_terms(effects, source))
+        out = cls(kc, d, f["velocity_band"], f["enabled"], **effect_terms(effects, source))
+        if out.enabled:
+            out.check_not_beyond(cfg, "model_file" if f["model"] == "identified" and f["model_file"] else None)
+        return out
+
+    def check_not_beyond(self, cfg: "Config", key: str | None) -> None:
+        """Raise ConfigError unless this feed-forward cancels at most the friction the config states the
+        device has (its ``actuator`` and the friction effects of its ``sim.effects``: the plant its gain
+        margin is checked on), in either direction, at any velocity and cable torque: more is a negative
+        friction, a force pushing with the motion, which drives a limit cycle no linear margin sees
+        (docs/daemon.md, "Friction feed-forward"). Names ``controller.friction_ff.<key>``; None: the
+        term that exceeds (coulomb or viscous)."""
+        from ankle_rt.config import ConfigError
+
+        a = cfg["actuator"]
+        plant = FrictionFeedForward(a["coulomb"], a["damping"], 1.0 / self.inv_band,
+                                    **effect_terms(cfg["sim"]["effects"], getattr(cfg, "source", None)))
+        for part, name in ((FrictionFeedForward.without_viscous, "coulomb"), (FrictionFeedForward.viscous_only, "viscous")):
+            ours, theirs = part(self), part(plant)
+            excess = max(ours.torque(v, tc) * math.copysign(1.0, v) - theirs.torque(v, tc) * math.copysign(1.0, v)
+                         for v in CHECK_VELOCITIES for tc in CHECK_CABLE_TORQUES)
+            if excess > 1e-9 * (1.0 + abs(theirs.torque(1.0))):
+                state = "actuator.coulomb and sim.effects" if name == "coulomb" else "actuator.damping"
+                raise ConfigError(f"the feed-forward exceeds the friction the config states ({state}) by up to "
+                                  f"{excess:.3g} N m (at speeds up to 10 rad/s): over-compensated friction pushes "
+                                  f"with the motion and drives a limit cycle",
+                                  getattr(cfg, "source", None), f"controller.friction_ff.{key or name}")
+
+    @property
+    def viscous_slope(self) -> float:
+        """N m s/rad: the largest slope of the viscous terms (D + |dv|; 0 when off), a negative damping on
+        the motor that the gain-margin model counts (ankle_rt.analysis.gain_set_margin_db)."""
+        return self.d + abs(self.dv) if self.enabled else 0.0
 
     def without_viscous(self) -> "FrictionFeedForward":
         """A copy without the viscous terms (D, dv): under the joint-torque loop the motors' viscous
         friction is the damping the loop's integral relies on (ankle_rt.control.torque_loop)."""
         out = copy.copy(self)
         out.d = out.dv = 0.0
+        return out
+
+    def viscous_only(self) -> "FrictionFeedForward":
+        """A copy with only the viscous terms (D, dv)."""
+        out = copy.copy(self)
+        out.kc = out.a = out.dc = out.mu = 0.0
         return out
 
     @classmethod

@@ -104,7 +104,7 @@ class RampedGainController(BatchableController):
     """What the config's controllers share: gains that ramp (bumpless changes, soft start on each
     activation), an optional friction feed-forward (off when none is given), and gain changes
     checked before they start: inside ``limits`` and, with ``margin_cfg``, keeping the required gain
-    margin at every checked point of the ramp (:func:`ankle_rt.gain_margin.ramp_refusal`). Batchable."""
+    margin (the feed-forward's viscous slope counted) at every checked point of the ramp (:func:`ankle_rt.gain_margin.ramp_refusal`). Batchable."""
 
     shared = ("ref", "limits", "margin_cfg")
 
@@ -113,12 +113,12 @@ class RampedGainController(BatchableController):
                  margin_cfg: Mapping[str, Any] | None = None):
         """``limits``: gain sets outside them are refused; ``margin_cfg``: the config whose plant every
         gain set must keep the required gain margin on (None: not checked)."""
+        self.friction = friction or FrictionFeedForward(0.0, 0.0, 1.0, enabled=False)
         if limits is not None:
             raise_refusal(limits.check(gains))
         if margin_cfg is not None:
-            raise_refusal(gain_set_refusal(margin_cfg, gains))
+            raise_refusal(gain_set_refusal(margin_cfg, gains, self.friction.viscous_slope))
         self.gains = GainRamp(gains, dt=dt, ramp_s=ramp_s, soft_start_s=soft_start_s)
-        self.friction = friction or FrictionFeedForward(0.0, 0.0, 1.0, enabled=False)
         self.limits = limits
         self.margin_cfg = margin_cfg
 
@@ -140,7 +140,7 @@ class RampedGainController(BatchableController):
             if self.gains.ramping:
                 name = next(iter(gains), "cmd")
                 raise GainError(name, "busy: the previous gain ramp is still running (controller.gain_ramp_s)")
-            raise_refusal(ramp_refusal(self.margin_cfg, values, targets))
+            raise_refusal(ramp_refusal(self.margin_cfg, values, targets, self.friction.viscous_slope))
 
     def set_gains(self, **gains: float) -> None:
         """Ramp to new gains (names as at construction) without a jump in the command, after

@@ -208,7 +208,7 @@ class GaitPhaseController(ImpedanceController):
                                        f"(controller.gain_limits.{kind}), got {value:g}")
         bad = self.limits.check(params) if self.limits is not None else None
         if bad is None and self.margin_cfg is not None:      # the slow check only when the quick one passes
-            bad = gain_set_refusal(self.margin_cfg, {k: params[k] for k in IMPEDANCE_GAINS})
+            bad = gain_set_refusal(self.margin_cfg, {k: params[k] for k in IMPEDANCE_GAINS}, self.friction.viscous_slope)
         if bad is not None:
             raise GainError(f"{name}.{bad[0]}", f"{name}: {bad[1]}")
 
