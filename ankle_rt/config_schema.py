@@ -11,6 +11,7 @@ continuous current, configured gains within the run-time gain limits).
 
 from __future__ import annotations
 
+import math
 from typing import Any, Callable, Mapping
 
 from ankle_rt.command_limits import MAX_TORQUE_KI, MAX_TORQUE_KP, MAX_TORQUE_RATE
@@ -584,21 +585,43 @@ def check_consistency(cfg: Mapping[str, Any], origin: Callable[[KeyPath], str]) 
                               origin(("controller", section, name)), f"controller.{section}.{name}")
 
 
-DEVICE_MAX_STALL_S = 0.1           # s: the longest stall the device's loop may be told to ride out
+DEVICE_MAX_STALL_S = 0.1           # s: the longest the device may act on old data or old set values
 DEVICE_MAX_OVERRUNS = 50           # overruns in a row the device's loop may be told to ride out
 
 
 def check_device_deadlines(cfg: Mapping[str, Any], origin: Callable[[KeyPath], str]) -> None:
-    """On the device (any backend but the simulator) the loop may not be told to ride out long stalls:
-    the last set values stay on the motors while it stalls. The schema's wider ranges serve simulated
-    runs on busy machines (tests, lockstep)."""
-    if cfg["backend"] == "sim":
+    """On the device (any backend but the simulator) no setting may let it act on old data or old set
+    values for longer than DEVICE_MAX_STALL_S: the loop riding out a stall, the loop driving on a
+    frozen sample until it sees that the samples stopped, the bridge or I/O node keeping the last set
+    values when the host stops sending them. The schema's wider ranges serve simulated runs on busy
+    machines (tests, lockstep)."""
+    backend = cfg["backend"]
+    if backend == "sim":
         return
+    most = DEVICE_MAX_STALL_S
+    stall = "the last set values stay on the motors while the loop stalls"
+    blind = "the loop drives on the last sample until it sees that the samples stopped"
+    held = "the last set values stay on the motors when the host stops sending them"
     loop = cfg["loop"]
-    for key, most, unit in (("max_stall_s", DEVICE_MAX_STALL_S, " s"), ("max_consecutive_overruns", DEVICE_MAX_OVERRUNS, "")):
-        if loop[key] > most:
-            raise ConfigError(f"must be <= {most:g}{unit} with backend {cfg['backend']!r}: the last set values stay on "
-                              f"the motors while the loop stalls, got {loop[key]:g}", origin(("loop", key)), f"loop.{key}")
+    # (section, key, value, most, unit, why)
+    checks = [("loop", "max_stall_s", loop["max_stall_s"], most, " s", stall),
+              ("loop", "max_consecutive_overruns", loop["max_consecutive_overruns"], DEVICE_MAX_OVERRUNS, "", stall),
+              ("safety", "stale_cycles", cfg["safety"]["stale_cycles"], most * cfg["controller"]["rate_hz"],
+               f" cycles ({most:g} s)", blind)]
+    if backend == "serial":
+        s = cfg["serial"]
+        checks += [("serial", "link_timeout_s", s["link_timeout_s"], most, " s", blind),
+                   ("serial", "watchdog_s", s["watchdog_s"], most, " s", f"the bridge's watchdog: {held}")]
+    if backend == "canopen":
+        co = cfg["canopen"]
+        checks += [("canopen", "heartbeat_consumer_ms", co["heartbeat_consumer_ms"], most * 1e3, " ms",
+                    f"no heartbeat: {blind}"),
+                   ("canopen", "rpdo_timeout_ms", co["rpdo_timeout_ms"] or math.inf, most * 1e3, " ms and not 0 (none)",
+                    f"the node's RPDO deadline: {held}")]
+    for section, key, value, limit, unit, why in checks:
+        if value > limit:
+            raise ConfigError(f"must be <= {limit:g}{unit} with backend {backend!r}: {why}, got "
+                              f"{cfg[section][key]:g}", origin((section, key)), f"{section}.{key}")
 
 
 def check_walking_limits(cfg: Mapping[str, Any], origin: Callable[[KeyPath], str]) -> None:

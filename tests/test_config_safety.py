@@ -150,13 +150,25 @@ def test_the_current_clamp_holds_for_any_command(sim_cfg):
         assert s.limit_currents(bad, 0.0) != 0 and s.current == [0.0, 0.0]
 
 
-@pytest.mark.parametrize("key, value", [("max_stall_s", 0.5), ("max_consecutive_overruns", 1000)])
-def test_the_device_loop_may_not_be_told_to_ride_out_long_stalls(key, value):
-    """The schema admits up to 10 s / 10^6 overruns for simulated runs on busy machines; on the device
-    the last set values would stay on the motors that long, so a hardware config is refused naming the key."""
-    with pytest.raises(ConfigError, match=f"loop.{key}"):
-        load_config(ROOT / "config" / "hw-serial.yaml", {"loop": {key: value}})
-    assert load_config(ROOT / "config" / "sim.yaml", {"loop": {key: value}})["loop"][key] == value
+DEVICE_DEADLINES = [("hw-serial", "loop", "max_stall_s", 0.5), ("hw-serial", "loop", "max_consecutive_overruns", 1000),
+                    ("hw-serial", "safety", "stale_cycles", 1000), ("hw-canopen", "safety", "stale_cycles", 101),
+                    ("hw-serial", "serial", "link_timeout_s", 1.0), ("hw-serial", "serial", "watchdog_s", 1.0),
+                    ("hw-canopen", "canopen", "heartbeat_consumer_ms", 5000),
+                    ("hw-canopen", "canopen", "rpdo_timeout_ms", 0), ("hw-canopen", "canopen", "rpdo_timeout_ms", 101)]
+
+
+@pytest.mark.parametrize("config, section, key, value", DEVICE_DEADLINES,
+                         ids=[f"{c}-{k}-{v}" for c, _, k, v in DEVICE_DEADLINES])
+def test_the_device_may_not_act_on_old_data_or_set_values_for_long(config, section, key, value):
+    """The schema admits up to 10 s / 10^6 overruns / 1000 stale cycles / 1 s timeouts for simulated
+    runs; on the device the loop would drive on a frozen sample, or the motors keep the last set
+    values, that long (serial bench, TPDOs or samples lost while holding 10 deg: 1001 cycles on the
+    frozen sample with stale_cycles 1000 and link_timeout_s 1.0, before LINK_LOST), so a hardware
+    config is refused naming the key; the simulator keeps the range."""
+    with pytest.raises(ConfigError, match=f"{section}.{key}: must be <= "):
+        load_config(ROOT / "config" / f"{config}.yaml", {section: {key: value}})
+    if section in ("loop", "safety"):
+        assert load_config(ROOT / "config" / "sim.yaml", {section: {key: value}})[section][key] == value
 
 
 def test_an_optional_bounded_number_set_to_null_is_unset_not_a_crash():
