@@ -16,6 +16,7 @@ from typing import Any, Callable, Mapping
 
 from ankle_rt.command_limits import MAX_TORQUE_KI, MAX_TORQUE_KP, MAX_TORQUE_RATE
 from ankle_rt.controller_registry import check_controller_name
+from ankle_rt.params import GRAVITY
 from ankle_rt.references import PROFILE_PARAMS
 from ankle_rt.schema import ConfigError, Field, KeyPath, ListOf, Section, non_negative, positive
 
@@ -195,8 +196,8 @@ GAIT_PHASE = Section({
     **{name: _phase_section(name, values) for name, values in GAIT_PHASE_DEFAULTS.items()},
     "load_on_nm": positive("N m of plantarflexor moment (-sg_dp) above which the foot is loaded (heel strike)",
                            default=15.0, high=300.0),
-    "load_off_nm": Field(float, "N m below which it is unloaded (toe-off); < load_on_nm: the hysteresis",
-                         default=5.0, low=-50.0, high=300.0),
+    "load_off_nm": positive("N m below which it is unloaded (toe-off); < load_on_nm: the hysteresis; above what a "
+                            "foot off the ground reads (check_gait_load_thresholds)", default=5.0, high=300.0),
     "late_stance_angle": Field(float, "rad of dorsiflexion past which early stance becomes late stance",
                                default=0.08, low=-MAX_EQUILIBRIUM, high=MAX_EQUILIBRIUM),
     "late_stance_load_nm": non_negative("N m of load also needed for late stance", default=80.0, high=300.0),
@@ -573,16 +574,33 @@ def check_consistency(cfg: Mapping[str, Any], origin: Callable[[KeyPath], str]) 
                for name in ("stiffness_dp", "stiffness_ie", "damping_dp", "damping_ie")]
     check_walking_limits(cfg, origin)
     check_device_deadlines(cfg, origin)
-    gait = ctl["gait_phase"]
-    if gait["load_off_nm"] >= gait["load_on_nm"]:
-        raise ConfigError(f"must be < controller.gait_phase.load_on_nm ({gait['load_on_nm']:g}): the hysteresis, "
-                          f"got {gait['load_off_nm']:g}", origin(("controller", "gait_phase", "load_off_nm")),
-                          "controller.gait_phase.load_off_nm")
+    check_gait_load_thresholds(cfg, origin)
     for (section, name), limit, value in checks:
         if value > limit:
             limit_key = f"controller.gain_limits.{name.split('_')[0]}"
             raise ConfigError(f"must be <= {limit_key} ({limit:g}), got {value:g}",
                               origin(("controller", section, name)), f"controller.{section}.{name}")
+
+
+UNLOADED_NOISE_SIGMAS = 3.0   # gauge noise an unloaded foot's reading must clear, in standard deviations
+
+
+def check_gait_load_thresholds(cfg: Mapping[str, Any], origin: Callable[[KeyPath], str]) -> None:
+    """The gait-phase load thresholds can fire: toe-off (``load_off_nm``) lies above what a foot off the
+    ground reads held still - its own gravity moment, at most foot.mass x g x |foot.com_dp|, plus 3 x the
+    gauge noise - so an unloaded foot leaves stance (and re-arms the safe phase), and heel strike
+    (``load_on_nm``) above toe-off: the hysteresis."""
+    gait, foot = cfg["controller"]["gait_phase"], cfg["foot"]
+    where = ("controller", "gait_phase", "load_off_nm")
+    rest = foot["mass"] * GRAVITY * abs(foot["com_dp"]) + UNLOADED_NOISE_SIGMAS * cfg["sensors"]["strain_gauge_noise_rms"]
+    if gait["load_off_nm"] <= rest:
+        raise ConfigError(f"must be > {rest:.3g} N m, what a foot off the ground held still reads (its gravity moment "
+                          f"foot.mass x g x |foot.com_dp| + {UNLOADED_NOISE_SIGMAS:g} x sensors.strain_gauge_noise_rms): "
+                          f"below it toe-off is never detected and the safe phase never re-arms, got "
+                          f"{gait['load_off_nm']:g}", origin(where), "controller.gait_phase.load_off_nm")
+    if gait["load_off_nm"] >= gait["load_on_nm"]:
+        raise ConfigError(f"must be < controller.gait_phase.load_on_nm ({gait['load_on_nm']:g}): the hysteresis, "
+                          f"got {gait['load_off_nm']:g}", origin(where), "controller.gait_phase.load_off_nm")
 
 
 DEVICE_MAX_STALL_S = 0.1           # s: the longest the device may act on old data or old set values

@@ -257,6 +257,20 @@ def test_load_hysteresis_must_be_positive(tmp_path):
     assert err.value.key == "controller.gait_phase.load_off_nm"
 
 
+@pytest.mark.parametrize("load_off", [-50.0, -1.0, 0.0, 0.09])
+def test_toe_off_must_lie_above_what_an_unloaded_foot_reads(load_off):
+    """A toe-off threshold at or below what a foot off the ground reads held still (its gravity moment,
+    0.465 kg x g x 6.9 mm = 0.031 N m, + 3 x 0.02 N m of gauge noise = 0.092 N m) never fires: on the
+    walking scenario load_off_nm -50 kept the first stride in late stance through its swing (foot
+    driven to -39.6 deg DP against -14.7 shipped) until the 1.5 s timeout, and then the safe phase for
+    good (it re-arms only below load_off_nm), without a fault. Refused naming the key."""
+    with pytest.raises(ConfigError) as err:
+        load_config(WALK, {"controller": {"gait_phase": {"load_off_nm": load_off}}})
+    assert err.value.key == "controller.gait_phase.load_off_nm"
+    assert load_off <= 0 or "foot off the ground" in err.value.message   # <= 0: the schema's own bound
+    assert load_config(WALK, {"controller": {"gait_phase": {"load_off_nm": 0.1}}})
+
+
 def test_walking_strides_run_through_the_phases_without_a_fault():
     from ankle_rt.bench.walk import run_walk
 
