@@ -16,6 +16,7 @@ from typing import Any, Callable, Mapping
 
 from ankle_rt.command_limits import MAX_TORQUE_KI, MAX_TORQUE_KP, MAX_TORQUE_RATE
 from ankle_rt.controller_registry import check_controller_name
+from ankle_rt.oscillation import BAND_HZ, band_floor
 from ankle_rt.params import GRAVITY
 from ankle_rt.references import PROFILE_PARAMS
 from ankle_rt.schema import ConfigError, Field, KeyPath, ListOf, Section, non_negative, positive
@@ -285,7 +286,9 @@ SAFETY = Section({
     "i2t_peak_duration_s": positive("s the peak current may flow (ESCON 50/5: at most 20 s); sets the I^2 t budget",
                                     default=20.0, high=ESCON_PEAK_S),
     "oscillation_rms_a": positive("A; a set value's RMS above 20 Hz (either motor) beyond this for "
-                                  "safety.oscillation_hold_s is an oscillation fault", default=1.0, high=5.0),
+                                  "safety.oscillation_hold_s is an oscillation fault; below what a 20 Hz oscillation of the "
+                                  "continuous current shows it (check_oscillation_limit: 1.97 A at 1 kHz, 5 A)",
+                                  default=1.0, high=5.0),
     "oscillation_hold_s": positive("s the band RMS must stay above safety.oscillation_rms_a to fault (a stable "
                                    "loop's saturated step keeps it above for up to ~0.3 s)", default=0.5,
                                    high=2.0),
@@ -573,6 +576,7 @@ def check_consistency(cfg: Mapping[str, Any], origin: Callable[[KeyPath], str]) 
     checks += [(("impedance", name), limits[name.split("_")[0]], ctl["impedance"][name])
                for name in ("stiffness_dp", "stiffness_ie", "damping_dp", "damping_ie")]
     check_walking_limits(cfg, origin)
+    check_oscillation_limit(cfg, origin)
     check_device_deadlines(cfg, origin)
     check_gait_load_thresholds(cfg, origin)
     for (section, name), limit, value in checks:
@@ -580,6 +584,21 @@ def check_consistency(cfg: Mapping[str, Any], origin: Callable[[KeyPath], str]) 
             limit_key = f"controller.gain_limits.{name.split('_')[0]}"
             raise ConfigError(f"must be <= {limit_key} ({limit:g}), got {value:g}",
                               origin(("controller", section, name)), f"controller.{section}.{name}")
+
+
+def check_oscillation_limit(cfg: Mapping[str, Any], origin: Callable[[KeyPath], str]) -> None:
+    """The oscillation detector trips on what the I^2 t budget never catches: a sine at the band's
+    corner whose RMS is the continuous current (I^2 t grows only above it) shows the detector at least
+    band_floor(BAND_HZ) of that, which must lie above the limit. (Slower oscillations show it less;
+    the detector is not meant for them.)"""
+    i_cont, limit, rate = (cfg["amplifier"]["current_limit_continuous"], cfg["safety"]["oscillation_rms_a"],
+                           cfg["controller"]["rate_hz"])
+    most = band_floor(BAND_HZ, 1.0 / rate) * i_cont
+    if limit >= most:
+        raise ConfigError(f"must be < {most:.3g} A: a {BAND_HZ:g} Hz oscillation of the continuous current "
+                          f"(amplifier.current_limit_continuous, {i_cont:g} A RMS: never an OVERCURRENT) shows the "
+                          f"detector at least {most:.3g} A at {rate} Hz and must trip it, got {limit:g}",
+                          origin(("safety", "oscillation_rms_a")), "safety.oscillation_rms_a")
 
 
 UNLOADED_NOISE_SIGMAS = 3.0   # gauge noise an unloaded foot's reading must clear, in standard deviations

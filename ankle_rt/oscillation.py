@@ -28,6 +28,24 @@ BAND_HZ = 20.0          # high-pass corner of the watched band
 ENERGY_TAU_S = 0.02     # s, averaging of the band's mean square
 
 
+def _lowpass_gain(a: float, freq_hz: float, dt: float) -> complex:
+    """The detector's first-order low-pass step ``a`` as a transfer function at ``freq_hz``."""
+    w = 2.0 * math.pi * freq_hz * dt
+    return a / (1.0 - (1.0 - a) * complex(math.cos(w), -math.sin(w)))
+
+
+def band_floor(freq_hz: float, dt: float, band_hz: float = BAND_HZ, energy_tau_s: float = ENERGY_TAU_S) -> float:
+    """The least band RMS the detector shows, in steady state at the period ``dt`` s, for a sine of
+    unit RMS at ``freq_hz``: the two high-pass stages' gain G, less the ripple the energy average
+    leaves at twice the frequency (the band's mean square is G^2 (1 - cos 2wt) / 2 per unit amplitude^2,
+    averaged by a low-pass L: never below G^2 (1 - |L(2w)|)). A sustained oscillation at that frequency
+    trips every limit below this times its RMS."""
+    a = 1.0 - math.exp(-2.0 * math.pi * band_hz * dt)
+    stage = 1.0 - _lowpass_gain(a, freq_hz, dt)
+    ripple = abs(_lowpass_gain(1.0 - math.exp(-dt / energy_tau_s), 2.0 * freq_hz, dt))
+    return abs(stage * stage) * math.sqrt(1.0 - ripple)
+
+
 class OscillationDetector:
     """Sustained high-frequency oscillation of the two current set values (see the module docstring)."""
 

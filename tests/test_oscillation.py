@@ -9,13 +9,13 @@ import math
 import numpy as np
 import pytest
 
-from ankle_rt.config import load_config
+from ankle_rt.config import ConfigError, load_config
 from ankle_rt.control.impedance import ImpedanceController
 from ankle_rt.control.torque_loop import JointTorqueLoop, TorqueLoopGains
 from ankle_rt.daemon import run_lockstep
 from ankle_rt.bench.impedance import bench_config
 from ankle_rt.kinematics import Kinematics
-from ankle_rt.oscillation import OscillationDetector
+from ankle_rt.oscillation import OscillationDetector, band_floor
 from ankle_rt.params import TransmissionParams
 from ankle_rt.paths import default_config_path
 from ankle_rt.safety import Fault, State
@@ -81,3 +81,40 @@ def test_the_detector_runs_element_wise_on_a_batch():
         out = batch.update(i, 0.0 * i)
         assert list(out) == [d.update(float(x), 0.0) for d, x in zip(one, i)]
     assert list(out) == [False, True, True]
+
+
+@pytest.mark.parametrize("rate_hz", [1000, 250])
+def test_every_accepted_rms_limit_trips_on_an_oscillation_the_i2t_never_catches(rate_hz):
+    """A 20 Hz sine whose RMS is the continuous current never spends the I^2 t budget; every
+    oscillation_rms_a the config accepts must fault it (safety6: 5 A was accepted and never did).
+    The config's limit is band_floor(20 Hz) x the continuous current: 1.98 A at 1 kHz, 1.32 A at 250 Hz."""
+    dt = 1.0 / rate_hz
+    tried = 0
+    for limit in (1.0, 1.2, 1.9, 2.0, 3.0, 5.0):
+        try:
+            c = load_config(default_config_path(), {"controller": {"rate_hz": rate_hz, "step_gains": {"kd": 3.0}},
+                                                    "safety": {"oscillation_rms_a": limit, "oscillation_hold_s": 2.0}})
+        except ConfigError as err:
+            assert err.key == "safety.oscillation_rms_a" and limit >= band_floor(20.0, dt) * 5.0
+            continue
+        tried += 1
+        amplitude = math.sqrt(2.0) * c["amplifier"]["current_limit_continuous"]
+        d = OscillationDetector(dt, c["safety"]["oscillation_rms_a"], c["safety"]["oscillation_hold_s"])
+        fired = [d.update(amplitude * math.sin(2 * math.pi * 20.0 * k * dt), 0.0) for k in range(round(3.0 / dt))]
+        assert any(fired), limit
+    assert tried >= 2
+
+
+def test_a_loose_rms_limit_let_a_full_current_limit_cycle_run_until_the_i2t():
+    """Section 7 on a plant with 11.8 ms of actuation delay (beyond the PD's delay margin): a +-15 A,
+    11.2 A RMS limit cycle whose band RMS (~16 Hz) is only 4.3-4.5 A. With oscillation_rms_a 5 A and a
+    2 s hold (accepted before) it ran 39 s to OVERCURRENT; 5 A is refused now, and the largest accepted
+    limit with the longest hold faults it 2 s after it starts (default 1 A / 0.5 s: 1.0 s)."""
+    over = {"sim": {"effects": [{"type": "delay", "delay": 0.0118}]}}
+    with pytest.raises(ConfigError) as err:
+        load_config(default_config_path(), {**over, "safety": {"oscillation_rms_a": 5.0}})
+    assert err.value.key == "safety.oscillation_rms_a"
+    c = load_config(default_config_path(), {**over, "safety": {"oscillation_rms_a": 1.9, "oscillation_hold_s": 2.0}})
+    r = run_lockstep(c, 3.0)
+    assert r.summary["fault"] == "OSCILLATION"
+    assert r["t"][np.nonzero(r["fault"])[0][0]] < 2.7
