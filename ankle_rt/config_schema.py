@@ -287,7 +287,7 @@ SAFETY = Section({
                                     default=20.0, high=ESCON_PEAK_S),
     "oscillation_rms_a": positive("A; a set value's RMS above 20 Hz (either motor) beyond this for "
                                   "safety.oscillation_hold_s is an oscillation fault; below what a 20 Hz oscillation of the "
-                                  "continuous current shows it (check_oscillation_limit: 1.97 A at 1 kHz, 5 A)",
+                                  "continuous current shows it (check_oscillation_limit: 1.97 A at 1 kHz and 5 A continuous)",
                                   default=1.0, high=5.0),
     "oscillation_hold_s": positive("s the band RMS must stay above safety.oscillation_rms_a to fault (a stable "
                                    "loop's saturated step keeps it above for up to ~0.3 s)", default=0.5,
