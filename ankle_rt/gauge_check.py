@@ -124,10 +124,11 @@ class GaugeCrossCheck:
         head = self.head
         last = head - 1                              # the previous slot (-1: the ring's end)
         s0, s1, e0, e1 = self.s0, self.s1, self.e0, self.e1
-        s0[head] = s0[last] + a * (x0 - s0[last])
-        s1[head] = s1[last] + a * (x1 - s1[last])
-        e0[head] = e0[last] + af * (x0 - e0[last])
-        e1[head] = e1[last] + af * (x1 - e1[last])
+        p0, p1, q0, q1 = s0[last], s1[last], e0[last], e1[last]
+        s0[head] = p0 = p0 + a * (x0 - p0)
+        s1[head] = p1 = p1 + a * (x1 - p1)
+        e0[head] = q0 = q0 + af * (x0 - q0)
+        e1[head] = q1 = q1 + af * (x1 - q1)
         self.head = head + 1 if head + 1 < self.slots else 0
         self.c0 = m0 = self.c0 + af * (c0 - self.c0)
         self.c1 = m1 = self.c1 + af * (c1 - self.c1)
@@ -138,7 +139,7 @@ class GaugeCrossCheck:
         ftol0, ftol1 = tol0 + FAST_TOLERANCE_NM, tol1 + FAST_TOLERANCE_NM
         # the residuals against this cycle's prediction; where one is beyond its tolerance, how far
         # the gauge side lies outside what the window's delays predict (never further: asked then only)
-        r0, r1, f0, f1 = g0 - s0[head], g1 - s1[head], h0 - e0[head], h1 - e1[head]
+        r0, r1, f0, f1 = g0 - p0, g1 - p1, h0 - q0, h1 - q1
         off = (abs(r0) > tol0) | (abs(r1) > tol1)
         fast = (abs(f0) > ftol0) | (abs(f1) > ftol1)
         if any_true(off | fast):
