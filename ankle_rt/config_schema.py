@@ -663,7 +663,8 @@ def check_device_deadlines(cfg: Mapping[str, Any], origin: Callable[[KeyPath], s
 
 def check_walking_limits(cfg: Mapping[str, Any], origin: Callable[[KeyPath], str]) -> None:
     """The strain-gauge checks fit the gauges and the wearer: the rail is below the gauges' full scale
-    (a gauge failed to full scale still trips SG_RAIL) and above the wearer's walking moment, and, on
+    (a gauge failed to full scale still trips SG_RAIL) and above the wearer's walking moment, the jump
+    check below the rail (a glitch from rest smaller than the rail still trips it), and, on
     the device or the walking scenario, the jump check above walking's fastest torque change per
     sample (a walker never trips them)."""
     safety, mass = cfg["safety"], cfg["wearer"]["mass_kg"]
@@ -677,6 +678,10 @@ def check_walking_limits(cfg: Mapping[str, Any], origin: Callable[[KeyPath], str
         raise ConfigError(f"must be >= {need:g} N m for a {mass:g} kg wearer (wearer.mass_kg x "
                           f"{WALKING_PEAK_MOMENT_PER_KG:g} N m/kg, walking's peak moment with margin), got {rail:g}",
                           origin(where), "safety.sg_rail_nm")
+    if safety["max_sg_step_nm"] >= rail:
+        raise ConfigError(f"must be < safety.sg_rail_nm ({rail:g} N m): a reading jumping from rest by less than the "
+                          f"rail must still trip SG_JUMP (at twice the rail it never can), got {safety['max_sg_step_nm']:g}",
+                          origin(("safety", "max_sg_step_nm")), "safety.max_sg_step_nm")
     # the jump check per sample: a slower loop sees more change per sample. Checked where someone walks:
     # on the device, or the simulator's walking scenario (a bench config at another rate need not be)
     walked = cfg["backend"] != "sim" or cfg["sim"]["scenario"] == "walking"

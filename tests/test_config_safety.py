@@ -140,6 +140,15 @@ def test_safety_refuses_a_limit_that_would_disable_a_check(sim_cfg, section, key
     assert err.value.key == f"{section}.{key}"
 
 
+def test_a_jump_limit_the_rail_would_always_beat_is_refused():
+    sim = ROOT / "config" / "sim.yaml"
+    for step in (225.0, 450.0):                    # the shipped rail 225 N m; at 450 SG_JUMP can never trip
+        with pytest.raises(ConfigError) as err:
+            load_config(sim, {"safety": {"max_sg_step_nm": step}})
+        assert err.value.key == "safety.max_sg_step_nm" and "sg_rail_nm" in err.value.message
+    assert load_config(sim, {"safety": {"max_sg_step_nm": 224.0}})["safety"]["max_sg_step_nm"] == 224.0
+
+
 def test_the_current_clamp_holds_for_any_command(sim_cfg):
     s = Safety(sim_cfg, 0.001)
     peak = sim_cfg["amplifier"]["current_limit_peak"]
