@@ -1,5 +1,6 @@
 """Generator C's findings (benchmarks/diagnosis_cases_c.py, issue 21): a friction transition sharper than
-the config's assumed smoothing, and the named set measured jointly against the catch-all."""
+the config's assumed smoothing, a remainder without names that does not replicate, and the named set
+measured jointly against the catch-all."""
 
 from __future__ import annotations
 
@@ -7,8 +8,8 @@ import numpy as np
 import pytest
 
 from ankle_rt.diagnosis import diagnose
-from ankle_rt.diagnosis.core import folded_coulomb
-from benchmarks.diagnosis_cases_c import PlantC, make_case_c
+from ankle_rt.diagnosis.candidates import folded_coulomb
+from benchmarks.diagnosis_cases_c import PlantC, draw_case_c, make_case_c
 
 
 def test_folded_coulomb_keeps_level_and_slope_at_rest():
@@ -24,15 +25,34 @@ def test_folded_coulomb_keeps_level_and_slope_at_rest():
 
 @pytest.mark.slow
 @pytest.mark.parametrize("seed, effects", [(113, ["delay"]), (119, [])])
-def test_sharper_coulomb_transition_is_not_a_stribeck_effect(seed, effects):
+def test_sharper_coulomb_transition_is_a_calibration_not_a_stribeck_effect(seed, effects):
     """A device whose Coulomb friction turns sharper (v_eps 0.0057 / 0.0045 rad/s) than the config's assumed
-    0.01: the baseline's second Coulomb column takes it, so no Stribeck term at its grid edge is named
-    (before: delay + stribeck, stribeck), and the written smoothing velocity is the sharper one."""
-    true_veps = PlantC(np.random.default_rng([seed, 7]), []).veps
+    0.01: the sharper transition is fitted as a calibration of the smoothing velocity, so no Stribeck term
+    at its grid edge is named (before: delay + stribeck, stribeck), and --write-model takes the sharper
+    smoothing with the Coulomb level of both columns."""
+    plant = PlantC(np.random.default_rng([seed, 7]), [])
     case = make_case_c(seed, effects, motion="multisine", ident_s=12, valid_s=6)
     diag = diagnose(case.ident, case.valid, plant="ankle", cfg=case.nominal_cfg)
     assert diag.causes == (effects or ["none"]), (seed, diag.causes, diag.notes)
+    found = next(e for e in diag.calibration if e["type"] == "coulomb_transition")
+    assert all(0.4 * plant.veps < p["value"] < 0.01 for p in found["parameters"].values())
     refit = diag.actuator_refit
-    assert 0.4 * true_veps < refit["friction_smoothing_velocity"] < 0.01
-    assert refit["coulomb"] == pytest.approx(np.mean(PlantC(np.random.default_rng([seed, 7]), []).kc), rel=0.1)
-    assert all(v > 0.0 for v in diag.baseline["motor"]["coulomb_sharp"]["value"])     # sharper than configured
+    assert 0.4 * plant.veps < refit["friction_smoothing_velocity"] < 0.01
+    assert refit["coulomb"] == pytest.approx(np.mean(plant.kc), rel=0.1)
+
+
+@pytest.mark.slow
+def test_remainder_beside_the_transition_calibration_must_replicate():
+    """Generator C's seed 119 (effect-free, gauges with a zero offset, motor PD on a multisine, v_eps 0.0045):
+    beside the sharper transition the catch-all's torque-history columns find 35 % of the identification
+    residual (43 % in held-out blocks: the controller's reaction to past noise) but lose 62 in the
+    criterion on the validation file: `none` with the offset warned about and the transition fitted (it
+    read `stribeck` before, and `unknown` with the transition in the baseline, where the replication test
+    for a remainder beside named terms does not reach)."""
+    case = make_case_c(**draw_case_c(119))
+    diag = diagnose(case.ident, case.valid, plant="ankle", cfg=case.nominal_cfg)
+    assert diag.causes == ["none"], (diag.causes, diag.notes)
+    assert any("beside coulomb_transition" in n and "does not show on the validation data" in n for n in diag.notes)
+    assert any("zero offset" in w for w in diag.data_warnings)
+    assert [e["type"] for e in diag.calibration] == ["coulomb_transition"]
+

@@ -25,14 +25,14 @@ import numpy as np
 
 from ankle_rt.config import Config
 from ankle_rt.diagnosis.candidates import (CABLE_CANDIDATES, INPUT_GROUPS, MOTOR_CANDIDATES, Candidate, Channel,
-                                           catch_all_cable, catch_all_motor, time_columns, without_groups)
+                                           catch_all_cable, catch_all_motor, folded_coulomb, time_columns, without_groups)
 from ankle_rt.diagnosis.regression import rss_only
 from ankle_rt.diagnosis.resample import to_uniform_grid
 from ankle_rt.diagnosis.screening import Screening, screen, strain_gauge_drift, strain_gauge_offset
 from ankle_rt.diagnosis.selection import (IC_THRESHOLD, LARGE_REDUCTION, MIN_REDUCTION, MIN_SIZE, MIN_SIZE_UNKNOWN,
                                           MIN_UNKNOWN_REDUCTION, AMBIGUOUS_IC, ChannelModels, ChannelResult, Score,
                                           replicates, select_channel, significant)
-from ankle_rt.diagnosis.signals import SHARPER, CableChannel, Geometry, MotorChannel
+from ankle_rt.diagnosis.signals import CableChannel, Geometry, MotorChannel
 from ankle_rt.interchange import InterchangeError, Recording
 
 #: a named set must explain at least this fraction of what the catch-all removes from the baseline
@@ -48,6 +48,8 @@ PER = 3
 PLANTS = ("ankle", "actuator")
 #: what each calibration finding's scales are
 CALIBRATION_TEXT = {"torque_constant": "the torque constant is (true / configured, per motor)",
+                    "coulomb_transition": "the Coulomb friction turns sharper than the configured smoothing "
+                                          "velocity (per motor, rad/s),",
                     "encoder_scale": "the motor encoders read, relative to the ankle encoders (per axis),"}
 #: candidates that are calibration findings (fitted and reported, never causes or sim effects)
 CALIBRATIONS = tuple(c.cause for c in MOTOR_CANDIDATES + CABLE_CANDIDATES if c.calibration)
@@ -246,22 +248,7 @@ def baseline_dict(name: str, coef: np.ndarray, cov: np.ndarray, m: int) -> dict[
         out[key] = {"value": [float(coef[i]) for i in idx], "sd": [float(sd[i]) for i in idx], "unit": unit}
     if name == "cable":
         out["beta"] = {"value": [float(coef[1 + PER * i] / coef[PER * i]) for i in range(m)], "unit": "s"}
-    else:   # the sharper Coulomb column of each motor (MotorChannel.baseline_design)
-        idx = [PER * m + i for i in range(m)]
-        out["coulomb_sharp"] = {"value": [float(coef[i]) for i in idx], "sd": [float(sd[i]) for i in idx],
-                                "unit": "N m"}
     return out
-
-
-def folded_coulomb(kc: float, kc_sharp: float, v_eps: float) -> tuple[float, float]:
-    """(Coulomb level, smoothing velocity) of one tanh equal to ``kc tanh(v / v_eps) + kc_sharp tanh(SHARPER
-    v / v_eps)`` in level and slope at rest: what the simulator's single Coulomb term can take (bounded to
-    the two columns' widths)."""
-    total = kc + kc_sharp
-    if total <= 0.0:
-        return kc, v_eps
-    width = v_eps * total / (kc + SHARPER * kc_sharp) if kc + SHARPER * kc_sharp > 0.0 else v_eps
-    return total, float(np.clip(width, v_eps / SHARPER, SHARPER * v_eps))
 
 
 def effect_entry(cand: Candidate, params: dict[str, tuple[float, float]]) -> dict[str, Any]:
@@ -546,9 +533,12 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
         m = chans["motor"].m
         actuator_refit = {key: float(np.mean([mc[j + PER * i] for i in range(m)]))
                           for j, (key, _) in enumerate(BASELINE_NAMES["motor"])}
-        folded = [folded_coulomb(mc[2 + PER * i], mc[PER * m + i], inputs.v_eps) for i in range(m)]
-        actuator_refit["coulomb"] = float(np.mean([f[0] for f in folded]))
-        actuator_refit["friction_smoothing_velocity"] = float(np.mean([f[1] for f in folded]))
+        for e in (e for e in calibration if e["type"] == "coulomb_transition"):
+            fit_m = fits["motor"]
+            sl = fit_m.slices[[c.cause for c, _, _ in fit_m.specs].index("coulomb_transition")]
+            folded = [folded_coulomb(mc[2 + PER * i], mc[sl][i], inputs.v_eps) for i in range(m)]
+            actuator_refit["coulomb"] = float(np.mean([f[0] for f in folded]))
+            actuator_refit["friction_smoothing_velocity"] = float(np.mean([f[1] for f in folded]))
         for e in (e for e in calibration if e["type"] == "torque_constant"):
             scale = float(np.mean([v["value"] for v in e["parameters"].values()]))
             actuator_refit["torque_constant"] = inputs.kt * scale

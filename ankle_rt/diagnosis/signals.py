@@ -35,9 +35,6 @@ CUTOFF_HZ = 30.0           # pass band of L (and the highest ripple/dynamics the
 FAST_WINDOW_S = 0.021      # s, Savitzky-Golay window of the velocity that nonlinear regressors use
 ORDER = 3
 KERNEL_POINTS = 16         # midpoints per sample of the triangle mean of the velocity regressors
-#: the second Coulomb column's transition is this many times sharper than v_eps (near the speed resolution
-#: of a 21 ms Savitzky-Golay velocity at 1 kHz: 0.0025 rad/s for the nominal 0.01)
-SHARPER = 4.0
 DECIMATED_RATE_HZ = 250.0  # rows kept for the regressions
 EDGE_S = 0.06              # s dropped at each end (filter transients, delay shifts)
 
@@ -192,6 +189,11 @@ class MotorChannel(_StackedChannel):
         self.tc = self.tc - np.asarray(offset) @ self.geometry.R_inv_T.T
         self.L_tc = self.sm.smooth(self.tc)
 
+    def set_smoothing_velocity(self, v_eps: float) -> None:
+        """Change v_eps of the Coulomb regressor tanh(v / v_eps) (position unit/s)."""
+        self.v_eps = v_eps
+        self.sign = self.step_mean(lambda v: np.tanh(v / v_eps))
+
     def step_mean(self, force: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
         """``force(v)`` as D2 th sees it at each sample: its triangle-weighted mean over the two steps
         around the sample, v extrapolated linearly (samples x motors; see the module docstring)."""
@@ -215,25 +217,15 @@ class MotorChannel(_StackedChannel):
         """The regression's left side: L[tau(t - dt/2 - delay)] - L[tc] (stacked)."""
         return self.torque(delay_s) - self.pick(self.L_tc)
 
-    def set_smoothing_velocity(self, v_eps: float) -> None:
-        """Change v_eps of the Coulomb regressors tanh(v / v_eps) and tanh(v / (v_eps / SHARPER)) (position
-        unit/s)."""
-        self.v_eps = v_eps
-        self.sign = self.step_mean(lambda v: np.tanh(v / v_eps))
-        self.sharp_sign = self.step_mean(lambda v: np.tanh(SHARPER * v / v_eps))
-
     def baseline_design(self) -> np.ndarray:
-        """Columns J_i, D_i, kc_i for each motor i (block diagonal over motors), then a sharper Coulomb
-        column per motor: a real friction transition is as sharp as the data say, not as the simulator's
-        assumed v_eps; the two Coulomb columns fit its width (a sharper one left out is extra friction at
-        low speed, which read as a Stribeck term at its grid edge: generator C)."""
+        """Columns J_i, D_i, kc_i for each motor i (block diagonal over motors)."""
         per = [self.L_acc, self.L_vel, self.sm.smooth(self.sign)]
         k = self.n_rows
         X = np.zeros((k * self.m, 3 * self.m))
         for i in range(self.m):
             for j, sig in enumerate(per):
                 X[i * k:(i + 1) * k, 3 * i + j] = sig[self.rows, i]
-        return self.with_nuisance(np.hstack([X, self.per_column(self.sm.smooth(self.sharp_sign))]))
+        return self.with_nuisance(X)
 
 
 class CableChannel(_StackedChannel):
