@@ -4,6 +4,8 @@ measured jointly against the catch-all."""
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
@@ -56,3 +58,33 @@ def test_remainder_beside_the_transition_calibration_must_replicate():
     assert any("zero offset" in w for w in diag.data_warnings)
     assert [e["type"] for e in diag.calibration] == ["coulomb_transition"]
 
+
+@pytest.mark.slow
+def test_named_share_is_joint_where_effects_overlap():
+    """Stribeck and load-dependent friction both act at every reversal: each one's drop-one share counts only
+    what the other cannot take over (0.62 together), what they remove together is 0.83 of the baseline
+    residual; `named_share` is the joint figure."""
+    case = make_case_c(32, ["stribeck", "load_dependent_friction"], motion="multisine", ident_s=12, valid_s=6)
+    diag = diagnose(case.ident, case.valid, plant="ankle", cfg=case.nominal_cfg)
+    res = diag.detail["results"][0]
+    assert sorted(diag.causes) == ["load_dependent_friction", "stribeck"]
+    assert res.named_share == pytest.approx(1.0 - res.model.rss / res.baseline.rss)
+    assert res.named_share > sum(ts.share for ts in res.terms) + 0.1
+
+
+def test_unknown_beside_overlapping_effects_keeps_their_names(monkeypatch):
+    """The 60 % rule for `unknown` beside named effects compares what the named set removes together with the
+    catch-all's gain: two overlapping effects with drop-one shares 0.25 + 0.25 (sum 0.5 of a catch-all's
+    0.9: below 60 %) that remove 0.8 together are named, with `unknown` beside them."""
+    from ankle_rt.diagnosis import core
+    from ankle_rt.diagnosis.candidates import LoadDependentFriction, Stribeck
+
+    terms = [SimpleNamespace(share=0.25, term=SimpleNamespace(candidate=c, nl=nl))
+             for c, nl in ((Stribeck(), 0.05), (LoadDependentFriction(), 0.0))]
+    res = SimpleNamespace(name="motor", terms=terms, unexplained=True, named_share=0.8, catch_all_total=0.9,
+                          catch_all_reduction=0.3, catch_all_size=0.01, correlates=[("velocity", 0.7)])
+    monkeypatch.setattr(core, "replicates", lambda *a: (True, 40.0, 0.3))
+    notes: list[str] = []
+    chosen, unexplained = core._named_sets([res], notes, False, {"motor": None}, {"motor": None})
+    assert [c.cause for c, _ in chosen["motor"]] == ["stribeck", "load_dependent_friction"], notes
+    assert "motor" in unexplained and not notes

@@ -331,14 +331,17 @@ def _remove_gauge_offsets(chans: dict[str, Channel], label: str, warnings: list[
 def _named_sets(results: list[ChannelResult], notes: list[str], unusable: bool, vmodels: dict[str, ChannelModels],
                 catch_alls: dict[str, Any]) -> tuple[dict[str, list[tuple[Candidate, float]]], dict[str, Any]]:
     """Per channel the effects to name, and the channels with an unexplained remainder. A named set that
-    explains less than MIN_EXPLAINED of the catch-all's gain is a partial proxy: not named. A remainder
+    explains less than MIN_EXPLAINED of the catch-all's gain is a partial proxy: not named. What the set
+    explains is measured jointly (:attr:`ChannelResult.named_share`), not as the sum of each effect's
+    drop-one share: overlapping effects (two frictions at every reversal) share what they explain, and
+    each one's drop-one share counts only what the others cannot take over. A remainder
     beside named effects counts only where it shows on the validation data too (:func:`replicates`)."""
     chosen: dict[str, list[tuple[Candidate, float]]] = {}
     unexplained: dict[str, Any] = {}
     for res in results:
         specs = [(ts.term.candidate, ts.term.nl) for ts in res.terms]
         if res.unexplained:
-            explained = sum(ts.share for ts in res.terms) / max(res.catch_all_total, 1e-12)
+            explained = res.named_share / max(res.catch_all_total, 1e-12)
             if specs and explained < MIN_EXPLAINED:
                 notes.append(f"{res.name} channel: {', '.join(c.cause for c, _ in specs)} explain only "
                              f"{100 * explained:.0f} % of what the catch-all removes: not named")
