@@ -88,3 +88,16 @@ def test_unknown_beside_overlapping_effects_keeps_their_names(monkeypatch):
     chosen, unexplained = core._named_sets([res], notes, False, {"motor": None}, {"motor": None})
     assert [c.cause for c, _ in chosen["motor"]] == ["stribeck", "load_dependent_friction"], notes
     assert "motor" in unexplained and not notes
+
+
+@pytest.mark.slow
+def test_a_nonlinear_value_in_the_outer_grid_cell_explaining_nothing_is_rejected():
+    """Generator C's seed 118 (a load offset and 18-period rotor cogging, motor PD on a multisine): a 0.4 ms
+    delay, refined between the grid's 0.25 ms end and its neighbour, explained 0.04 % of the residual beside
+    the offset and was named; it lies in the grid's outer cell, so it is rejected with the reason."""
+    case = make_case_c(**draw_case_c(118))
+    diag = diagnose(case.ident, case.valid, plant="ankle", cfg=case.nominal_cfg)
+    assert sorted(diag.causes) == ["cogging", "torque_offset"], (diag.causes, diag.notes)
+    cogging = next(e for e in diag.effects if e["type"] == "cogging")
+    assert cogging["parameters"]["periods_per_rev"]["value"] == 18 * 81
+    assert any(n.startswith("motor channel: delay rejected") and "edge cell" in n for n in diag.notes)
