@@ -50,8 +50,9 @@ SUBSTEPS = 4
 VOCAB = {"stribeck", "asymmetric_friction", "load_dependent_friction", "backlash", "cogging", "delay",
          "stiffness_nonlinear", "torque_offset"}
 OUTSIDE = {"quadratic_drag", "viscoelastic_cable"}
+#: calibration and sensor conditions: a data warning or calibration finding expected ("jitter" and
+#: "rate_500", irregular stamps and a 500 Hz log, need none)
 CALIBRATION = {"sg_offset", "sg_gain", "kt_error", "encoder_scale", "sg_clip", "sg_hold", "dropouts", "sg_drift"}
-NEUTRAL = {"jitter", "rate_500"}          # need no flag
 
 
 @dataclass
@@ -248,7 +249,8 @@ def experiment(rng: np.random.Generator, t: np.ndarray, motion: str) -> dict:
         ang, stance, gl = _gait(rng, t)
         ref = np.column_stack([ang, 0.02 * np.sin(2 * np.pi * t / 1.15 + rng.uniform(0, 6))])
         load = np.column_stack([gl, 0.15 * gl * rng.uniform(-1, 1) + _multisine(rng, t, 0.3, 3.0, 3, 0.3)])
-        kenv = np.column_stack([np.where(stance, rng.uniform(50, 150), 0.0), np.where(stance, rng.uniform(10, 40), 0.0)])
+        kenv = np.column_stack([np.where(stance, rng.uniform(50, 150), 0.0),
+                                np.where(stance, rng.uniform(10, 40), 0.0)])
     return {"ref": ref, "load": load, "kenv": kenv}
 
 
@@ -404,7 +406,7 @@ def draw_effect(kind: str, rng: np.random.Generator, motion: str) -> dict:
 
 
 def draw_condition(kind: str, rng: np.random.Generator) -> dict:
-    """A calibration or sensor condition (truth unchanged, a flag expected unless NEUTRAL)."""
+    """A calibration or sensor condition (truth unchanged; a flag expected for those in CALIBRATION)."""
     sign = lambda: float(rng.choice([-1, 1]))  # noqa: E731
     if kind == "sg_offset":
         return {"kind": kind, "offset": [sign() * rng.uniform(0.1, 0.6), sign() * rng.uniform(0.05, 0.4)]}

@@ -25,7 +25,8 @@ import numpy as np
 
 from ankle_rt.config import Config
 from ankle_rt.diagnosis.candidates import (CABLE_CANDIDATES, INPUT_GROUPS, MOTOR_CANDIDATES, Candidate, Channel,
-                                           catch_all_cable, catch_all_motor, folded_coulomb, time_columns, without_groups)
+                                           catch_all_cable, catch_all_motor, folded_coulomb, time_columns,
+                                           without_groups)
 from ankle_rt.diagnosis.regression import rss_only
 from ankle_rt.diagnosis.resample import to_uniform_grid
 from ankle_rt.diagnosis.screening import Screening, screen, strain_gauge_drift, strain_gauge_offset
