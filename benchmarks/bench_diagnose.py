@@ -19,7 +19,11 @@ stiffening, ...), walking-only logs, the impedance controller, irregular time st
 sensor conditions (truth `none` with a finding expected). Both report exact-set accuracy, recall per
 word, false names, files without a verdict (diagnose raised), flags given where expected, seconds per file.
 
-    python benchmarks/bench_diagnose.py [--n 64] [--seed 1000] [--generator a|b|both]
+Generator C (benchmarks/diagnosis_cases_c.py, diag4): written without the diagnosis' or A/B's code (exact
+linear discretisation with Heun nonlinear forces, quantised sensors in the loop, a Coulomb transition
+sharper than the config's, own effect forms, quadratic drag and a viscoelastic cable outside the vocabulary).
+
+    python benchmarks/bench_diagnose.py [--n 64] [--seed 1000] [--generator a|b|c|both|all]
 """
 
 from __future__ import annotations
@@ -29,6 +33,7 @@ import os
 import sys
 import tempfile
 import time
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -45,6 +50,7 @@ from ankle_rt.diagnosis.core import Diagnosis  # noqa: E402
 from ankle_rt.timing_reference import reference_step_s  # noqa: E402
 from tests.diagnosis_cases import README_RUN_YAML, draw_scenario, make_case, primary_error  # noqa: E402
 from tests.diagnosis_cases_b import draw_case_b, make_case_b, write_case_b  # noqa: E402
+from benchmarks.diagnosis_cases_c import draw_case_c, make_case_c, write_case_c  # noqa: E402
 
 NAMES_EXCLUDED = ("none", "unknown")
 REF_S = [float("nan")]     # s per reference step, measured once per run in main()
@@ -204,31 +210,58 @@ def generator_a(args: argparse.Namespace) -> list[Row]:
     return rows
 
 
-def generator_b(args: argparse.Namespace) -> list[Row]:
-    """Generator B (tests/diagnosis_cases_b.py): its own plant integration and effect forms."""
+def run_generated(name: str, cases: Iterable, save: Path | None, write: Callable, head: str,
+                  cells: Callable) -> list[Row]:
+    """Diagnose the cases of an independent generator (B, C) one by one, a line each (``head`` / ``cells``:
+    the generator's own columns); with ``save`` each is also written as interchange CSVs, its truth in
+    truth.txt."""
     rows = []
-    print(f"{'seed':>6} {'ctl':<9} {'motion':<9} {'jit':<3} {'conditions':<52} {'truth':<36} {'named':<36} {'s':>5}")
-    for i in range(args.n):
-        case = make_case_b(**draw_case_b(args.seed + i))
-        if args.save_b:
-            write_case_b(case, args.save_b)
-            with open(args.save_b / "truth.txt", "a") as f:
-                f.write(f"b{case.seed}: causes {','.join(case.causes)}; flag expected {case.expect_flag}; "
+    print(f"{'seed':>6} {head} {'truth':<36} {'named':<36} {'s':>5}")
+    for case in cases:
+        if save:
+            write(case, save)
+            with open(save / "truth.txt", "a") as f:
+                f.write(f"{name}{case.seed}: causes {','.join(case.causes)}; flag expected {case.expect_flag}; "
                         f"{case.describe()}\n")
         row = run_case(case.seed, case.ident, case.valid, "ankle", case.nominal_cfg, case.causes, case.expect_flag)
         rows.append(row)
         flag = "" if not case.expect_flag else (" flag ok" if row.diag and flagged(row.diag) else " NO FLAG")
         mark = "" if row.exact else "  <-- differs"
-        print(f"{case.seed:>6} {case.controller:<9} {case.motion:<9} {'y' if case.jitter else '-':<3} "
-              f"{','.join(case.kinds) or '-':<52} {','.join(case.causes):<36} {','.join(row.named) or row.error:<36} "
+        print(f"{case.seed:>6} {cells(case)} {','.join(case.causes):<36} {','.join(row.named) or row.error:<36} "
               f"{row.seconds:>5.2f}{mark}{flag}", flush=True)
+    return rows
+
+
+def print_runtime(name: str, case, runtime_s: float) -> None:
+    """Diagnose a long walking file under the impedance law and print the time it took."""
+    row = run_case(case.seed, case.ident, case.valid, "ankle", case.nominal_cfg, case.causes)
+    print(f"\nruntime, generator {name}: diagnose on a {runtime_s:g} s walking file under the impedance law "
+          f"(+ {runtime_s / 3:g} s validation): {row.seconds:.1f} s = {row.seconds / REF_S[0]:.3g} ref steps "
+          f"(goal <= 20 s); named {row.named} (truth {list(case.causes)})")
+
+
+def generator_b(args: argparse.Namespace) -> list[Row]:
+    """Generator B (tests/diagnosis_cases_b.py): its own plant integration and effect forms."""
+    cases = (make_case_b(**draw_case_b(args.seed + i)) for i in range(args.n))
+    rows = run_generated("b", cases, args.save_b, write_case_b,
+                         f"{'ctl':<9} {'motion':<9} {'jit':<3} {'conditions':<52}",
+                         lambda c: f"{c.controller:<9} {c.motion:<9} {'y' if c.jitter else '-':<3} "
+                                   f"{','.join(c.kinds) or '-':<52}")
     if args.runtime_s > 0:   # walking under the impedance law: slow motor reversals widen the cogging search
-        case = make_case_b(args.seed - 1, ["stribeck", "asymmetric_friction"], "impedance", "walking",
-                           ident_s=args.runtime_s, valid_s=args.runtime_s / 3)
-        row = run_case(case.seed, case.ident, case.valid, "ankle", case.nominal_cfg, case.causes)
-        print(f"\nruntime, generator B: diagnose on a {args.runtime_s:g} s walking file under the impedance law "
-              f"(+ {args.runtime_s / 3:g} s validation): {row.seconds:.1f} s = {row.seconds / REF_S[0]:.3g} ref steps "
-              f"(goal <= 20 s); named {row.named}")
+        print_runtime("B", make_case_b(args.seed - 1, ["stribeck", "asymmetric_friction"], "impedance", "walking",
+                                       ident_s=args.runtime_s, valid_s=args.runtime_s / 3), args.runtime_s)
+    return rows
+
+
+def generator_c(args: argparse.Namespace) -> list[Row]:
+    """Generator C (benchmarks/diagnosis_cases_c.py): written without the diagnosis' or A/B's code."""
+    cases = (make_case_c(**draw_case_c(args.seed + i)) for i in range(args.n))
+    rows = run_generated("c", cases, args.save_c, write_case_c, f"{'ctl':<9} {'motion':<9} {'kinds':<52}",
+                         lambda c: f"{c.controller:<9} {c.motion:<9} {','.join(c.kinds) or '-':<52}")
+    if args.runtime_s > 0:   # three effects at once, cogging among them
+        print_runtime("C", make_case_c(args.seed - 1, ["cogging", "load_dependent_friction", "backlash"],
+                                       controller="impedance", motion="walking", ident_s=args.runtime_s,
+                                       valid_s=args.runtime_s / 3), args.runtime_s)
     return rows
 
 
@@ -237,22 +270,28 @@ def main() -> int:
     ap.add_argument("--n", type=int, default=64, help="number of cases per generator (>= 60 for the issue's figures)")
     ap.add_argument("--seed", type=int, default=1000, help="first seed; case i uses seed + i")
     ap.add_argument("--runtime-s", type=float, default=30.0, help="length of the runtime file (0: skip)")
-    ap.add_argument("--generator", choices=("a", "b", "both"), default="both",
-                    help="a: the project simulator's cases; b: the independent generator; both: side by side")
+    ap.add_argument("--generator", choices=("a", "b", "c", "both", "all"), default="both",
+                    help="a: the project simulator's cases; b, c: the independent generators; both: a and b side "
+                    "by side; all: a, b and c")
     ap.add_argument("--save-b", type=Path, metavar="DIR", help="also write generator B's cases there as interchange "
                     "CSVs (b<seed>_ident.csv, b<seed>_valid.csv) with their truth in truth.txt")
+    ap.add_argument("--save-c", type=Path, metavar="DIR", help="the same for generator C (c<seed>_*.csv)")
     args = ap.parse_args()
-    if args.save_b:
-        args.save_b.mkdir(parents=True, exist_ok=True)
+    for d in (args.save_b, args.save_c):
+        if d:
+            d.mkdir(parents=True, exist_ok=True)
     REF_S[0] = reference_step_s()     # the machine-independent unit (ankle_rt.timing_reference)
     print(f"reference step (plain-Python RK4 of the cable model): {REF_S[0] * 1e6:.1f} us on this machine")
 
     results, rows = {}, {}
-    if args.generator in ("a", "both"):
+    if args.generator in ("a", "both", "all"):
         rows["A"] = generator_a(args)
         print()
-    if args.generator in ("b", "both"):
+    if args.generator in ("b", "both", "all"):
         rows["B"] = generator_b(args)
+        print()
+    if args.generator in ("c", "all"):
+        rows["C"] = generator_c(args)
         print()
     for name, generated in rows.items():
         results[name] = summary(generated)

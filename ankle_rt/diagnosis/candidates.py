@@ -341,6 +341,52 @@ class TorqueConstantScale(Candidate):
         return super().rejection(params, coef, base_coef)
 
 
+class CoulombTransition(Candidate):
+    """The Coulomb friction turning sharper than the config's assumed smoothing v_eps (a baseline parameter,
+    not an effect): a second Coulomb column ``c_i tanh(SHARPER w / v_eps)`` per motor. A real transition is
+    as sharp as the data say; one left at the simulator's v_eps is extra friction at low speed that read
+    as a Stribeck term at its grid edge (generator C). Selected like an effect, so it and a Stribeck term
+    compete for what the data show near rest; reported as the fitted ``friction_smoothing_velocity``
+    (the two columns folded into one tanh, :func:`folded_coulomb`), never as a cause."""
+
+    cause = "coulomb_transition"
+    calibration = True
+
+    def design(self, ch, nl):
+        v_eps = ch.v_eps
+        return Design(ch.per_column(ch.sm.smooth(ch.step_mean(lambda v: np.tanh(SHARPER * v / v_eps)))))
+
+    def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
+        out = {}
+        for i in range(len(coef)):
+            kc, c = float(base_coef[2 + 3 * i]), float(coef[i])
+            width = folded_coulomb(kc, c, ch.v_eps)[1]
+            d_width = ch.v_eps * kc * (SHARPER - 1.0) / (kc + SHARPER * c) ** 2 if kc + SHARPER * c else math.inf
+            out[f"smoothing_velocity_{i + 1}"] = (width, d_width * _sd(cov, i))
+        return out
+
+    def rejection(self, params, coef, base_coef):
+        if any(c <= 0.0 for c in coef):
+            return "a smoother transition than configured (negative sharp Coulomb term): not a sharper one"
+        return super().rejection(params, coef, base_coef)
+
+
+#: the sharp Coulomb column's transition is this many times sharper than v_eps (near the speed resolution
+#: of a 21 ms Savitzky-Golay velocity at 1 kHz: 0.0025 rad/s for the nominal 0.01)
+SHARPER = 4.0
+
+
+def folded_coulomb(kc: float, kc_sharp: float, v_eps: float) -> tuple[float, float]:
+    """(Coulomb level, smoothing velocity) of one tanh equal to ``kc tanh(v / v_eps) + kc_sharp tanh(SHARPER
+    v / v_eps)`` in level and in slope at rest: what the simulator's single Coulomb term can take (the
+    width bounded to the two columns')."""
+    total = kc + kc_sharp
+    slope = kc + SHARPER * kc_sharp
+    if total <= 0.0 or slope <= 0.0:
+        return kc, v_eps
+    return total, float(np.clip(v_eps * total / slope, v_eps / SHARPER, SHARPER * v_eps))
+
+
 class EncoderScale(Candidate):
     """A scale mismatch between the motor and the ankle encoders (a calibration, not an effect): with the
     motor angles read f x too large, the measured stretch is phi' = f phi + (f - 1) theta_j, so the cable
@@ -526,7 +572,7 @@ class CableTautHardening(TautHardening):
 
 MOTOR_CANDIDATES: tuple[Candidate, ...] = (Stribeck(), StribeckExponential(), AsymmetricFriction(),
                                            AsymmetricFrictionPerMotor(), LoadDependentFriction(), Cogging(), Delay(),
-                                           TorqueOffset(), TorqueConstantScale())
+                                           TorqueOffset(), TorqueConstantScale(), CoulombTransition())
 CABLE_CANDIDATES: tuple[Candidate, ...] = (Backlash(), CableBacklash(), HardeningStiffness(), TautHardening(),
                                            CableTautHardening(), EncoderScale())
 

@@ -116,6 +116,11 @@ class ChannelResult:
     nl_sd: list[float] = field(default_factory=list)     # sd of each term's nonlinear parameter
 
     @property
+    def named_share(self) -> float:
+        """Share of the baseline residual the chosen effects remove together."""
+        return 0.0 if self.model is None else 1.0 - self.model.rss / self.baseline.rss
+
+    @property
     def unexplained(self) -> bool:
         """A discrepancy the chosen effects leave: the catch-all beats them in the criterion and in
         held-out blocks, by a practical size (or predicts the held-out blocks far better)."""
