@@ -125,20 +125,21 @@ class AnkleClient:
         daemon's refusal), CommandError (a field that cannot be sent: nothing is sent) or
         DaemonUnreachable."""
         line = encode_request(cmd, **fields)
+        kept = self._sock
         sock = self._live_socket()
         try:
-            sock.sendall(line)
-            while b"\n" not in self._buf:
-                chunk = sock.recv(65536)
-                if not chunk:
-                    raise DaemonUnreachable(f"the daemon on {self.path} closed the connection without a reply")
-                self._buf += chunk
-        except socket.timeout:
+            self._exchange(sock, line)
+        except (ConnectionResetError, BrokenPipeError, EOFError):
             self.close()
-            raise DaemonUnreachable(f"no reply from {self.path} within {self.timeout_s:g} s") from None
-        except OSError as exc:
-            self.close()
-            raise DaemonUnreachable(f"cannot talk to the daemon on {self.path}: {exc.strerror or exc}") from None
+            if sock is not kept or self._buf:
+                raise DaemonUnreachable(f"the daemon on {self.path} closed the connection without a reply") from None
+            # a kept connection the daemon dropped as idle as the request went out: it drops a client
+            # only before reading its request, so nothing was handled; once more on a new connection
+            try:
+                self._exchange(self._open(), line)
+            except (ConnectionResetError, BrokenPipeError, EOFError):
+                self.close()
+                raise DaemonUnreachable(f"the daemon on {self.path} closed the connection without a reply") from None
         reply_line, self._buf = self._buf.split(b"\n", 1)
         try:
             reply = decode_reply(reply_line)
@@ -148,6 +149,26 @@ class AnkleClient:
         if not reply.pop("ok", False):
             raise CommandRefused(str(reply.get("field")), str(reply.get("error")))
         return reply
+
+    def _exchange(self, sock: socket.socket, line: bytes) -> None:
+        """Send ``line`` and read until a whole reply line is buffered. Raises ConnectionResetError,
+        BrokenPipeError or EOFError (the daemon closed the connection: the caller decides), else
+        DaemonUnreachable."""
+        try:
+            sock.sendall(line)
+            while b"\n" not in self._buf:
+                chunk = sock.recv(65536)
+                if not chunk:
+                    raise EOFError
+                self._buf += chunk
+        except socket.timeout:
+            self.close()
+            raise DaemonUnreachable(f"no reply from {self.path} within {self.timeout_s:g} s") from None
+        except (ConnectionResetError, BrokenPipeError):
+            raise
+        except OSError as exc:
+            self.close()
+            raise DaemonUnreachable(f"cannot talk to the daemon on {self.path}: {exc.strerror or exc}") from None
 
     def close(self) -> None:
         """Close the connection (the daemon keeps running)."""

@@ -4,9 +4,12 @@ script and the controllers listed and switched at run time. Timeouts are guards,
 
 from __future__ import annotations
 
+import json
 import math
+import socket
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -202,3 +205,35 @@ def test_a_switch_while_a_fault_is_latched_keeps_the_fault_and_the_current_limit
     assert np.all(np.abs(cur["current_cmd_1"]) <= peak) and np.all(np.abs(cur["current_cmd_2"]) <= peak)
     assert type(d.controller).__name__ == "ImpedanceController" and d.safety.state == State.ACTIVE
     d.close()
+
+
+
+def _one_request_per_connection(listener: socket.socket, answers: list[bool]) -> None:
+    """A daemon stand-in: per connection, read one request, answer it (or not: ``answers``), close."""
+    for n, answer in enumerate(answers, start=1):
+        conn, _ = listener.accept()
+        with conn:
+            conn.recv(65536)
+            if answer:
+                conn.sendall(json.dumps({"ok": True, "n": n}).encode() + b"\n")
+
+
+def test_a_kept_connection_dropped_as_the_request_goes_out_is_retried_once(tmp_path, monkeypatch):
+    path = tmp_path / "stub.sock"
+    listener = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    listener.bind(str(path))
+    listener.listen(4)
+    server = threading.Thread(target=_one_request_per_connection, args=(listener, [True, True, False]), daemon=True)
+    server.start()
+    try:
+        client = AnkleClient(path, timeout_s=10.0)
+        assert client.request("status") == {"n": 1}          # the stand-in then closes that connection
+        # the race: the daemon drops the idle connection after the client looked and before it sends
+        monkeypatch.setattr(client, "_live_socket", lambda: client._sock or client._open())
+        assert client.request("status") == {"n": 2}          # answered on a new connection
+        with pytest.raises(DaemonUnreachable, match="closed the connection without a reply"):
+            client.request("status")                          # the new connection unanswered too: no more tries
+        server.join(timeout=10.0)
+        assert not server.is_alive()                          # three connections: one retry each time, no more
+    finally:
+        listener.close()
