@@ -200,7 +200,9 @@ class Daemon:
     def activate(self) -> None:
         """CONFIGURED/SAFE -> ACTIVE. The first activation runs the configured reference (a configured
         hold is reached by a ramp from the current ankle angle); later ones hold the ankle where it
-        is. Raises RuntimeError when not allowed."""
+        is. Raises RuntimeError when not allowed, or when the controller's ``reset`` raises (a
+        plugin's): the controller is reset before the amplifiers are enabled, so a refused
+        activation leaves the daemon not active."""
         s = self.safety
         if s.state not in (State.CONFIGURED, State.SAFE):
             raise RuntimeError(f"cannot activate in state {State(s.state).name}"
@@ -215,9 +217,12 @@ class Daemon:
             hold = self.reference.profile
             self.reference.ref[0], self.reference.ref[1] = dp, ie
             self.reference.start(RampTo(hold.dp, hold.ie, self.cfg["reference"]["ramp_s"]))
+        try:
+            self.controller.reset(self.est)
+        except Exception as exc:   # a plugin's reset may raise anything; nothing is enabled yet
+            raise RuntimeError(f"cannot activate: the controller's reset raised {type(exc).__name__}: {exc}") from None
         self.backend.activate()
         s.activated(self.est)
-        self.controller.reset(self.est)
         self.activations += 1
         if self.service is not None:
             self.service.mark_command_channel(self.clock.now_ns() * 1e-9)
