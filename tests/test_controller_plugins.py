@@ -275,3 +275,36 @@ def test_a_plugin_cannot_change_the_maps_or_the_reference_the_next_controller_us
     assert abs(math.degrees(daemon.est.dp) - 5.0) < 1.0
     assert len(plugin.refused) == 2 and all("read-only" in why for why in plugin.refused)
     daemon.close()
+
+
+class StiffHold(Controller):
+    """A plugin with no soft start of its own: 400 N m/rad holding DP at +10 deg from its first cycle."""
+
+    def update(self, est, out_torque):
+        tau = 400.0 * (math.radians(10.0) - est.dp) - 2.0 * est.dp_vel
+        r = self.context.kin.R_inv_T
+        out_torque[0], out_torque[1] = r.item(0, 0) * tau, r.item(1, 0) * tau
+
+
+def test_a_plugin_output_ramps_in_over_the_soft_start():
+    """Before: 4.67 A on the first active cycle and the foot at 7.5 deg 0.1 s after activation. Now the
+    output ramps in over controller.soft_start_s (0.2 s) as the built-ins' does, and the plugin still
+    reaches its target."""
+    from ankle_rt.control.base import ControllerContext
+    from ankle_rt.service import protocol as proto
+    from tests.daemon_helpers import run_cycles
+
+    daemon = service_daemon()
+    daemon.controller = StiffHold(ControllerContext.from_config(daemon.cfg, daemon.kin, daemon.reference.ref))
+    daemon.handle(proto.Activate())
+    run_cycles(daemon, 800)
+    r = daemon.recorder.records
+    active = np.flatnonzero(r["state"] == int(State.ACTIVE))
+    current, ankle = np.abs(r["current_cmd_1"][active]), np.degrees(r["est_ankle_dp"][active])
+    soft_s = daemon.cfg["controller"]["soft_start_s"]
+    assert current[0] < 0.05 and ankle[100] < 2.0
+    # never above the full output's scaled share while ramping
+    ramp = np.arange(1, len(active) + 1) * daemon.dt / soft_s
+    assert np.all(current[ramp < 1.0] <= 4.7 * ramp[ramp < 1.0] + 1e-9)
+    assert daemon.safety.fault == Fault.NONE and abs(ankle[-1] - 10.0) < 2.0
+    daemon.close()
