@@ -18,7 +18,10 @@ by ``context.torque_constant``; a current beyond ``amplifier.current_limit_peak`
 (``context.torque_limit`` N m per motor), the I^2 t budget faults OVERCURRENT, a NaN or inf faults
 OUTPUT_INVALID, and the ankle range (``context.ankle_limit`` rad), sensor checks and deadlines fault
 as for any controller. ``update`` is called only while ACTIVE; in every other state the set values
-are zero. An exception raised by ``update`` ends the run, and the daemon goes safe (amplifiers off).
+are zero. An exception raised by ``update`` ends the run, and the daemon goes safe (amplifiers off);
+one raised by ``reset`` refuses the activation (nothing is enabled). A :class:`Controller`'s output
+is ramped in by the daemon over ``controller.soft_start_s`` after each activation. The kinematics'
+matrices and ``context.ref`` are read-only (shared with the daemon and the next controller).
 
 **Real time**: ``update`` runs at ``controller.rate_hz`` (1 kHz) inside the loop: allocate nothing
 (prefer plain floats and preallocated arrays), never block, no I/O.
