@@ -90,6 +90,9 @@ class Daemon:
         self.loader = BackgroundLoader()
         # N m [motor 1, motor 2]: the controller sets ``torque``, the cycle reads ``_torque_values``
         self._torque_values, self.torque = float_buffer(2)
+        # a plugin's output ramps in over controller.soft_start_s after each activation, as the
+        # built-ins' (BatchableController) does: they scale their own. No current step at activation.
+        self.soft_scale = self.soft_step = 1.0
         self.recorder = recorder
         self.lsl: "LslPublisher | None" = None   # set by open_log when lsl.enabled
         self.log_fault = cfg["logging"]["fault_on_error"]
@@ -127,8 +130,10 @@ class Daemon:
                 code = safety.check_reference(ref[0], ref[1])
             if code == 0 and state == ACTIVE:
                 self._controller.update(est, torque)   # the attribute (no property call per cycle)
-                tau = self._torque_values
-                code = safety.limit_currents(tau[0] * self.inv_kt, tau[1] * self.inv_kt)
+                tau, scale = self._torque_values, self.soft_scale
+                if scale < 1.0:
+                    scale = self.soft_scale = min(1.0, scale + self.soft_step)
+                code = safety.limit_currents(tau[0] * self.inv_kt * scale, tau[1] * self.inv_kt * scale)
                 if code == 0:
                     code = safety.check_gauges(est)
                 if code == 0:
@@ -200,7 +205,9 @@ class Daemon:
     def activate(self) -> None:
         """CONFIGURED/SAFE -> ACTIVE. The first activation runs the configured reference (a configured
         hold is reached by a ramp from the current ankle angle); later ones hold the ankle where it
-        is. Raises RuntimeError when not allowed."""
+        is. Raises RuntimeError when not allowed, or when the controller's ``reset`` raises (a
+        plugin's): the controller is reset before the amplifiers are enabled, so a refused
+        activation leaves the daemon not active."""
         s = self.safety
         if s.state not in (State.CONFIGURED, State.SAFE):
             raise RuntimeError(f"cannot activate in state {State(s.state).name}"
@@ -215,9 +222,16 @@ class Daemon:
             hold = self.reference.profile
             self.reference.ref[0], self.reference.ref[1] = dp, ie
             self.reference.start(RampTo(hold.dp, hold.ie, self.cfg["reference"]["ramp_s"]))
+        try:
+            self.controller.reset(self.est)
+        except Exception as exc:   # a plugin's reset may raise anything; nothing is enabled yet
+            raise RuntimeError(f"cannot activate: the controller's reset raised {type(exc).__name__}: {exc}") from None
+        soft_s = self.cfg["controller"]["soft_start_s"]
+        plugin = self.own_controller and not isinstance(self._controller, BatchableController)   # no own soft start
+        self.soft_scale = 0.0 if plugin and soft_s > 0.0 else 1.0
+        self.soft_step = self.dt / soft_s if soft_s > 0.0 else 1.0
         self.backend.activate()
         s.activated(self.est)
-        self.controller.reset(self.est)
         self.activations += 1
         if self.service is not None:
             self.service.mark_command_channel(self.clock.now_ns() * 1e-9)

@@ -23,6 +23,12 @@ class Kinematics:
     K: np.ndarray        # N m/rad, ankle stiffness diag(2 k R_DP^2, k R_IE^2)
     K_inv: np.ndarray
 
+    def __post_init__(self) -> None:
+        """The maps are read-only: one Kinematics is shared by the daemon and every controller it
+        builds (a plugin's in-place ``*=`` on its matrices must not change the next controller's)."""
+        for matrix in (self.R, self.R_inv, self.R_inv_T, self.K, self.K_inv):
+            matrix.flags.writeable = False
+
     @classmethod
     def from_params(cls, p: TransmissionParams) -> "Kinematics":
         R = motor_ratio(p)

@@ -201,3 +201,110 @@ def test_a_plugin_that_raises_gets_a_message_naming_it_not_a_traceback(tmp_path,
     cfg = plugin_config(tmp_path, "controller: {type: update_raises}\n")
     assert main(["run", "--fast", "--duration", "0.3", "--no-log", "--no-plot", "--config", str(cfg)]) == 1
     assert "the cycle raised ZeroDivisionError: plugin bug; the run ended in the safe state" in capsys.readouterr().err
+
+
+class ResetRaises(Controller):
+    """A broken plugin: its reset (called on activation) raises; its update would drive 5 A."""
+
+    def reset(self, est):
+        raise ValueError("plugin cannot reset")
+
+    def update(self, est, out_torque):
+        out_torque[0] = 5.0 * self.context.torque_constant
+        out_torque[1] = 0.0
+
+
+class Scribbler(Controller):
+    """A buggy plugin: negates its 'copy' of the torque map in place and writes its own target into the
+    reference (numpy aliasing); it carries on when refused."""
+
+    def __init__(self, context):
+        super().__init__(context)
+        self.refused = []
+        for write in (lambda: context.kin.R_inv_T.__imul__(-1.0), lambda: context.ref.__setitem__(0, 0.5)):
+            try:
+                write()
+            except ValueError as exc:
+                self.refused.append(str(exc))
+
+    def update(self, est, out_torque):
+        out_torque[0] = out_torque[1] = 0.0
+
+
+def service_daemon():
+    """A lockstep daemon that waits for ``activate`` (as a service does), tared after 0.3 s."""
+    from tests.daemon_helpers import lockstep_daemon, run_cycles, variant
+
+    daemon = lockstep_daemon(variant(load_config(ROOT / "config" / "sim.yaml"), safety={"auto_activate": False}))
+    run_cycles(daemon, 300)
+    return daemon
+
+
+def test_a_plugin_whose_reset_raises_is_refused_and_not_activated():
+    """Before: the reply was an error, yet the amplifiers were on and the daemon ACTIVE, driving 5 A."""
+    from ankle_rt.control.base import ControllerContext
+    from ankle_rt.service import protocol as proto
+    from tests.daemon_helpers import run_cycles
+
+    daemon = service_daemon()
+    daemon.controller = ResetRaises(ControllerContext.from_config(daemon.cfg, daemon.kin, daemon.reference.ref))
+    with pytest.raises(proto.CommandError) as refusal:
+        daemon.handle(proto.Activate())
+    run_cycles(daemon, 100)
+    assert daemon.safety.state == State.CONFIGURED and not daemon.backend.active
+    assert np.all(daemon.recorder.records["current_cmd_1"] == 0.0)
+    assert "reset raised ValueError: plugin cannot reset" in str(refusal.value)
+    daemon.close()
+
+
+def test_a_plugin_cannot_change_the_maps_or_the_reference_the_next_controller_uses():
+    """Before: the plugin's in-place negation reached the impedance controller switched in after it:
+    commanded +5 deg, the foot ran the other way to ANKLE_RANGE at -40 deg 0.65 s after activation."""
+    from ankle_rt.control.base import ControllerContext
+    from ankle_rt.service import protocol as proto
+    from tests.daemon_helpers import reply, run_cycles
+
+    daemon = service_daemon()
+    plugin = Scribbler(ControllerContext.from_config(daemon.cfg, daemon.kin, daemon.reference.ref))
+    daemon.controller = plugin
+    reply(daemon.handle(proto.SetController(type="impedance")))
+    daemon.handle(proto.Activate())
+    daemon.handle(proto.SetReference(dp=math.radians(5.0), ie=0.0, ramp=0.5))
+    run_cycles(daemon, 1500)
+    assert daemon.safety.fault == Fault.NONE
+    assert abs(math.degrees(daemon.est.dp) - 5.0) < 1.0
+    assert len(plugin.refused) == 2 and all("read-only" in why for why in plugin.refused)
+    daemon.close()
+
+
+class StiffHold(Controller):
+    """A plugin with no soft start of its own: 400 N m/rad holding DP at +10 deg from its first cycle."""
+
+    def update(self, est, out_torque):
+        tau = 400.0 * (math.radians(10.0) - est.dp) - 2.0 * est.dp_vel
+        r = self.context.kin.R_inv_T
+        out_torque[0], out_torque[1] = r.item(0, 0) * tau, r.item(1, 0) * tau
+
+
+def test_a_plugin_output_ramps_in_over_the_soft_start():
+    """Before: 4.67 A on the first active cycle and the foot at 7.5 deg 0.1 s after activation. Now the
+    output ramps in over controller.soft_start_s (0.2 s) as the built-ins' does, and the plugin still
+    reaches its target."""
+    from ankle_rt.control.base import ControllerContext
+    from ankle_rt.service import protocol as proto
+    from tests.daemon_helpers import run_cycles
+
+    daemon = service_daemon()
+    daemon.controller = StiffHold(ControllerContext.from_config(daemon.cfg, daemon.kin, daemon.reference.ref))
+    daemon.handle(proto.Activate())
+    run_cycles(daemon, 800)
+    r = daemon.recorder.records
+    active = np.flatnonzero(r["state"] == int(State.ACTIVE))
+    current, ankle = np.abs(r["current_cmd_1"][active]), np.degrees(r["est_ankle_dp"][active])
+    soft_s = daemon.cfg["controller"]["soft_start_s"]
+    assert current[0] < 0.05 and ankle[100] < 2.0
+    # never above the full output's scaled share while ramping
+    ramp = np.arange(1, len(active) + 1) * daemon.dt / soft_s
+    assert np.all(current[ramp < 1.0] <= 4.7 * ramp[ramp < 1.0] + 1e-9)
+    assert daemon.safety.fault == Fault.NONE and abs(ankle[-1] - 10.0) < 2.0
+    daemon.close()

@@ -18,7 +18,10 @@ by ``context.torque_constant``; a current beyond ``amplifier.current_limit_peak`
 (``context.torque_limit`` N m per motor), the I^2 t budget faults OVERCURRENT, a NaN or inf faults
 OUTPUT_INVALID, and the ankle range (``context.ankle_limit`` rad), sensor checks and deadlines fault
 as for any controller. ``update`` is called only while ACTIVE; in every other state the set values
-are zero. An exception raised by ``update`` ends the run, and the daemon goes safe (amplifiers off).
+are zero. An exception raised by ``update`` ends the run, and the daemon goes safe (amplifiers off);
+one raised by ``reset`` refuses the activation (nothing is enabled). A :class:`Controller`'s output
+is ramped in by the daemon over ``controller.soft_start_s`` after each activation. The kinematics'
+matrices and ``context.ref`` are read-only (shared with the daemon and the next controller).
 
 **Real time**: ``update`` runs at ``controller.rate_hz`` (1 kHz) inside the loop: allocate nothing
 (prefer plain floats and preallocated arrays), never block, no I/O.
@@ -52,7 +55,7 @@ class ControllerContext:
     cfg: "Config"               # the whole validated configuration, read-only (ankle_rt.readonly)
     params: dict[str, Any]      # controller.params (the controller's own copy)
     kin: Kinematics             # R (theta_m = R theta), R_inv, R_inv_T (tau_m = R^-T tau_ankle), K (N m/rad)
-    ref: np.ndarray             # rad (2,) [DP, IE], refreshed in place every cycle
+    ref: np.ndarray             # rad (2,) [DP, IE], refreshed in place every cycle; a read-only view
     dt: float                   # s, the control period
     torque_constant: float      # N m/A at the gearbox output
     torque_limit: float         # N m per motor: torque_constant * current_limit_peak (clamped beyond)
@@ -67,7 +70,9 @@ class ControllerContext:
         from ankle_rt.readonly import read_only
 
         c, kt = cfg["controller"], cfg["actuator"]["torque_constant"]
-        return cls(cfg=read_only(cfg), params=copy.deepcopy(dict(c["params"])), kin=kin, ref=ref, dt=1.0 / c["rate_hz"],
+        view = ref.view()   # the reference generator's rate limit starts from ref: controllers only read it
+        view.flags.writeable = False
+        return cls(cfg=read_only(cfg), params=copy.deepcopy(dict(c["params"])), kin=kin, ref=view, dt=1.0 / c["rate_hz"],
                    torque_constant=kt, torque_limit=kt * cfg["amplifier"]["current_limit_peak"],
                    ankle_limit=math.radians(cfg["limits"]["ankle_range_deg"]),
                    friction=FrictionFeedForward.from_config(cfg))
