@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from ankle_rt.diagnosis import diagnose
-from ankle_rt.diagnosis.candidates import folded_coulomb
+from ankle_rt.diagnosis.candidates import Stribeck, StribeckExponential, folded_coulomb
 from benchmarks.diagnosis_cases_c import PlantC, draw_case_c, make_case_c
 
 
@@ -101,3 +101,37 @@ def test_a_nonlinear_value_in_the_outer_grid_cell_explaining_nothing_is_rejected
     cogging = next(e for e in diag.effects if e["type"] == "cogging")
     assert cogging["parameters"]["periods_per_rev"]["value"] == 18 * 81
     assert any(n.startswith("motor channel: delay rejected") and "edge cell" in n for n in diag.notes)
+
+
+@pytest.mark.parametrize("exponent_form, excess, velocity, viscous, plausible", [
+    (StribeckExponential(), 0.052, 0.415, 0.18, False),   # generator C seed 100: drag v|v| fitted
+    (StribeckExponential(), 0.1, 0.05, 0.18, True),       # a breakaway: falls by 2 N m s/rad
+    (StribeckExponential(), 0.164, 0.23, 0.109, True),    # seed 101 (true vs 0.24, Coulomb beside a transition)
+    (Stribeck(), 0.1, 0.05, 0.18, True),
+    (Stribeck(), 0.1, 0.6, 0.18, False),                  # Gaussian: steepest 0.86 excess / vs
+])
+def test_stribeck_must_make_friction_fall_with_speed(exponent_form, excess, velocity, viscous, plausible):
+    """A Stribeck block whose fitted friction rises with speed on every motor (its steepest descent below the
+    viscous slope) fits a drag's curvature, not a breakaway."""
+    ch = SimpleNamespace(m=2)
+    base = np.array([0.05, viscous, 0.2, 0.05, viscous + 0.01, 0.2])
+    why = exponent_form.implausible(np.array([excess]), velocity, ch, base)
+    assert (why is None) == plausible, why
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("spec", [dict(seed=4, effects=["quadratic_drag"], motion="multisine"),
+                                  dict(seed=6, effects=["quadratic_drag"], motion="steps"),
+                                  dict(seed=1, effects=["viscoelastic_cable"], motion="multisine"),
+                                  draw_case_c(115)])
+def test_drag_and_viscoelastic_cable_are_unknown(spec):
+    """Outside the vocabulary: a velocity-squared drag on the motors was named `stribeck` (+ `delay`) by a
+    wide Stribeck term whose fitted friction rises with speed, now dropped as unphysical and left to the
+    catch-all's velocity shapes; a viscoelastic cable (a relaxing parallel spring; generator C seed 115)
+    read `none`, absorbed by the cable's stiffness and damping, now found by the catch-all's
+    stretch-history columns (the stretch minus its first-order lags, 0.1-3 s)."""
+    case = make_case_c(**{"ident_s": 15, "valid_s": 8, **spec})
+    diag = diagnose(case.ident, case.valid, plant="ankle", cfg=case.nominal_cfg)
+    assert diag.causes == ["unknown"], (case.describe(), diag.causes, diag.notes)
+    group = "velocity" if "quadratic_drag" in spec["effects"] else "stretch history"
+    assert any("unexplained" in n and f"correlates with {group}" in n for n in diag.notes), diag.notes

@@ -13,6 +13,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.signal import lfilter
 
 from ankle_rt.diagnosis.signals import CableChannel, MotorChannel
 
@@ -74,6 +75,13 @@ class Candidate:
         bad = [k for k, (v, _) in params.items() if not math.isfinite(v)]
         return f"non-finite {', '.join(bad)}" if bad else None
 
+    def implausible(self, coef: np.ndarray, nl: float, ch: Channel, base_coef: np.ndarray) -> str | None:
+        """Why the fitted shape contradicts the physics the effect stands for (None: it does not): the
+        block then fits something outside the vocabulary, and the selection drops it so that the
+        catch-all can see the remainder. ``coef`` are the block's coefficients beside the baseline's
+        ``base_coef`` in the chosen model."""
+        return None
+
 
 def _sd(cov: np.ndarray, i: int) -> float:
     return float(np.sqrt(max(cov[i, i], 0.0)))
@@ -98,6 +106,22 @@ class Stribeck(Candidate):
     def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
         return {"static_excess": (float(coef[0]), _sd(cov, 0)), "stribeck_velocity": (nl, nl_sd),
                 "exponent": (self.exponent, 0.0)}
+
+    def implausible(self, coef, nl, ch, base_coef):
+        """A Stribeck excess makes the friction fall with speed from the breakaway toward the Coulomb
+        level. Where its steepest descent does not outweigh the fitted viscous slope D_i of any motor, the
+        fitted friction rises with speed everywhere: the block fits the curvature of a drag growing with
+        speed (v |v|, outside the vocabulary), not a breakaway. (The Coulomb level is not checked: beside a
+        sharper transition block the baseline's tanh column holds only part of it.)"""
+        e = self.exponent
+        x = (e - 1.0) / e                   # (v / vs)^e where d/dv exp(-|v / vs|^e) is steepest
+        steepest = float(coef[0]) * e * x ** ((e - 1.0) / e) * math.exp(-x) / nl
+        viscous = base_coef[1:3 * ch.m:3]
+        if np.any(steepest > viscous):
+            return None
+        return (f"the fitted friction rises with speed everywhere (the excess {float(coef[0]):.3g} N m over "
+                f"vs = {nl:.3g} falls by at most {steepest:.3g} N m s/rad, the viscous slopes are "
+                f"{', '.join(f'{d:.3g}' for d in viscous)} N m s/rad): not a breakaway")
 
 
 class StribeckExponential(Stribeck):
@@ -586,6 +610,8 @@ SPEED_BANDS = 16                   # speed bands of the angle-domain spectrum
 TAPER_START, TAPER_END = 3.0, 6.0  # x the filter's cut-off: the cogging regressor's taper (Cogging.taper)
 COGGING_SCREENED = 40              # angle-spectrum peaks whose filtered columns are built
 COGGING_PEAKS = 4                  # ... of which the best explaining are scored by the regression
+#: time constants of the cable catch-all's stretch-history columns: a relaxing (viscoelastic) element
+RELAXATION_S = (0.1, 0.3, 1.0, 3.0)
 DELAY_LAGS_S = (0.001, 0.002, 0.004, 0.007, 0.011, 0.016, 0.022)
 
 
@@ -594,6 +620,12 @@ def _time_shapes(ch: Channel) -> list[np.ndarray]:
     t = ch.t - ch.t[0]
     u = (2.0 * t / max(float(t[-1]), 1e-12) - 1.0)[:, None] * np.ones((1, ch.m))
     return [u, 1.5 * u ** 2 - 0.5, 2.5 * u ** 3 - 1.5 * u]
+
+
+def _lagged(x: np.ndarray, dt: float, time_constant: float) -> np.ndarray:
+    """``x`` through a first-order lag of ``time_constant`` (s), started at rest at x[0]."""
+    a = math.exp(-dt / time_constant)
+    return lfilter([1.0 - a], [1.0, -a], x, axis=0, zi=a * x[:1])[0]
 
 
 def time_columns(ch: Channel) -> np.ndarray:
@@ -660,6 +692,7 @@ def catch_all_cable(ch: CableChannel) -> tuple[np.ndarray, list[str]]:
     raw = [(p * np.abs(p), "stretch"), (p ** 3, "stretch"), (p ** 5, "stretch"), (np.tanh(4 * p), "stretch"),
            (np.tanh(d / 0.05), "stretch rate"), (d * np.abs(d), "stretch rate"), (p * np.abs(d), "stretch rate"),
            (np.clip(p, -0.1, 0.1), "stretch"), (np.clip(p, -0.3, 0.3), "stretch")]
+    raw += [(p - _lagged(p, ch.dt, tc), "stretch history (relaxation)") for tc in RELAXATION_S]
     raw += [(u, "time (drift)") for u in _time_shapes(ch)]
     X = np.hstack([ch.per_column(ch.sm.smooth(r)) for r, _ in raw])
     return X, [g for _, g in raw for _axis in range(ch.m)]

@@ -494,6 +494,7 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
     if "cable" in chans and "cable" in vchans:
         results.append(select_channel("cable", chans["cable"], CABLE_CANDIDATES, catch_all_cable))
 
+    notes += [f"{res.name} channel: {n}" for res in results for n in res.notes]
     catch_alls = {"motor": motor_catch_all, "cable": catch_all_cable}
     chosen, unexplained = _named_sets(results, notes, unusable, vmodels, catch_alls)
     for res in results:

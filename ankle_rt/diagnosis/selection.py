@@ -282,7 +282,9 @@ def select_channel(name: str, ch: Channel, candidates: tuple[Candidate, ...], ca
     if len(pruned) < len(chosen):
         chosen, out.nl_sd = _refine(models, pruned, n_eff)
     chosen = _with_richer_forms(models, chosen, n_eff)
-    out.terms = [_term_stats(models, chosen, i, pool, n_eff, base.rss) for i in range(len(chosen))]
+    chosen, out.nl_sd, dropped = _plausible(models, chosen, out.nl_sd, out)
+    rivals = [c for c in pool if c.cause not in {d.cause for d in dropped}]
+    out.terms = [_term_stats(models, chosen, i, rivals, n_eff, base.rss) for i in range(len(chosen))]
     out.model = models.fit(chosen)
     _catch_all_on_top(out, models, chosen, C, groups, n_eff, base)
     return out
@@ -394,6 +396,25 @@ def _with_richer_forms(models: ChannelModels, chosen: list[Term], n_eff: float) 
         if significant(score_against(models, s, models.rss(chosen), models.k(chosen), n_eff)):
             chosen = richer
     return chosen
+
+
+def _plausible(models: ChannelModels, chosen: list[Term], nl_sd: list[float],
+               out: ChannelResult) -> tuple[list[Term], list[float], list[Candidate]]:
+    """The chosen terms without those whose fitted shape contradicts their physics (one at a time, the
+    model re-fitted; each noted in ``out``), their nonlinear parameters' sd, and the dropped candidates
+    (their causes are no rivals of the rest either): what such a term fitted is left to the catch-all."""
+    dropped: list[Candidate] = []
+    while True:
+        coef = models.fit(chosen).coef
+        base = coef[:models.Xb.shape[1]]
+        why = [t.candidate.implausible(coef[sl], t.nl, models.ch, base)
+               for t, sl in zip(chosen, models.slices(chosen))]
+        bad = next((i for i, w in enumerate(why) if w), None)
+        if bad is None:
+            return chosen, nl_sd, dropped
+        out.notes.append(f"{chosen[bad].cause} dropped: {why[bad]}")
+        dropped.append(chosen[bad].candidate)
+        chosen, nl_sd = chosen[:bad] + chosen[bad + 1:], nl_sd[:bad] + nl_sd[bad + 1:]
 
 
 def _refine(models: ChannelModels, chosen: list[Term], n_eff: float) -> tuple[list[Term], list[float]]:
