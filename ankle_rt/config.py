@@ -209,14 +209,13 @@ def _check_gain_margin(cfg: Config, origin: Callable[[KeyPath], str]) -> None:
     ctl = cfg["controller"]
     if ctl["type"] == "pd":
         section = ctl["pd_gains"] + "_gains"
-        checks = [(section, ctl[section])]
+        gains = ctl[section]
     elif ctl["type"] == "impedance":
-        checks = [(None, {})]
+        section, gains = None, {}
     else:
         return
-    for section, gains in checks:
-        bad = gain_set_refusal(cfg, gains)
-        if bad is not None:
-            name, reason = bad
-            section = section or ("torque_loop" if name in ctl["torque_loop"] else "impedance")
-            raise ConfigError(reason, origin(("controller", section, name)), f"controller.{section}.{name}")
+    bad = gain_set_refusal(cfg, gains)
+    if bad is not None:
+        name, reason = bad
+        section = section or ("torque_loop" if name in ctl["torque_loop"] else "impedance")
+        raise ConfigError(reason, origin(("controller", section, name)), f"controller.{section}.{name}")
