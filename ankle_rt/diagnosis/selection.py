@@ -283,7 +283,8 @@ def select_channel(name: str, ch: Channel, candidates: tuple[Candidate, ...], ca
         chosen, out.nl_sd = _refine(models, pruned, n_eff)
     chosen = _with_richer_forms(models, chosen, n_eff)
     chosen, out.nl_sd, dropped = _plausible(models, chosen, out.nl_sd, out)
-    rivals = [c for c in pool if c.cause not in {d.cause for d in dropped}]
+    dropped_causes = {d.cause for d in dropped}
+    rivals = [c for c in pool if c.cause not in dropped_causes]
     out.terms = [_term_stats(models, chosen, i, rivals, n_eff, base.rss) for i in range(len(chosen))]
     out.model = models.fit(chosen)
     _catch_all_on_top(out, models, chosen, C, groups, n_eff, base)
