@@ -315,8 +315,12 @@ LOGGING = Section({
                                   "stops, the run goes on and status says why", default=False),
 }, optional=True)
 
+DEVICE_RANGE_DEG = 40.0   # deg, +/- DP and IE: the prosthesis's range of motion (the paper, section 2.1)
+
 LIMITS = Section({
-    "ankle_range_deg": Field(float, "+/- software limit in DP and IE", low=0.0, low_open=True, high=90.0),
+    "ankle_range_deg": Field(float, "+/- software limit in DP and IE; at most the device's range of motion, +/-40 deg in "
+                                    "both (the paper's section 2.1: set by software limits alone, no end stop)",
+                             low=0.0, low_open=True, high=DEVICE_RANGE_DEG),
 })
 
 SENSORS = Section({

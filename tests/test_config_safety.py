@@ -193,3 +193,15 @@ def test_an_optional_bounded_number_set_to_null_is_unset_not_a_crash():
     assert build_effects([effect], plant, 1e-3)[0].a2 == 0.05       # unset: motor 1's amplitude
     with pytest.raises(ConfigError, match="sim.effects.0.amplitude_2"):
         build_effects([dict(effect, amplitude_2=-1.0)], plant, 1e-3)
+
+
+@pytest.mark.parametrize("degrees", [40.5, 90.0])
+def test_the_ankle_range_is_at_most_the_devices_range_of_motion(degrees):
+    """Safety8: the paper states the ankle's range of motion, +/-40 deg in DP and IE, set by software
+    limits alone (no end stop). Before, up to 90 was accepted: with 90, ``set_reference`` to 85 deg
+    drove the simulated foot to 85 deg, no fault. Refused naming the key; 40 is accepted."""
+    sim = ROOT / "config" / "sim.yaml"
+    with pytest.raises(ConfigError) as err:
+        load_config(sim, {"limits": {"ankle_range_deg": degrees}})
+    assert err.value.key == "limits.ankle_range_deg" and "must be <= 40" in err.value.message
+    assert load_config(sim, {"limits": {"ankle_range_deg": 40.0}})["limits"]["ankle_range_deg"] == 40.0
