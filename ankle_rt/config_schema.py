@@ -266,8 +266,8 @@ LOOP = Section({
                                high=365 * DAY_S),
     "max_consecutive_overruns": Field(int, "fault (MISSED_DEADLINES) after this many overruns in a row",
                                       default=5, low=1, high=1_000_000),
-    "max_stall_s": Field(float, "s; fault (MISSED_DEADLINES) when one stall of the loop misses deadlines for "
-                                "longer than this", default=0.05, low=0.001, high=10.0),
+    "max_stall_s": Field(float, "s; fault (MISSED_DEADLINES) when the loop misses deadlines for longer than this "
+                                "in one stall or in overruns in a row", default=0.05, low=0.001, high=10.0),
     "realtime": REALTIME,
 }, optional=True)
 

@@ -359,3 +359,44 @@ def test_the_gauge_cross_check_sees_the_sensors_not_a_plugins_writes():
     late = r["t"] > 1.01
     assert np.all(np.abs(r["sg_torque_dp"][late & (r["t"] < t_fault)] - 15.0) < 1e-9)
     daemon.close()
+
+
+class SlowHold(StiffHold):
+    """StiffHold whose update takes 45 ms (the simulated clock moved on inside it) from its 100th call:
+    each cycle overruns by less than loop.max_stall_s (50 ms)."""
+
+    calls = 0
+
+    def update(self, est, out_torque):
+        super().update(est, out_torque)
+        self.calls += 1
+        if self.calls >= 100:
+            self.clock.advance(45_000_000)
+
+
+def test_overruns_in_a_row_fault_once_their_missed_time_passes_the_stall_limit():
+    """Safety8: a plugin's update that takes 45 ms every cycle stays under the one-stall limit (50 ms),
+    so only the overrun count stopped it: with loop.max_consecutive_overruns 50 (the most a device
+    config may set) it controlled at 22 Hz on 45 ms old data for 2.5 s, the foot 10.4 deg past its
+    10 deg target. The overruns in a row now share the stall limit: MISSED_DEADLINES once their missed
+    deadlines add up to more than 50 ms, at the second slow cycle."""
+    from ankle_rt.control.base import ControllerContext
+    from ankle_rt.service import protocol as proto
+    from tests.daemon_helpers import lockstep_daemon, run_cycles, variant
+
+    cfg = variant(load_config(ROOT / "config" / "sim.yaml"), safety={"auto_activate": False},
+                  loop={"max_consecutive_overruns": 50})
+    cfg["sim"]["disturbances"] = []
+    daemon = lockstep_daemon(cfg)
+    run_cycles(daemon, 300)
+    plugin = SlowHold(ControllerContext.from_config(daemon.cfg, daemon.kin, daemon.reference.ref))
+    plugin.clock = daemon.clock
+    daemon.controller = plugin
+    daemon.handle(proto.Activate())
+    run_cycles(daemon, 3000)
+    assert daemon.safety.fault == Fault.MISSED_DEADLINES
+    assert plugin.calls == 101 and daemon.loop.stats.overruns == 2
+    r = daemon.recorder.records
+    active = r["state"] == int(State.ACTIVE)
+    assert np.degrees(r["ankle_dp"][active]).max() < 15.0
+    daemon.close()
