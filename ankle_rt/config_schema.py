@@ -387,8 +387,9 @@ SIM = Section({
     # A busy host stalls a simulated plant, not a device: a real-time run whose plant is simulated in
     # this process uses these instead of loop.max_stall_s / loop.max_consecutive_overruns (a run on
     # hardware never reads them).
-    "max_stall_s": Field(float, "s; with a simulated plant in real time, missing deadlines for longer than this (one stall or overruns in a row) trips "
-                                "MISSED_DEADLINES (instead of loop.max_stall_s)", default=0.5, low=0.001, high=10.0),
+    "max_stall_s": Field(float, "s; with a simulated plant in real time, missing deadlines for longer than this "
+                                "(one stall or overruns in a row) trips MISSED_DEADLINES (instead of "
+                                "loop.max_stall_s)", default=0.5, low=0.001, high=10.0),
     "max_consecutive_overruns": Field(int, "with a simulated plant in real time, this many overruns in a row trip "
                                            "MISSED_DEADLINES (instead of loop.max_consecutive_overruns)",
                                       default=50, low=1, high=1_000_000),
