@@ -290,8 +290,9 @@ SAFETY = Section({
                                   "continuous current shows it (check_oscillation_limit: 1.97 A at 1 kHz and 5 A continuous)",
                                   default=1.0, high=5.0),
     "oscillation_hold_s": positive("s the band RMS must stay above safety.oscillation_rms_a to fault (a stable "
-                                   "loop's saturated step keeps it above for up to ~0.3 s)", default=0.5,
-                                   high=2.0),
+                                   "loop's saturated step keeps it above for up to ~0.3 s); at most 1 s: a longer "
+                                   "hold only lets a limit cycle between the peak currents run on the wearer",
+                                   default=0.5, high=1.0),
     "max_actuation_delay_s": non_negative("s between a set value and the motor torque it makes (amplifier, bus, "
                                           "bridge) that the strain-gauge cross-check allows for", default=0.012,
                                           high=0.05),
