@@ -206,8 +206,10 @@ GAIT_PHASE = Section({
                               low=-MAX_EQUILIBRIUM, high=MAX_EQUILIBRIUM),
     "late_swing_velocity": Field(float, "rad/s ... and below this DP rate", default=1.0, low=-20.0, high=20.0),
     "min_dwell_s": non_negative("s in a phase before any transition", default=0.05, high=1.0),
-    "timeout_s": Field(float, "s in one phase after which the controller falls back to the safe phase",
-                       default=1.5, low=0.1, high=60.0),
+    "timeout_s": Field(float, "s in one phase after which the controller falls back to the safe phase; at most "
+                              "2 s: no walking phase lasts a stride (the slowest is 1.38 s), and a wearer who stops "
+                              "in late stance feels the push-off equilibrium until then", default=1.5, low=0.1,
+                       high=2.0),
     "blend_s": Field(float, "s, time constant of the blend of K, B and equilibrium towards the phase's values "
                             "(transitions and live changes: no torque jump)", default=0.02, low=0.001, high=2.0),
 }, optional=True, doc="the gait-phase (finite-state) impedance controller (controller.type: gait_phase; docs/daemon.md)")

@@ -310,6 +310,47 @@ def test_a_heel_strike_holds_one_period_of_the_feet_cable_mode(walk_cfg):
     assert strike.index(EARLY_STANCE) == math.ceil(hold_s / DT)       # phases are listed before each update
 
 
+def test_a_wearer_who_stops_in_late_stance_gets_the_safe_phase_within_two_seconds():
+    """Safety8: the walking scenario's body frozen 50 ms into the second stride's late stance (the wearer
+    stops, on the push-off): late stance's equilibrium (-0.55 rad) pushes 107 N m of plantarflexor
+    moment into the wearer at 7.5 A (above the 5 A continuous current), held until the phase times out.
+    timeout_s up to 60 s was accepted (60 s of it: the I2t at 1280 of its 4000 A^2 s after 40 s, no
+    fault). Now at most
+    2 s (no walking phase lasts a stride; the longest on bench walk: 0.96 s, late swing at 100 kg slow),
+    refused beyond naming the key; with 2 s the safe phase (neutral) takes over 2 s after the stop."""
+    for timeout in (2.5, 60.0):
+        with pytest.raises(ConfigError) as err:
+            load_config(WALK, {"controller": {"gait_phase": {"timeout_s": timeout}}})
+        assert err.value.key == "controller.gait_phase.timeout_s"
+    cfg = load_config(WALK, {"controller": {"gait_phase": {"timeout_s": 2.0}}})
+    daemon = Daemon(cfg, SimClock())
+    plant, ctl = daemon.backend.plant, daemon.controller
+    walk = plant.walking
+    stopped: list[float] = []
+    trace: list[tuple[float, int, float]] = []
+
+    def cycle(t_ns: int) -> None:
+        daemon.cycle(t_ns)
+        if not stopped and walk.stride == 2 and ctl.phase == LATE_STANCE and ctl.gait.time > 0.05:
+            stopped.append(plant.t)
+        trace.append((plant.t, ctl.phase, -daemon.est.sg_dp))
+
+    advance = walk.advance
+    walk.advance = lambda t: None if stopped else advance(t)     # the body holds still from the stop on
+    try:
+        daemon.loop.run(cycle, round(7.0e9))
+    finally:
+        daemon.close()
+    assert daemon.safety.fault == Fault.NONE and stopped
+    t, phase, load = (np.array(c) for c in zip(*trace))
+    held = (t > stopped[0] + 0.1) & (phase == LATE_STANCE)
+    assert load[held].min() > 90.0                                  # the push-off equilibrium, held
+    safe = np.flatnonzero(phase == SAFE)
+    safe = safe[t[safe] > stopped[0]]
+    assert stopped[0] + 1.9 < t[safe[0]] < stopped[0] + 2.0
+    assert load[t > t[safe[0]] + 1.0].max() < 60.0
+
+
 def test_walking_strides_run_through_the_phases_without_a_fault():
     from ankle_rt.bench.walk import run_walk
 
