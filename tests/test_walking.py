@@ -315,9 +315,9 @@ def test_a_wearer_who_stops_in_late_stance_gets_the_safe_phase_within_two_second
     stops, on the push-off): late stance's equilibrium (-0.55 rad) pushes 107 N m of plantarflexor
     moment into the wearer at 7.5 A (above the 5 A continuous current), held until the phase times out.
     timeout_s up to 60 s was accepted (60 s of it: the I2t at 1280 of its 4000 A^2 s after 40 s, no
-    fault). Now at most
-    2 s (no walking phase lasts a stride; the longest on bench walk: 0.96 s, late swing at 100 kg slow),
-    refused beyond naming the key; with 2 s the safe phase (neutral) takes over 2 s after the stop."""
+    fault). Now at most 2 s (no walking phase lasts a stride; the longest on bench walk: 0.96 s, late
+    swing at 100 kg slow), refused beyond naming the key; with 2 s the safe phase (neutral) takes over
+    2 s after the stop."""
     for timeout in (2.5, 60.0):
         with pytest.raises(ConfigError) as err:
             load_config(WALK, {"controller": {"gait_phase": {"timeout_s": timeout}}})
