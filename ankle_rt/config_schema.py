@@ -17,7 +17,8 @@ from typing import Any, Callable, Mapping
 from ankle_rt.command_limits import MAX_TORQUE_KI, MAX_TORQUE_KP, MAX_TORQUE_RATE
 from ankle_rt.controller_registry import check_controller_name
 from ankle_rt.oscillation import BAND_HZ, band_floor
-from ankle_rt.params import GRAVITY
+from ankle_rt.kinematics import motor_ratio
+from ankle_rt.params import GRAVITY, TransmissionParams
 from ankle_rt.references import PROFILE_PARAMS
 from ankle_rt.schema import ConfigError, Field, KeyPath, ListOf, Section, non_negative, positive
 
@@ -587,6 +588,7 @@ def check_consistency(cfg: Mapping[str, Any], origin: Callable[[KeyPath], str]) 
     check_oscillation_limit(cfg, origin)
     check_device_deadlines(cfg, origin)
     check_gait_load_thresholds(cfg, origin)
+    check_profile_rate(cfg, origin)
     for (section, name), limit, value in checks:
         if value > limit:
             limit_key = f"controller.gain_limits.{name.split('_')[0]}"
@@ -628,6 +630,29 @@ def check_gait_load_thresholds(cfg: Mapping[str, Any], origin: Callable[[KeyPath
     if gait["load_off_nm"] >= gait["load_on_nm"]:
         raise ConfigError(f"must be < controller.gait_phase.load_on_nm ({gait['load_on_nm']:g}): the hysteresis, "
                           f"got {gait['load_off_nm']:g}", origin(where), "controller.gait_phase.load_off_nm")
+
+
+def check_profile_rate(cfg: Mapping[str, Any], origin: Callable[[KeyPath], str]) -> None:
+    """A configured sine or chirp (a configured profile is not rate-limited at run time; a commanded one
+    is, to reference.max_rate_rad_s) asks no motor to move faster than safety.max_motor_speed_rad_s:
+    its motor-side rate, at most |R| (|amplitude_dp|, |amplitude_ie|) 2 pi f at its highest frequency,
+    stays below it. Beyond, the loop cannot follow: it runs between the peak currents, below the
+    oscillation detector's band (a 5 Hz, 0.6 rad DP sine: +-15 A for 21 s until the I2t, foot +-8 deg)."""
+    ref = cfg["reference"]
+    name = ref["profile"]
+    if name not in ("sine", "chirp"):
+        return
+    p = ref[name]
+    key = "frequency_hz" if name == "sine" else max(("f0_hz", "f1_hz"), key=lambda k: p[k])
+    R = motor_ratio(TransmissionParams(**cfg["transmission"]))
+    per_hz = 2.0 * math.pi * max(abs(R[i, 0]) * abs(p["amplitude_dp"]) + abs(R[i, 1]) * abs(p["amplitude_ie"])
+                                 for i in range(2))     # rad/s of motor speed per Hz, the axes' peaks aligned
+    most = cfg["safety"]["max_motor_speed_rad_s"]
+    if per_hz * p[key] > most:
+        raise ConfigError(f"must be <= {most / per_hz:.3g} Hz with these amplitudes: the motors would have to move at "
+                          f"up to {per_hz * p[key]:.3g} rad/s, beyond safety.max_motor_speed_rad_s ({most:g}); the "
+                          f"loop cannot follow and runs between the peak currents, got {p[key]:g}",
+                          origin(("reference", name, key)), f"reference.{name}.{key}")
 
 
 DEVICE_MAX_STALL_S = 0.1           # s: the longest the device may act on old data or old set values
