@@ -124,3 +124,39 @@ def test_a_loose_rms_limit_let_a_full_current_limit_cycle_run_until_the_i2t():
     r = run_lockstep(c, 3.0)
     assert r.summary["fault"] == "OSCILLATION"
     assert r["t"][np.nonzero(r["fault"])[0][0]] < 1.6
+
+
+@pytest.mark.parametrize("controller", ["pd", "impedance"])
+@pytest.mark.parametrize("name, params", [("sine", {"amplitude_dp": 0.6, "frequency_hz": 50.0}),
+                                          ("chirp", {"amplitude_dp": 0.6, "f0_hz": 0.0, "f1_hz": 100.0,
+                                                     "duration_s": 5.0})])
+def test_a_commanded_excitation_in_the_band_faults_or_stays_small(controller, name, params):
+    """Safety8: start_profile's sine (to 50 Hz) and chirp (to 100 Hz) are rate-limited to
+    reference.max_rate_rad_s (2 rad/s: 6 mrad at 50 Hz). Under the PD their set values reach 1.3-1.7 A
+    RMS in the detector's band (peak 3.3-7 A): OSCILLATION after the hold, 0.8-1.6 s after the start.
+    Under the impedance controller the band stays at 0.11 A (peak 2.4 A): no fault, nothing to catch."""
+    from ankle_rt.service import protocol as proto
+    from tests.daemon_helpers import lockstep_daemon, reply, run_cycles
+
+    cfg = load_config(default_config_path(), {"safety": {"auto_activate": False}, "sim": {"disturbances": []},
+                                              "controller": {"type": controller}, "reference": {"profile": "hold"}})
+    daemon = lockstep_daemon(cfg, capacity=8000)
+    run_cycles(daemon, 300)
+    daemon.handle(proto.Activate())
+    run_cycles(daemon, 300)
+    reply(daemon.handle(proto.StartProfile(name=name, params=params)))
+    run_cycles(daemon, 5000)
+    r = daemon.recorder.records
+    detector = OscillationDetector(1e-3, 1e9, 1.0)
+    band2 = 0.0                                   # A^2: the largest band mean square of either motor
+    for i0, i1 in zip(r["current_cmd_1"], r["current_cmd_2"]):
+        detector.update(i0, i1)
+        band2 = max(band2, detector.e0, detector.e1)
+    band = math.sqrt(band2)
+    peak = max(np.abs(r["current_cmd_1"]).max(), np.abs(r["current_cmd_2"]).max())
+    if controller == "pd":
+        assert daemon.safety.fault == Fault.OSCILLATION and peak < 8.0
+        assert r["t"][np.flatnonzero(r["fault"])[0]] < 0.6 + 1.6
+    else:
+        assert daemon.safety.fault == Fault.NONE and band < 0.2 and peak < 3.0
+    daemon.close()
