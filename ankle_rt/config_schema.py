@@ -196,7 +196,8 @@ def _phase_section(name: str, values: tuple[float, ...]) -> Section:
 
 GAIT_PHASE = Section({
     **{name: _phase_section(name, values) for name, values in GAIT_PHASE_DEFAULTS.items()},
-    "load_on_nm": positive("N m of plantarflexor moment (-sg_dp) above which the foot is loaded (heel strike)",
+    "load_on_nm": positive("N m of plantarflexor moment (-sg_dp) above which the foot is loaded (heel strike, "
+                           "held one period of the foot's cable mode: heel_strike_hold_s)",
                            default=15.0, high=300.0),
     "load_off_nm": positive("N m below which it is unloaded (toe-off); < load_on_nm: the hysteresis; above what a "
                             "foot off the ground reads (check_gait_load_thresholds)", default=5.0, high=300.0),
