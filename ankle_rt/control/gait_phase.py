@@ -14,7 +14,8 @@ Phases and transitions (``load`` = the plantarflexor moment the strain gauges me
   strike; see :func:`heel_strike_hold_s`);
 - any phase -> safe after ``timeout_s`` in it (a stuck load signal, standing, sitting); safe -> early
   stance on a fresh heel strike only: the load must have fallen below ``load_off_nm`` while safe
-  (armed) and then risen above ``load_on_nm``. A load stuck high or low keeps the ankle safe.
+  (armed) and then risen above ``load_on_nm`` (held, as for a heel strike). A load stuck high or low
+  keeps the ankle safe.
 
 Hysteresis: ``load_on_nm > load_off_nm``, and phases only move forward through the stride, so an
 angle hovering at a threshold cannot make them chatter. No transition happens before ``min_dwell_s``
