@@ -17,7 +17,8 @@ from typing import Any, Callable, Mapping
 from ankle_rt.command_limits import MAX_TORQUE_KI, MAX_TORQUE_KP, MAX_TORQUE_RATE
 from ankle_rt.controller_registry import check_controller_name
 from ankle_rt.oscillation import BAND_HZ, band_floor
-from ankle_rt.params import GRAVITY
+from ankle_rt.kinematics import motor_ratio
+from ankle_rt.params import GRAVITY, TransmissionParams
 from ankle_rt.references import PROFILE_PARAMS
 from ankle_rt.schema import ConfigError, Field, KeyPath, ListOf, Section, non_negative, positive
 
@@ -195,7 +196,8 @@ def _phase_section(name: str, values: tuple[float, ...]) -> Section:
 
 GAIT_PHASE = Section({
     **{name: _phase_section(name, values) for name, values in GAIT_PHASE_DEFAULTS.items()},
-    "load_on_nm": positive("N m of plantarflexor moment (-sg_dp) above which the foot is loaded (heel strike)",
+    "load_on_nm": positive("N m of plantarflexor moment (-sg_dp) above which the foot is loaded (heel strike, "
+                           "held one period of the foot's cable mode: heel_strike_hold_s)",
                            default=15.0, high=300.0),
     "load_off_nm": positive("N m below which it is unloaded (toe-off); < load_on_nm: the hysteresis; above what a "
                             "foot off the ground reads (check_gait_load_thresholds)", default=5.0, high=300.0),
@@ -206,8 +208,10 @@ GAIT_PHASE = Section({
                               low=-MAX_EQUILIBRIUM, high=MAX_EQUILIBRIUM),
     "late_swing_velocity": Field(float, "rad/s ... and below this DP rate", default=1.0, low=-20.0, high=20.0),
     "min_dwell_s": non_negative("s in a phase before any transition", default=0.05, high=1.0),
-    "timeout_s": Field(float, "s in one phase after which the controller falls back to the safe phase",
-                       default=1.5, low=0.1, high=60.0),
+    "timeout_s": Field(float, "s in one phase after which the controller falls back to the safe phase; at most "
+                              "2 s: no walking phase lasts a stride (the slowest is 1.38 s), and a wearer who stops "
+                              "in late stance feels the push-off equilibrium until then", default=1.5, low=0.1,
+                       high=2.0),
     "blend_s": Field(float, "s, time constant of the blend of K, B and equilibrium towards the phase's values "
                             "(transitions and live changes: no torque jump)", default=0.02, low=0.001, high=2.0),
 }, optional=True, doc="the gait-phase (finite-state) impedance controller (controller.type: gait_phase; docs/daemon.md)")
@@ -266,8 +270,8 @@ LOOP = Section({
                                high=365 * DAY_S),
     "max_consecutive_overruns": Field(int, "fault (MISSED_DEADLINES) after this many overruns in a row",
                                       default=5, low=1, high=1_000_000),
-    "max_stall_s": Field(float, "s; fault (MISSED_DEADLINES) when one stall of the loop misses deadlines for "
-                                "longer than this", default=0.05, low=0.001, high=10.0),
+    "max_stall_s": Field(float, "s; fault (MISSED_DEADLINES) when the loop misses deadlines for longer than this "
+                                "in one stall or in overruns in a row", default=0.05, low=0.001, high=10.0),
     "realtime": REALTIME,
 }, optional=True)
 
@@ -290,8 +294,9 @@ SAFETY = Section({
                                   "continuous current shows it (check_oscillation_limit: 1.97 A at 1 kHz and 5 A continuous)",
                                   default=1.0, high=5.0),
     "oscillation_hold_s": positive("s the band RMS must stay above safety.oscillation_rms_a to fault (a stable "
-                                   "loop's saturated step keeps it above for up to ~0.3 s)", default=0.5,
-                                   high=2.0),
+                                   "loop's saturated step keeps it above for up to ~0.3 s); at most 1 s: a longer "
+                                   "hold only lets a limit cycle between the peak currents run on the wearer",
+                                   default=0.5, high=1.0),
     "max_actuation_delay_s": non_negative("s between a set value and the motor torque it makes (amplifier, bus, "
                                           "bridge) that the strain-gauge cross-check allows for", default=0.012,
                                           high=0.05),
@@ -315,8 +320,12 @@ LOGGING = Section({
                                   "stops, the run goes on and status says why", default=False),
 }, optional=True)
 
+DEVICE_RANGE_DEG = 40.0   # deg, +/- DP and IE: the prosthesis's range of motion (the paper, section 2.1)
+
 LIMITS = Section({
-    "ankle_range_deg": Field(float, "+/- software limit in DP and IE", low=0.0, low_open=True, high=90.0),
+    "ankle_range_deg": Field(float, "+/- software limit in DP and IE; at most the device's range of motion, +/-40 deg in "
+                                    "both (the paper's section 2.1: set by software limits alone, no end stop)",
+                             low=0.0, low_open=True, high=DEVICE_RANGE_DEG),
 })
 
 SENSORS = Section({
@@ -383,8 +392,9 @@ SIM = Section({
     # A busy host stalls a simulated plant, not a device: a real-time run whose plant is simulated in
     # this process uses these instead of loop.max_stall_s / loop.max_consecutive_overruns (a run on
     # hardware never reads them).
-    "max_stall_s": Field(float, "s; with a simulated plant in real time, one stall longer than this trips "
-                                "MISSED_DEADLINES (instead of loop.max_stall_s)", default=0.5, low=0.001, high=10.0),
+    "max_stall_s": Field(float, "s; with a simulated plant in real time, missing deadlines for longer than this "
+                                "(one stall or overruns in a row) trips MISSED_DEADLINES (instead of "
+                                "loop.max_stall_s)", default=0.5, low=0.001, high=10.0),
     "max_consecutive_overruns": Field(int, "with a simulated plant in real time, this many overruns in a row trip "
                                            "MISSED_DEADLINES (instead of loop.max_consecutive_overruns)",
                                       default=50, low=1, high=1_000_000),
@@ -579,6 +589,7 @@ def check_consistency(cfg: Mapping[str, Any], origin: Callable[[KeyPath], str]) 
     check_oscillation_limit(cfg, origin)
     check_device_deadlines(cfg, origin)
     check_gait_load_thresholds(cfg, origin)
+    check_profile_rate(cfg, origin)
     for (section, name), limit, value in checks:
         if value > limit:
             limit_key = f"controller.gain_limits.{name.split('_')[0]}"
@@ -620,6 +631,29 @@ def check_gait_load_thresholds(cfg: Mapping[str, Any], origin: Callable[[KeyPath
     if gait["load_off_nm"] >= gait["load_on_nm"]:
         raise ConfigError(f"must be < controller.gait_phase.load_on_nm ({gait['load_on_nm']:g}): the hysteresis, "
                           f"got {gait['load_off_nm']:g}", origin(where), "controller.gait_phase.load_off_nm")
+
+
+def check_profile_rate(cfg: Mapping[str, Any], origin: Callable[[KeyPath], str]) -> None:
+    """A configured sine or chirp (a configured profile is not rate-limited at run time; a commanded one
+    is, to reference.max_rate_rad_s) asks no motor to move faster than safety.max_motor_speed_rad_s:
+    its motor-side rate, at most |R| (|amplitude_dp|, |amplitude_ie|) 2 pi f at its highest frequency,
+    stays below it. Beyond, the loop cannot follow: it runs between the peak currents, below the
+    oscillation detector's band (a 5 Hz, 0.6 rad DP sine: +-15 A for 21 s until the I2t, foot +-8 deg)."""
+    ref = cfg["reference"]
+    name = ref["profile"]
+    if name not in ("sine", "chirp"):
+        return
+    p = ref[name]
+    key = "frequency_hz" if name == "sine" else max(("f0_hz", "f1_hz"), key=lambda k: p[k])
+    R = motor_ratio(TransmissionParams(**cfg["transmission"]))
+    per_hz = 2.0 * math.pi * max(abs(R[i, 0]) * abs(p["amplitude_dp"]) + abs(R[i, 1]) * abs(p["amplitude_ie"])
+                                 for i in range(2))     # rad/s of motor speed per Hz, the axes' peaks aligned
+    most = cfg["safety"]["max_motor_speed_rad_s"]
+    if per_hz * p[key] > most:
+        raise ConfigError(f"must be <= {most / per_hz:.3g} Hz with these amplitudes: the motors would have to move at "
+                          f"up to {per_hz * p[key]:.3g} rad/s, beyond safety.max_motor_speed_rad_s ({most:g}); the "
+                          f"loop cannot follow and runs between the peak currents, got {p[key]:g}",
+                          origin(("reference", name, key)), f"reference.{name}.{key}")
 
 
 DEVICE_MAX_STALL_S = 0.1           # s: the longest the device may act on old data or old set values

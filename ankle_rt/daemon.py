@@ -27,7 +27,7 @@ from ankle_rt.control import CycleController, build_controller
 from ankle_rt.control.gains import GainError
 from ankle_rt.control.base import BatchableController
 from ankle_rt.control.gait_phase import PHASES, GaitPhaseController
-from ankle_rt.estimation import Estimate, Estimator
+from ankle_rt.estimation import Estimate, EstimateView, Estimator
 from ankle_rt.float_buffer import float_buffer
 from ankle_rt.interchange import InterchangeError
 from ankle_rt.kinematics import Kinematics
@@ -129,7 +129,7 @@ class Daemon:
                 ref = self.reference.values
                 code = safety.check_reference(ref[0], ref[1])
             if code == 0 and state == ACTIVE:
-                self._controller.update(est, torque)   # the attribute (no property call per cycle)
+                self._controller.update(self._controller_est, torque)   # attributes (no property call per cycle)
                 tau, scale = self._torque_values, self.soft_scale
                 if scale < 1.0:
                     scale = self.soft_scale = min(1.0, scale + self.soft_step)
@@ -165,6 +165,10 @@ class Daemon:
         ``gait`` attribute, of any type, never reaches the log record's one-byte code)."""
         self._controller = controller
         self._gait = controller.gait if isinstance(controller, GaitPhaseController) else None
+        # a plugin (a controller of the config that is not a built-in) has no soft start of its own, and
+        # reads the estimate through a view it cannot write (the checks after it read the sensors')
+        self._plugin = self.own_controller and not isinstance(controller, BatchableController)
+        self._controller_est = EstimateView(self.est) if self._plugin else self.est
 
     def _gait_phase_status(self) -> dict | None:
         """The gait-phase controller's phase and per-phase parameters (None for another controller)."""
@@ -223,12 +227,11 @@ class Daemon:
             self.reference.ref[0], self.reference.ref[1] = dp, ie
             self.reference.start(RampTo(hold.dp, hold.ie, self.cfg["reference"]["ramp_s"]))
         try:
-            self.controller.reset(self.est)
+            self.controller.reset(self._controller_est)
         except Exception as exc:   # a plugin's reset may raise anything; nothing is enabled yet
             raise RuntimeError(f"cannot activate: the controller's reset raised {type(exc).__name__}: {exc}") from None
         soft_s = self.cfg["controller"]["soft_start_s"]
-        plugin = self.own_controller and not isinstance(self._controller, BatchableController)   # no own soft start
-        self.soft_scale = 0.0 if plugin and soft_s > 0.0 else 1.0
+        self.soft_scale = 0.0 if self._plugin and soft_s > 0.0 else 1.0
         self.soft_step = self.dt / soft_s if soft_s > 0.0 else 1.0
         self.backend.activate()
         s.activated(self.est)

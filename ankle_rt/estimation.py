@@ -17,6 +17,7 @@ is allocated per cycle. The same code runs on arrays over a batch (:mod:`ankle_r
 from __future__ import annotations
 
 import math
+from operator import attrgetter
 from typing import Sequence
 
 import numpy as np
@@ -78,6 +79,28 @@ class Estimate:
     ankle_vel = _Pair(3, "dp_vel", "ie_vel")
     sg_torque = _Pair(4, "sg_dp", "sg_ie")
     joint_pos = _Pair(5, "joint_dp", "joint_ie")
+
+
+class EstimateView:
+    """What a controller plugin is handed instead of the daemon's :class:`Estimate`: every value read
+    through to it, none writable (AttributeError naming the value). A plugin runs between the sensor
+    checks and the strain-gauge cross-check of the same cycle, which must see the sensors' values, as
+    the log must; a plugin's ``est.sg_dp = filtered`` would have replaced them. No allocation per read."""
+
+    __slots__ = ("_est",)
+
+    def __init__(self, est: Estimate):
+        object.__setattr__(self, "_est", est)
+
+    def __setattr__(self, name: str, value: object) -> None:
+        raise AttributeError(f"the estimate is read-only for controllers ({name!r}): the safety checks and the "
+                             f"log read it after the controller; keep a filtered value in the controller")
+
+
+for _name in (*(n for n in Estimate.__slots__ if n != "_arrays"), *(n for n, v in vars(Estimate).items()
+                                                                       if isinstance(v, _Pair))):
+    setattr(EstimateView, _name, property(attrgetter(f"_est.{_name}")))
+del _name
 
 
 class Estimator:

@@ -8,7 +8,8 @@ Overrun policy. A cycle *overruns* when it ends after the next deadline. Every o
 The missed deadlines are skipped, not caught up: the next cycle starts at the first grid point after
 the overrun ended (a burst of back-to-back cycles would only make the control worse, and the
 backend's sample time tells the estimator how much time passed). After
-``max_consecutive_overruns`` overruns in a row, or one stall longer than ``max_stall_ns``, the loop
+``max_consecutive_overruns`` overruns in a row, or overruns in a row whose missed deadlines add up to
+more than ``max_stall_ns`` (one long stall, or a cycle that takes a little less every time), the loop
 reports it (``on_overrun_limit``; the daemon trips the MISSED_DEADLINES fault) and carries on in the
 safe state, so the log keeps recording. A short stall (a VM hiccup of a few periods) is one overrun
 however many deadlines it covers; a loop that stood still for a second with the motors on must not
@@ -33,6 +34,7 @@ class FixedRateLoop:
         self.on_overrun_limit = on_overrun_limit
         self.stats = LoopStats(period_ns)
         self.consecutive_overruns = 0
+        self.missed_ns = 0                # ns of deadlines the overruns in a row have missed
         self.last_period_ns = 0
         self.stop_requested = False
         self.start_ns = 0
@@ -68,11 +70,14 @@ class FixedRateLoop:
                 stats.skipped += steps - 1
                 deadline += steps * period
                 self.consecutive_overruns += 1
-                stalled = self.max_stall_ns is not None and (steps - 1) * period > self.max_stall_ns
+                before = self.missed_ns
+                self.missed_ns = missed = before + (steps - 1) * period
+                stalled = self.max_stall_ns is not None and missed > self.max_stall_ns >= before   # crossed now
                 if (self.consecutive_overruns == self.max_consecutive or stalled) and self.on_overrun_limit is not None:
                     self.on_overrun_limit()
             else:
                 deadline += period
                 self.consecutive_overruns = 0
+                self.missed_ns = 0
             self._next_deadline = deadline
             self._last_start = last_start

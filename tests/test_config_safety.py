@@ -7,6 +7,7 @@ import math
 import os
 import threading
 
+import numpy as np
 import pytest
 import yaml
 
@@ -193,3 +194,39 @@ def test_an_optional_bounded_number_set_to_null_is_unset_not_a_crash():
     assert build_effects([effect], plant, 1e-3)[0].a2 == 0.05       # unset: motor 1's amplitude
     with pytest.raises(ConfigError, match="sim.effects.0.amplitude_2"):
         build_effects([dict(effect, amplitude_2=-1.0)], plant, 1e-3)
+
+
+@pytest.mark.parametrize("degrees", [40.5, 90.0])
+def test_the_ankle_range_is_at_most_the_devices_range_of_motion(degrees):
+    """Safety8: the paper states the ankle's range of motion, +/-40 deg in DP and IE, set by software
+    limits alone (no end stop). Before, up to 90 was accepted: with 90, ``set_reference`` to 85 deg
+    drove the simulated foot to 85 deg, no fault. Refused naming the key; 40 is accepted."""
+    sim = ROOT / "config" / "sim.yaml"
+    with pytest.raises(ConfigError) as err:
+        load_config(sim, {"limits": {"ankle_range_deg": degrees}})
+    assert err.value.key == "limits.ankle_range_deg" and "must be <= 40" in err.value.message
+    assert load_config(sim, {"limits": {"ankle_range_deg": 40.0}})["limits"]["ankle_range_deg"] == 40.0
+
+
+def test_a_configured_sine_the_motors_cannot_follow_is_refused():
+    """Safety8: a configured profile is not rate-limited at run time (a commanded one is). A 5 Hz,
+    0.6 rad DP sine was accepted: the PD ran between the +-15 A clamps (14.8 A RMS, the foot +-8 deg at
+    5 Hz, below the oscillation detector's band) for 21 s until the I2t's OVERCURRENT. Now the sine's
+    motor-side rate must stay below safety.max_motor_speed_rad_s (at 0.6 rad: 1.77 Hz); at 1.7 Hz the
+    foot follows (+-30 deg) without reaching the peak current."""
+    from ankle_rt.daemon import run_lockstep
+
+    sim = ROOT / "config" / "sim.yaml"
+    sine = {"profile": "sine", "sine": {"amplitude_dp": 0.6, "frequency_hz": 5.0}}
+    with pytest.raises(ConfigError) as err:
+        load_config(sim, {"reference": sine})
+    assert err.value.key == "reference.sine.frequency_hz" and "max_motor_speed_rad_s" in err.value.message
+    with pytest.raises(ConfigError) as err:
+        load_config(sim, {"reference": {"profile": "chirp", "chirp": {"amplitude_dp": 0.6, "f1_hz": 5.0}}})
+    assert err.value.key == "reference.chirp.f1_hz"
+    cfg = load_config(sim, {"reference": {**sine, "sine": {"amplitude_dp": 0.6, "frequency_hz": 1.7}},
+                            "sim": {"disturbances": []}})
+    r = run_lockstep(cfg, 3.0)
+    late = r["t"] > 1.0
+    assert r.summary["fault"] == "NONE" and np.abs(r["current_cmd_1"][late]).max() < 12.0
+    assert np.degrees(r["ankle_dp"][late]).max() > 28.0

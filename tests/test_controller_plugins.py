@@ -308,3 +308,95 @@ def test_a_plugin_output_ramps_in_over_the_soft_start():
     assert np.all(current[ramp < 1.0] <= 4.7 * ramp[ramp < 1.0] + 1e-9)
     assert daemon.safety.fault == Fault.NONE and abs(ankle[-1] - 10.0) < 2.0
     daemon.close()
+
+
+class GaugeZeroer(StiffHold):
+    """StiffHold (at 0 deg) that also "cleans" the gauges it reads: ``est.sg_dp = est.sg_ie = 0``."""
+
+    def __init__(self, context):
+        super().__init__(context)
+        self.refused: list[str] = []
+
+    def update(self, est, out_torque):
+        try:
+            est.sg_dp = est.sg_ie = 0.0
+        except AttributeError as exc:
+            if not self.refused:
+                self.refused.append(str(exc))
+        tau = -400.0 * est.dp - 2.0 * est.dp_vel
+        r = self.context.kin.R_inv_T
+        out_torque[0], out_torque[1] = r.item(0, 0) * tau, r.item(1, 0) * tau
+
+
+def test_the_gauge_cross_check_sees_the_sensors_not_a_plugins_writes():
+    """Safety8: a plugin could write the estimate's plain values between the sensor checks and the
+    gauge cross-check of the same cycle. A DP gauge stuck at +15 N m from 1 s, hidden by a plugin that
+    zeroes ``est.sg_dp``: before, no fault for the whole run (the cross-check compared the plugin's 0
+    with the motors); now the plugin's view of the estimate refuses the write and the cross-check sees
+    the stuck gauge: SG_MISMATCH within 0.2 s, and the log records the sensors' values."""
+    from ankle_rt.clock import SimClock
+    from ankle_rt.control.base import ControllerContext
+    from ankle_rt.service import protocol as proto
+    from tests.daemon_helpers import InjectingBackend, lockstep_daemon, run_cycles, variant
+
+    cfg = variant(load_config(ROOT / "config" / "sim.yaml"), safety={"auto_activate": False})
+    cfg["sim"]["disturbances"] = []
+
+    def stuck(frame, cycle):
+        frame.values[2] = 15.0 + daemon.estimator.offset[0]     # raw: tared, it reads 15 N m
+
+    daemon = lockstep_daemon(cfg, backend=InjectingBackend(cfg, SimClock(), at=1000, mutate=stuck))
+    run_cycles(daemon, 300)
+    plugin = GaugeZeroer(ControllerContext.from_config(daemon.cfg, daemon.kin, daemon.reference.ref))
+    daemon.controller = plugin
+    daemon.handle(proto.Activate())
+    run_cycles(daemon, 2000)
+    r = daemon.recorder.records
+    assert daemon.safety.fault == Fault.SG_MISMATCH
+    t_fault = r["t"][np.flatnonzero(r["fault"])[0]]
+    assert 1.0 < t_fault < 1.2
+    assert plugin.refused and "read-only" in plugin.refused[0] and "sg_dp" in plugin.refused[0]
+    late = r["t"] > 1.01
+    assert np.all(np.abs(r["sg_torque_dp"][late & (r["t"] < t_fault)] - 15.0) < 1e-9)
+    daemon.close()
+
+
+class SlowHold(StiffHold):
+    """StiffHold whose update takes 45 ms (the simulated clock moved on inside it) from its 100th call:
+    each cycle overruns by less than loop.max_stall_s (50 ms)."""
+
+    calls = 0
+
+    def update(self, est, out_torque):
+        super().update(est, out_torque)
+        self.calls += 1
+        if self.calls >= 100:
+            self.clock.advance(45_000_000)
+
+
+def test_overruns_in_a_row_fault_once_their_missed_time_passes_the_stall_limit():
+    """Safety8: a plugin's update that takes 45 ms every cycle stays under the one-stall limit (50 ms),
+    so only the overrun count stopped it: with loop.max_consecutive_overruns 50 (the most a device
+    config may set) it controlled at 22 Hz on 45 ms old data for 2.5 s, the foot 10.4 deg past its
+    10 deg target. The overruns in a row now share the stall limit: MISSED_DEADLINES once their missed
+    deadlines add up to more than 50 ms, at the second slow cycle."""
+    from ankle_rt.control.base import ControllerContext
+    from ankle_rt.service import protocol as proto
+    from tests.daemon_helpers import lockstep_daemon, run_cycles, variant
+
+    cfg = variant(load_config(ROOT / "config" / "sim.yaml"), safety={"auto_activate": False},
+                  loop={"max_consecutive_overruns": 50})
+    cfg["sim"]["disturbances"] = []
+    daemon = lockstep_daemon(cfg)
+    run_cycles(daemon, 300)
+    plugin = SlowHold(ControllerContext.from_config(daemon.cfg, daemon.kin, daemon.reference.ref))
+    plugin.clock = daemon.clock
+    daemon.controller = plugin
+    daemon.handle(proto.Activate())
+    run_cycles(daemon, 3000)
+    assert daemon.safety.fault == Fault.MISSED_DEADLINES
+    assert plugin.calls == 101 and daemon.loop.stats.overruns == 2
+    r = daemon.recorder.records
+    active = r["state"] == int(State.ACTIVE)
+    assert np.degrees(r["ankle_dp"][active]).max() < 15.0
+    daemon.close()

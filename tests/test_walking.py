@@ -11,7 +11,7 @@ import pytest
 from ankle_rt.clock import SimClock
 from ankle_rt.config import ConfigError, load_config
 from ankle_rt.control.gait_phase import (EARLY_STANCE, EARLY_SWING, LATE_STANCE, LATE_SWING, PARAMS, PHASES, SAFE,
-                                         GaitPhaseLaw)
+                                         GaitPhaseLaw, heel_strike_hold_s)
 from ankle_rt.daemon import Daemon
 from ankle_rt.safety import Fault
 from tests.conftest import ROOT
@@ -30,7 +30,7 @@ def walk_cfg():
 
 def make_law(cfg) -> GaitPhaseLaw:
     g = cfg["controller"]["gait_phase"]
-    return GaitPhaseLaw({p: g[p] for p in PHASES}, g, DT)
+    return GaitPhaseLaw({p: g[p] for p in PHASES}, g, DT, heel_strike_hold_s(cfg))
 
 
 def hold(law: GaitPhaseLaw, seconds: float, load: float, dp: float = 0.0, vdp: float = 0.0) -> list[tuple]:
@@ -269,6 +269,86 @@ def test_toe_off_must_lie_above_what_an_unloaded_foot_reads(load_off):
     assert err.value.key == "controller.gait_phase.load_off_nm"
     assert load_off <= 0 or "foot off the ground" in err.value.message   # <= 0: the schema's own bound
     assert load_config(WALK, {"controller": {"gait_phase": {"load_off_nm": 0.1}}})
+
+
+def test_the_free_foots_cable_mode_never_takes_a_heel_strike_in_swing(tmp_path):
+    """Safety8: in swing the free foot rings on the cables at ~98 Hz (+-5 N m after toe-off, decaying
+    over the swing). With ``load_on_nm: 1, load_off_nm: 0.5`` (accepted: both above what a foot held
+    still reads) each positive half-wave was a heel strike: early stance's 400 N m/rad in mid-swing
+    every stride (75 kg normal: at 63 % of the stride, 54 ms after toe-off). The heel strike must now
+    hold for one period of that mode, so the ring (which averages out over it) never takes it."""
+    from ankle_rt.bench.walk import run_walk
+
+    low = tmp_path / "low.yaml"
+    low.write_text(f"include: [{WALK}]\ncontroller: {{gait_phase: {{load_on_nm: 1.0, load_off_nm: 0.5}}}}\n")
+    for mass, cadence in ((75.0, "normal"), (100.0, "fast")):
+        run = run_walk(str(low), mass, cadence, 3)
+        assert run.fault == "NONE"
+        c = run.columns
+        for s in (1, 2):
+            ph = c["phase"][c["stride"] == s].astype(int)
+            order = [int(p) for i, p in enumerate(ph) if i == 0 or p != ph[i - 1]]
+            assert order == [LATE_SWING, EARLY_STANCE, LATE_STANCE, EARLY_SWING, LATE_SWING]
+
+
+def test_a_heel_strike_holds_one_period_of_the_feet_cable_mode(walk_cfg):
+    """A +-5 N m ring at the mode's frequency (above load_on_nm every half period) never strikes; a
+    load held above load_on_nm strikes after heel_strike_hold_s (a period at 0.7 x the cable stiffness)."""
+    g = walk_cfg["controller"]["gait_phase"]
+    hold_s = heel_strike_hold_s(walk_cfg)
+    assert 0.010 < hold_s < 0.013
+    law = make_law(walk_cfg)
+    to_early_stance(law, g)
+    hold(law, 0.1, 0.0, dp=-0.3)
+    assert law.phase == EARLY_SWING
+    period = hold_s * math.sqrt(0.7)
+    for k in range(round(0.5 / DT)):
+        law.update(g["load_on_nm"] + 5.0 * math.sin(2.0 * math.pi * k * DT / period), -0.3, 2.0, 0.0, 0.0)
+        assert law.phase == EARLY_SWING
+    hold(law, 0.01, 0.0, dp=-0.3, vdp=2.0)
+    strike = [p for p, _ in hold(law, 0.05, g["load_on_nm"] + 1.0, dp=-0.3, vdp=2.0)]
+    assert strike.index(EARLY_STANCE) == math.ceil(hold_s / DT)       # phases are listed before each update
+
+
+def test_a_wearer_who_stops_in_late_stance_gets_the_safe_phase_within_two_seconds():
+    """Safety8: the walking scenario's body frozen 50 ms into the second stride's late stance (the wearer
+    stops, on the push-off): late stance's equilibrium (-0.55 rad) pushes 107 N m of plantarflexor
+    moment into the wearer at 7.5 A (above the 5 A continuous current), held until the phase times out.
+    timeout_s up to 60 s was accepted (60 s of it: the I2t at 1280 of its 4000 A^2 s after 40 s, no
+    fault). Now at most 2 s (no walking phase lasts a stride; the longest on bench walk: 0.96 s, late
+    swing at 100 kg slow), refused beyond naming the key; with 2 s the safe phase (neutral) takes over
+    2 s after the stop."""
+    for timeout in (2.5, 60.0):
+        with pytest.raises(ConfigError) as err:
+            load_config(WALK, {"controller": {"gait_phase": {"timeout_s": timeout}}})
+        assert err.value.key == "controller.gait_phase.timeout_s"
+    cfg = load_config(WALK, {"controller": {"gait_phase": {"timeout_s": 2.0}}})
+    daemon = Daemon(cfg, SimClock())
+    plant, ctl = daemon.backend.plant, daemon.controller
+    walk = plant.walking
+    stopped: list[float] = []
+    trace: list[tuple[float, int, float]] = []
+
+    def cycle(t_ns: int) -> None:
+        daemon.cycle(t_ns)
+        if not stopped and walk.stride == 2 and ctl.phase == LATE_STANCE and ctl.gait.time > 0.05:
+            stopped.append(plant.t)
+        trace.append((plant.t, ctl.phase, -daemon.est.sg_dp))
+
+    advance = walk.advance
+    walk.advance = lambda t: None if stopped else advance(t)     # the body holds still from the stop on
+    try:
+        daemon.loop.run(cycle, round(7.0e9))
+    finally:
+        daemon.close()
+    assert daemon.safety.fault == Fault.NONE and stopped
+    t, phase, load = (np.array(c) for c in zip(*trace))
+    held = (t > stopped[0] + 0.1) & (phase == LATE_STANCE)
+    assert load[held].min() > 90.0                                  # the push-off equilibrium, held
+    safe = np.flatnonzero(phase == SAFE)
+    safe = safe[t[safe] > stopped[0]]
+    assert stopped[0] + 1.9 < t[safe[0]] < stopped[0] + 2.0
+    assert load[t > t[safe[0]] + 1.0].max() < 60.0
 
 
 def test_walking_strides_run_through_the_phases_without_a_fault():

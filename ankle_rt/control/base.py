@@ -95,7 +95,8 @@ class Controller(abc.ABC):
 
     @abc.abstractmethod
     def update(self, est: Estimate, out_torque: np.ndarray) -> None:
-        """Write the motor torques (N m, gearbox output) into ``out_torque[0:2]``. No allocation."""
+        """Write the motor torques (N m, gearbox output) into ``out_torque[0:2]``. No allocation. A plugin's
+        ``est`` is read-only (:class:`~ankle_rt.estimation.EstimateView`): the checks after it read it."""
 
 
 class BatchableController(abc.ABC):

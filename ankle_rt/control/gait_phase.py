@@ -10,10 +10,12 @@ Phases and transitions (``load`` = the plantarflexor moment the strain gauges me
 - early or late stance -> early swing: ``load < load_off_nm`` (toe-off);
 - early swing -> late swing: ``theta > late_swing_angle`` and ``dtheta < late_swing_velocity``
   (the foot is back near neutral and no longer dorsiflexing fast);
-- early or late swing -> early stance: ``load > load_on_nm`` (heel strike);
+- early or late swing -> early stance: ``load > load_on_nm`` held for ``heel_strike_hold_s`` (heel
+  strike; see :func:`heel_strike_hold_s`);
 - any phase -> safe after ``timeout_s`` in it (a stuck load signal, standing, sitting); safe -> early
   stance on a fresh heel strike only: the load must have fallen below ``load_off_nm`` while safe
-  (armed) and then risen above ``load_on_nm``. A load stuck high or low keeps the ankle safe.
+  (armed) and then risen above ``load_on_nm`` (held, as for a heel strike). A load stuck high or low
+  keeps the ankle safe.
 
 Hysteresis: ``load_on_nm > load_off_nm``, and phases only move forward through the stride, so an
 angle hovering at a threshold cannot make them chatter. No transition happens before ``min_dwell_s``
@@ -44,6 +46,7 @@ from ankle_rt.elementwise import Value, pick, select, stack
 from ankle_rt.estimation import Estimate
 from ankle_rt.gain_margin import gain_set_refusal
 from ankle_rt.kinematics import Kinematics
+from ankle_rt.params import TransmissionParams
 
 if TYPE_CHECKING:
     from ankle_rt.config import Config
@@ -53,6 +56,7 @@ PHASES = ("early_stance", "late_stance", "early_swing", "late_swing", "safe")
 EARLY_STANCE, LATE_STANCE, EARLY_SWING, LATE_SWING, SAFE = range(len(PHASES))
 PHASE_NAMES = ("none", *PHASES)    # by the log record's gait_phase code (1 + phase; 0: another controller)
 PARAMS = ("stiffness_dp", "damping_dp", "equilibrium_dp", "stiffness_ie", "damping_ie", "equilibrium_ie")
+CABLE_STIFFNESS_LOW = 0.7    # the identified cable stiffness's lower bound (-30 %, as the gain margins)
 TRANSITIONS = ("load_on_nm", "load_off_nm", "late_stance_angle", "late_stance_load_nm", "late_swing_angle",
                "late_swing_velocity", "min_dwell_s", "timeout_s", "blend_s")
 
@@ -60,9 +64,11 @@ TRANSITIONS = ("load_on_nm", "load_off_nm", "late_stance_angle", "late_stance_lo
 class GaitPhaseLaw:
     """The phase machine and the blended impedance of the module docstring (element-wise)."""
 
-    def __init__(self, phases: Mapping[str, Mapping[str, float]], transitions: Mapping[str, float], dt: float):
+    def __init__(self, phases: Mapping[str, Mapping[str, float]], transitions: Mapping[str, float], dt: float,
+                 strike_hold_s: float):
         """``phases``: PHASES name -> PARAMS (N m/rad, N m s/rad, rad); ``transitions``: TRANSITIONS
-        (N m, rad, rad/s, s)."""
+        (N m, rad, rad/s, s); ``strike_hold_s``: how long the load must stay above ``load_on_nm`` for a
+        heel strike (:func:`heel_strike_hold_s`)."""
         for name in PARAMS:                     # per parameter, one value per phase (a pick table)
             setattr(self, name, [float(phases[p][name]) for p in PHASES])
         self.load_on, self.load_off = float(transitions["load_on_nm"]), float(transitions["load_off_nm"])
@@ -70,10 +76,12 @@ class GaitPhaseLaw:
         self.lsw_angle, self.lsw_velocity = float(transitions["late_swing_angle"]), float(transitions["late_swing_velocity"])
         self.dwell, self.timeout = float(transitions["min_dwell_s"]), float(transitions["timeout_s"])
         self.dt = dt
+        self.strike_hold = float(strike_hold_s)
         self.alpha = 1.0 - math.exp(-dt / float(transitions["blend_s"]))
         self.phase = SAFE
         self.time = 0.0        # s in the current phase
         self.armed = 0.0       # 1 once the load fell below load_off while safe
+        self.loaded = 0.0      # s the load has been above load_on without a break
         # the blended impedance: stiffness K, damping B and spring offset P = K theta_0 per axis (blending
         # P rather than theta_0 keeps the torque P - K theta linear in what is blended: at a fixed angle
         # it moves monotonically, by at most the blend's share of the change per cycle)
@@ -93,6 +101,7 @@ class GaitPhaseLaw:
         self.phase = select(where, SAFE, self.phase)
         self.time = select(where, 0.0, self.time)
         self.armed = select(where, 0.0, self.armed)
+        self.loaded = select(where, 0.0, self.loaded)
         self.k0 = select(where, pick(self.stiffness_dp, SAFE), self.k0)
         self.b0 = select(where, pick(self.damping_dp, SAFE), self.b0)
         self.p0 = select(where, pick(self.stiffness_dp, SAFE) * pick(self.equilibrium_dp, SAFE), self.p0)
@@ -106,7 +115,9 @@ class GaitPhaseLaw:
         ph = self.phase
         t = self.time + self.dt
         ready = t >= self.dwell
-        on, off = load > self.load_on, load < self.load_off
+        loaded = select(load > self.load_on, self.loaded + self.dt, 0.0)
+        self.loaded = loaded
+        on, off = loaded >= self.strike_hold, load < self.load_off
         nxt = select(ready & (ph == EARLY_STANCE) & (dp > self.ls_angle) & (load > self.ls_load), LATE_STANCE, ph)
         nxt = select(ready & ((ph == EARLY_STANCE) | (ph == LATE_STANCE)) & off, EARLY_SWING, nxt)
         nxt = select(ready & (ph == EARLY_SWING) & (dp > self.lsw_angle) & (vdp < self.lsw_velocity), LATE_SWING, nxt)
@@ -178,7 +189,7 @@ class GaitPhaseController(ImpedanceController):
         dt = 1.0 / c["rate_hz"]
         g = c["gait_phase"]
         loop, limits, friction = actuation_from_config(cfg, friction)
-        law = GaitPhaseLaw({p: g[p] for p in PHASES}, {k: g[k] for k in TRANSITIONS}, dt)
+        law = GaitPhaseLaw({p: g[p] for p in PHASES}, {k: g[k] for k in TRANSITIONS}, dt, heel_strike_hold_s(cfg))
         try:
             return cls(kin, law, dt=dt, soft_start_s=c["soft_start_s"],
                        ankle_limit=math.radians(cfg["limits"]["ankle_range_deg"]),
@@ -246,6 +257,17 @@ class GaitPhaseController(ImpedanceController):
         gait = self.gait
         t0, t1 = gait.update(-est.sg_dp, est.dp, est.dp_vel, est.ie, est.ie_vel)
         return self.actuate(est, t0, t1, gait.k0, gait.k1)
+
+
+def heel_strike_hold_s(cfg: Mapping[str, Any]) -> float:
+    """s the load must stay above ``load_on_nm`` for a heel strike: one period of the free foot's DP
+    mode on the cables, 2 pi sqrt(foot.inertia_dp / k), with k the cable stiffness at the ankle at its
+    -30 % bound (the longest period; 12 ms nominal). In swing the foot rings in that mode (+-5 N m at
+    98 Hz after toe-off on the walking scenario), which averages out over a period: a load above
+    ``load_on_nm`` for a whole period is the foot's smooth load, which lies below it in swing (its
+    gravity moment and the swing's slow inertial torque), not a half-wave of the ring."""
+    k = CABLE_STIFFNESS_LOW * float(Kinematics.from_params(TransmissionParams(**cfg["transmission"])).K[0, 0])
+    return 2.0 * math.pi * math.sqrt(cfg["foot"]["inertia_dp"] / k)
 
 
 def _estimated_angle(cfg: Mapping[str, Any]) -> dict[str, Any]:
