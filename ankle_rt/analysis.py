@@ -346,8 +346,8 @@ class ImpedanceLoop:
     velocity_cutoff_hz: float = 100.0       # estimation.velocity_cutoff_hz
     ff_viscous: float = 0.0                 # N m s/rad per motor: the friction feed-forward's viscous slope
     # per axis [DP, IE], discrete second-order sections (b0, b1, b2, a1, a2) in cascade on the loop's
-    # proportional and rate terms (kp e - kd d/dt LP(tau_sg)), not on the integral: the loop shaping
-    # studied in benchmarks/study_torque_loop_shaping.py
+    # proportional and rate terms (kp e - kd d/dt LP(tau_sg)), not on the integral: the daemon's notch
+    # (TorqueLoopGains.sections) and the shapes studied in benchmarks/study_torque_loop_shaping.py
     shaping: tuple[tuple[tuple[float, ...], ...], tuple[tuple[float, ...], ...]] = ((), ())
     dt: float = 1e-3
     delay_cycles: int = 1
@@ -357,6 +357,7 @@ class ImpedanceLoop:
         """The config's impedance gains and (``closed``) torque-loop gains; ``ff_viscous``: the friction
         feed-forward's viscous slope (FrictionFeedForward.viscous_slope), which the torque loop leaves
         out (ankle_rt.control.impedance.actuation_from_config)."""
+        from ankle_rt.control.torque_loop import IDENTITY_SECTION, TorqueLoopGains
         from ankle_rt.loop_setup import ReflectedActuator, uses_joint_encoders
 
         c = cfg["controller"]
@@ -369,7 +370,11 @@ class ImpedanceLoop:
                    cutoff_hz=tl["cutoff_hz"], dob_hz=float(tl["dob_hz"]) if closed else 0.0,
                    dob_inertia=(frac[0] * inertia[0], frac[1] * inertia[1]), joint_encoders=uses_joint_encoders(cfg),
                    velocity_cutoff_hz=cfg["estimation"]["velocity_cutoff_hz"],
-                   ff_viscous=0.0 if closed else ff_viscous, dt=1.0 / c["rate_hz"], delay_cycles=delay_cycles)
+                   ff_viscous=0.0 if closed else ff_viscous,
+                   shaping=tuple(() if s == IDENTITY_SECTION else (s,)
+                                 for s in TorqueLoopGains.from_config(tl).sections(1.0 / c["rate_hz"]))
+                   if closed else ((), ()),
+                   dt=1.0 / c["rate_hz"], delay_cycles=delay_cycles)
 
     GAINS = (*LOOP_GAINS, *IMPEDANCE_GAINS)
 
