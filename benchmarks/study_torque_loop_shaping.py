@@ -61,12 +61,17 @@ Section = tuple[float, float, float, float, float]
 
 # -- the sections (continuous prototypes, Tustin with prewarping at their own frequency) -----------
 def tustin(num: tuple[float, float, float], den: tuple[float, float, float], f_warp: float, dt: float) -> Section:
-    """(b0, b1, b2, a1, a2) of (n2 s^2 + n1 s + n0) / (d2 s^2 + d1 s + d0), Tustin prewarped at f_warp."""
+    """(b0, b1, b2, a1, a2) of (n2 s^2 + n1 s + n0) / (d2 s^2 + d1 s + d0), Tustin prewarped at f_warp;
+    a first-order one (n2 = d2 = 0) stays first order (no pole-zero pair at z = -1)."""
     w = 2.0 * math.pi * f_warp
     c = w / math.tan(w * dt / 2.0)
     (n2, n1, n0), (d2, d1, d0) = num, den
-    b = (n2 * c * c + n1 * c + n0, 2.0 * (n0 - n2 * c * c), n2 * c * c - n1 * c + n0)
-    a = (d2 * c * c + d1 * c + d0, 2.0 * (d0 - d2 * c * c), d2 * c * c - d1 * c + d0)
+    if n2 == d2 == 0.0:
+        b = (n1 * c + n0, n0 - n1 * c, 0.0)
+        a = (d1 * c + d0, d0 - d1 * c, 0.0)
+    else:
+        b = (n2 * c * c + n1 * c + n0, 2.0 * (n0 - n2 * c * c), n2 * c * c - n1 * c + n0)
+        a = (d2 * c * c + d1 * c + d0, 2.0 * (d0 - d2 * c * c), d2 * c * c - d1 * c + d0)
     return (b[0] / a[0], b[1] / a[0], b[2] / a[0], a[1] / a[0], a[2] / a[0])
 
 
