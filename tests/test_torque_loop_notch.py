@@ -39,6 +39,8 @@ def test_the_notch_has_its_depth_at_its_centre_and_passes_the_band_the_wearer_mo
     assert section_gain(sec, 0.0) == pytest.approx(1.0, abs=1e-12)
     assert section_gain(sec, 2.0) == pytest.approx(1.0, abs=1e-3)
     assert notch_section(0.0, 0.3, 0.4, DT) == IDENTITY_SECTION
+    with pytest.raises(ValueError, match="Nyquist"):
+        notch_section(300.0, 0.3, 0.4, 1.0 / 250.0)
 
 
 def _p_amplitude(tl: dict, f_hz: float) -> float:

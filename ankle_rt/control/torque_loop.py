@@ -77,6 +77,8 @@ def notch_section(f0: float, zeta: float, depth: float, dt: float) -> tuple[floa
     notch stays where it is put). ``f0`` 0: the identity (no notch)."""
     if f0 <= 0.0:
         return IDENTITY_SECTION
+    if f0 >= 0.5 / dt:
+        raise ValueError(f"notch_hz {f0:g} is not below the loop's Nyquist frequency {0.5 / dt:g} Hz")
     w = 2.0 * math.pi * f0
     c = w / math.tan(w * dt / 2.0)
     n1, d1 = 2.0 * depth * zeta * w * c, 2.0 * zeta * w * c
