@@ -99,6 +99,9 @@ MAX_CORRECTION = 100.0
 DOB_HZ_DEFAULT, DOB_INERTIA_DEFAULT, MAX_OBSERVER_DEFAULT = 0.0, 1.0, 20.0
 TANK_J_DEFAULT, TANK_CREDIT_DEFAULT = 0.5, 0.8
 MAX_DOB_HZ, MAX_OBSERVER, MAX_TANK_J = 200.0, 100.0, 10.0
+# The notch on the torque loop's P and rate terms over the free foot's cable mode (docs/daemon.md, fourth pass).
+NOTCH_HZ_DEFAULT, NOTCH_ZETA_DEFAULT, NOTCH_DEPTH_DEFAULT = (0.0, 0.0), 0.2, 0.5
+MAX_NOTCH_HZ = 400.0   # below the 1 kHz loop's Nyquist frequency
 
 IMPEDANCE_DEFAULTS = {"stiffness_dp": 20.0, "stiffness_ie": 10.0, "damping_dp": 0.5, "damping_ie": 0.25}
 # The gains of a set (what ankle_rt.analysis.gain_set_margin_db checks and set_gains names) and the
@@ -165,6 +168,14 @@ TORQUE_LOOP = Section({
     "tank_friction_credit": Field(float, "share of the identified motor friction's dissipation (actuator.coulomb, "
                                          "damping) the tank is credited with", default=TANK_CREDIT_DEFAULT,
                                   low=0.0, high=1.0),
+    **{f"notch_hz_{axis}": non_negative(f"Hz, centre of the {axis.upper()} band-stop on the P and rate terms (the "
+                                        f"free foot's cable mode); 0 = no notch", default=NOTCH_HZ_DEFAULT[i],
+                                        high=MAX_NOTCH_HZ)
+       for i, axis in enumerate(("dp", "ie"))},
+    **{f"notch_zeta_{axis}": Field(float, f"the {axis.upper()} notch's width (damping ratio of its poles)",
+                                   default=NOTCH_ZETA_DEFAULT, low=0.02, high=2.0) for axis in ("dp", "ie")},
+    **{f"notch_depth_{axis}": Field(float, f"the {axis.upper()} notch's gain at its centre (1 = none)",
+                                    default=NOTCH_DEPTH_DEFAULT, low=0.0, high=1.0) for axis in ("dp", "ie")},
 }, optional=True, doc="joint-torque feedback of the impedance controller (docs/daemon.md)")
 
 # The gait-phase controller's shipped parameters, for a 75 kg wearer at normal cadence (tuned on the

@@ -451,3 +451,21 @@ def test_switching_to_a_torque_loop_without_margin_at_run_time_is_refused_naming
         assert daemon.controller is before
     finally:
         daemon.close()
+
+
+def test_the_margin_is_the_first_gain_that_destabilises_not_a_grid_point_past_a_window(base):
+    """At K_dp 100 a lightly damped mode of the shipped loop leaves the unit circle from ~9.1 dB of gain
+    and comes back inside before 10.2 dB: the reported margin is the first crossing (a fine scan), not
+    a grid point beyond the window."""
+    import numpy as np
+
+    from ankle_rt.analysis import _loop_matrices, gain_set_margin_db
+
+    cfg = impedance_cfg(base, 100.0)
+    p, c = PlantParams.from_config(cfg), ImpedanceLoop.from_config(cfg, closed=True)
+    T0, Tu = _loop_matrices(p, c, 0.12)
+    db = np.arange(0.0, 12.0, 0.05)
+    rho = np.abs(np.linalg.eigvals(T0[None] + (10.0 ** (db / 20.0))[:, None, None, None] * Tu[None])).max(axis=(-1, -2))
+    first = float(db[np.argmax(rho >= 1.0)])
+    assert first < 10.0
+    assert gain_set_margin_db(cfg, {})[0] == pytest.approx(first, abs=0.1)

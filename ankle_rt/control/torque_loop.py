@@ -21,6 +21,10 @@ deliver, so per ankle axis this loop drives the measured torque to the desired o
   negative damping (the loop would not be passive).
 - The measured torque is low-passed (first order at ``cutoff_hz``) so the loop rolls off well below
   the 77-98 Hz cable modes, whose damping ratio (~0.02) it must not eat.
+- A **notch** (``notch_hz`` > 0, a second-order band-stop of width ``notch_zeta`` and gain
+  ``notch_depth`` at ``notch_hz``) on ``kp e - kd d/dt LP(tau_sg)`` (not the integral) takes gain out
+  of the loop at the free foot's cable mode only, so kp and kd may be larger below it (a smaller
+  felt inertia J / (1 + kp)) with the same margin (benchmarks/study_torque_loop_shaping.py).
 - The integral is held while the correction is clamped and pushing the same way (conditional
   integration): a large, fast push no longer winds it up (the old loop rendered 9 N m/rad for a
   15 N m 2 Hz sine at K 200).
@@ -59,11 +63,28 @@ if TYPE_CHECKING:
 
     from ankle_rt.config import Config
 
+IDENTITY_SECTION = (1.0, 0.0, 0.0, 0.0, 0.0)   # (b0, b1, b2, a1, a2): passes its input through
 MIN_DAMPING_RATIO = 0.05        # of the rendered impedance against the reflected inertia / (1 + kp)
 # [DP, IE] of the cable stiffness at the ankle: a series-elastic loop cannot render a stiffness near
 # its spring's and stay stable. Where the linear margin checks hold with MIN_DAMPING_RATIO (DP: the
 # impedance mode's frequency rises with K and the loop's lags eat its damping first).
 MAX_STIFFNESS_FRACTION = (0.3, 0.5)
+
+
+def notch_section(f0: float, zeta: float, depth: float, dt: float) -> tuple[float, float, float, float, float]:
+    """(b0, b1, b2, a1, a2) of the band-stop (s^2 + 2 depth zeta w s + w^2) / (s^2 + 2 zeta w s + w^2),
+    w = 2 pi f0: gain ``depth`` at f0, 1 far from it; sampled over ``dt`` by Tustin prewarped at f0 (the
+    notch stays where it is put). ``f0`` 0: the identity (no notch)."""
+    if f0 <= 0.0:
+        return IDENTITY_SECTION
+    if f0 >= 0.5 / dt:
+        raise ValueError(f"notch_hz {f0:g} is not below the loop's Nyquist frequency {0.5 / dt:g} Hz")
+    w = 2.0 * math.pi * f0
+    c = w / math.tan(w * dt / 2.0)
+    n1, d1 = 2.0 * depth * zeta * w * c, 2.0 * zeta * w * c
+    a0 = c * c + d1 + w * w
+    return ((c * c + n1 + w * w) / a0, 2.0 * (w * w - c * c) / a0, (c * c - n1 + w * w) / a0,
+            2.0 * (w * w - c * c) / a0, (c * c - d1 + w * w) / a0)
 
 
 @dataclass(frozen=True)
@@ -80,6 +101,13 @@ class TorqueLoopGains:
     max_observer_nm: tuple[float, float] = (0.0, 0.0)   # |d| at most this
     tank_j: float = 0.0                      # J, the energy tank's capacity
     tank_friction_credit: float = 0.0        # share of the identified friction's dissipation the tank gets
+    notch_hz: tuple[float, float] = (0.0, 0.0)       # band-stop on the P and rate terms; 0: none
+    notch_zeta: tuple[float, float] = (0.2, 0.2)     # its width (the denominator's damping ratio)
+    notch_depth: tuple[float, float] = (0.5, 0.5)    # its gain at notch_hz
+
+    def sections(self, dt: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
+        """The notch of each axis [DP, IE] as a second-order section over ``dt`` (:func:`notch_section`)."""
+        return tuple(notch_section(self.notch_hz[a], self.notch_zeta[a], self.notch_depth[a], dt) for a in (0, 1))
 
     @classmethod
     def from_config(cls, c: Mapping[str, Any]) -> "TorqueLoopGains":
@@ -88,7 +116,8 @@ class TorqueLoopGains:
         return cls(kp=pair("kp"), ki=pair("ki"), torque_rate=pair("torque_rate"),
                    cutoff_hz=float(c["cutoff_hz"]), max_correction_nm=pair("max_correction"),
                    dob_hz=float(c["dob_hz"]), dob_inertia=pair("dob_inertia"), max_observer_nm=pair("max_observer"),
-                   tank_j=float(c["tank_j"]), tank_friction_credit=float(c["tank_friction_credit"]))
+                   tank_j=float(c["tank_j"]), tank_friction_credit=float(c["tank_friction_credit"]),
+                   notch_hz=pair("notch_hz"), notch_zeta=pair("notch_zeta"), notch_depth=pair("notch_depth"))
 
 
 class JointTorqueLoop:
@@ -105,6 +134,8 @@ class JointTorqueLoop:
         self.set_gains(*gains.kp, *gains.ki, *gains.torque_rate)
         self.lim0, self.lim1 = gains.max_correction_nm
         self.alpha = 1.0 - math.exp(-2.0 * math.pi * gains.cutoff_hz * dt)
+        (self.nb00, self.nb01, self.nb02, self.na01, self.na02), (self.nb10, self.nb11, self.nb12, self.na11, self.na12) \
+            = gains.sections(dt)
         on = gains.dob_hz > 0.0
         if on and actuator is None:
             raise ValueError("JointTorqueLoop: the disturbance observer needs the reflected actuator")
@@ -120,6 +151,7 @@ class JointTorqueLoop:
         self.f0 = self.f1 = self.i0 = self.i1 = 0.0
         self.d0 = self.d1 = self.u0 = self.u1 = self.w0 = self.w1 = 0.0
         self.e0 = self.e1 = 0.0
+        self.n01 = self.n02 = self.n11 = self.n12 = 0.0
         self.reset_state(0.0, 0.0)
 
     def set_gains(self, kp0: Value, kp1: Value, ki0: Value, ki1: Value, rate0: Value, rate1: Value) -> None:
@@ -162,6 +194,10 @@ class JointTorqueLoop:
         self.u1 = select(where, tau_ie, self.u1)
         self.e0 = select(where, self.tank_max, self.e0)
         self.e1 = select(where, self.tank_max, self.e1)
+        self.n01 = select(where, 0.0, self.n01)
+        self.n02 = select(where, 0.0, self.n02)
+        self.n11 = select(where, 0.0, self.n11)
+        self.n12 = select(where, 0.0, self.n12)
 
     def update(self, tau_dp: Value, tau_ie: Value, sg_dp: Value, sg_ie: Value, w_dp: Value, w_ie: Value,
                integrate: bool | np.ndarray) -> tuple[Value, Value]:
@@ -174,10 +210,13 @@ class JointTorqueLoop:
         f1 = p1 + a * (sg_ie - p1)
         self.f0, self.f1 = f0, f1
         e0, e1 = tau_dp - f0, tau_ie - f1
-        c0, i0 = self._correction(e0, self.kp0 * e0 - self.kdr0 * (f0 - p0), self.i0 + self.kidt0 * e0, self.i0,
-                                  self.lim0, integrate)
-        c1, i1 = self._correction(e1, self.kp1 * e1 - self.kdr1 * (f1 - p1), self.i1 + self.kidt1 * e1, self.i1,
-                                  self.lim1, integrate)
+        # the notch on the P and rate terms (direct form II transposed; the identity without one)
+        x0, x1 = self.kp0 * e0 - self.kdr0 * (f0 - p0), self.kp1 * e1 - self.kdr1 * (f1 - p1)
+        pd0, pd1 = self.nb00 * x0 + self.n01, self.nb10 * x1 + self.n11
+        self.n01, self.n02 = self.nb01 * x0 - self.na01 * pd0 + self.n02, self.nb02 * x0 - self.na02 * pd0
+        self.n11, self.n12 = self.nb11 * x1 - self.na11 * pd1 + self.n12, self.nb12 * x1 - self.na12 * pd1
+        c0, i0 = self._correction(e0, pd0, self.i0 + self.kidt0 * e0, self.i0, self.lim0, integrate)
+        c1, i1 = self._correction(e1, pd1, self.i1 + self.kidt1 * e1, self.i1, self.lim1, integrate)
         self.i0, self.i1 = i0, i1
         u0 = tau_dp + c0 + self._observe(0, sg_dp, w_dp, integrate)
         u1 = tau_ie + c1 + self._observe(1, sg_ie, w_ie, integrate)
