@@ -29,6 +29,7 @@ import numpy as np
 
 from ankle_rt.config_schema import IMPEDANCE_GAINS, LOOP_GAINS, SHIPPED_GAINS, SHIPPED_PD_GAINS
 from ankle_rt.linear_model import N_X, LinearModel
+from ankle_rt.notch import IDENTITY_SECTION, config_notch_sections
 from ankle_rt.params import PlantParams
 
 AXES = ("dp", "ie")
@@ -357,7 +358,6 @@ class ImpedanceLoop:
         """The config's impedance gains and (``closed``) torque-loop gains; ``ff_viscous``: the friction
         feed-forward's viscous slope (FrictionFeedForward.viscous_slope), which the torque loop leaves
         out (ankle_rt.control.impedance.actuation_from_config)."""
-        from ankle_rt.control.torque_loop import IDENTITY_SECTION, TorqueLoopGains
         from ankle_rt.loop_setup import ReflectedActuator, uses_joint_encoders
 
         c = cfg["controller"]
@@ -372,7 +372,7 @@ class ImpedanceLoop:
                    velocity_cutoff_hz=cfg["estimation"]["velocity_cutoff_hz"],
                    ff_viscous=0.0 if closed else ff_viscous,
                    shaping=tuple(() if s == IDENTITY_SECTION else (s,)
-                                 for s in TorqueLoopGains.from_config(tl).sections(1.0 / c["rate_hz"]))
+                                 for s in config_notch_sections(tl, 1.0 / c["rate_hz"]))
                    if closed else ((), ()),
                    dt=1.0 / c["rate_hz"], delay_cycles=delay_cycles)
 
@@ -466,7 +466,6 @@ def _plant(p: PlantParams, *, foot: str, load_slope: float,
 
 
 N_W = 12     # controller states of the model: theta_m prev, v, tau filter, integrator, observer, u
-IDENTITY_SECTION = (1.0, 0.0, 0.0, 0.0, 0.0)
 
 
 def _sections(shaping: tuple[tuple[tuple[float, ...], ...], ...]) -> list[tuple[tuple[float, ...], ...]]:

@@ -13,7 +13,8 @@ import pytest
 from ankle_rt.analysis import gain_set_margin_db
 from ankle_rt.bench.impedance import bench_config
 from ankle_rt.config import load_config
-from ankle_rt.control.torque_loop import IDENTITY_SECTION, JointTorqueLoop, TorqueLoopGains, notch_section
+from ankle_rt.control.torque_loop import JointTorqueLoop, TorqueLoopGains
+from ankle_rt.notch import IDENTITY_SECTION, notch_section
 from ankle_rt.paths import default_config_path
 
 DT = 1e-3

@@ -57,34 +57,18 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 from ankle_rt.elementwise import Value, clip, select, stack
 from ankle_rt.loop_setup import ReflectedActuator
+from ankle_rt.notch import notch_section
 
 if TYPE_CHECKING:
     import numpy as np
 
     from ankle_rt.config import Config
 
-IDENTITY_SECTION = (1.0, 0.0, 0.0, 0.0, 0.0)   # (b0, b1, b2, a1, a2): passes its input through
 MIN_DAMPING_RATIO = 0.05        # of the rendered impedance against the reflected inertia / (1 + kp)
 # [DP, IE] of the cable stiffness at the ankle: a series-elastic loop cannot render a stiffness near
 # its spring's and stay stable. Where the linear margin checks hold with MIN_DAMPING_RATIO (DP: the
 # impedance mode's frequency rises with K and the loop's lags eat its damping first).
 MAX_STIFFNESS_FRACTION = (0.3, 0.5)
-
-
-def notch_section(f0: float, zeta: float, depth: float, dt: float) -> tuple[float, float, float, float, float]:
-    """(b0, b1, b2, a1, a2) of the band-stop (s^2 + 2 depth zeta w s + w^2) / (s^2 + 2 zeta w s + w^2),
-    w = 2 pi f0: gain ``depth`` at f0, 1 far from it; sampled over ``dt`` by Tustin prewarped at f0 (the
-    notch stays where it is put). ``f0`` 0: the identity (no notch)."""
-    if f0 <= 0.0:
-        return IDENTITY_SECTION
-    if f0 >= 0.5 / dt:
-        raise ValueError(f"notch_hz {f0:g} is not below the loop's Nyquist frequency {0.5 / dt:g} Hz")
-    w = 2.0 * math.pi * f0
-    c = w / math.tan(w * dt / 2.0)
-    n1, d1 = 2.0 * depth * zeta * w * c, 2.0 * zeta * w * c
-    a0 = c * c + d1 + w * w
-    return ((c * c + n1 + w * w) / a0, 2.0 * (w * w - c * c) / a0, (c * c - n1 + w * w) / a0,
-            2.0 * (w * w - c * c) / a0, (c * c - d1 + w * w) / a0)
 
 
 @dataclass(frozen=True)
