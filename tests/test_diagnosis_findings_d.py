@@ -87,3 +87,43 @@ def test_holding_torques_of_stuck_motors_are_no_effect(seed, truth):
     case = make_case_d(**draw_case_d(seed))
     diag = diagnose(case.ident, case.valid, plant="ankle", cfg=case.nominal_cfg)
     assert diag.causes == truth, (seed, diag.causes, diag.notes)
+
+
+def test_stale_rows_are_re_interpolated_and_a_motor_at_rest_is_not_stale():
+    from ankle_rt.diagnosis.resample import repair_stale_rows
+    from ankle_rt.interchange import Recording
+    t = np.arange(200) * 1e-3
+    cols = {"t": t, "motor_pos_1": np.round(np.sin(3 * t) / 1e-4) * 1e-4, "motor_pos_2": np.zeros_like(t),
+            "current_cmd_1": np.ones_like(t), "current_cmd_2": np.ones_like(t),
+            "sg_torque_dp": np.cos(5 * t), "sg_torque_ie": np.zeros_like(t)}
+    stale = {k: v.copy() for k, v in cols.items()}
+    for c in ("motor_pos_1", "motor_pos_2", "sg_torque_dp", "sg_torque_ie"):
+        stale[c][50] = stale[c][49]                     # a bridge re-sent row 49 as row 50
+    fixed, note = repair_stale_rows(Recording(stale, "s"))
+    assert "1 stale row" in note
+    assert fixed["motor_pos_1"][50] == pytest.approx(0.5 * (cols["motor_pos_1"][49] + cols["motor_pos_1"][51]))
+    assert fixed["sg_torque_dp"][50] == pytest.approx(0.5 * (cols["sg_torque_dp"][49] + cols["sg_torque_dp"][51]))
+    at_rest = {**cols, "motor_pos_1": np.zeros_like(t), "sg_torque_dp": np.zeros_like(t)}
+    assert repair_stale_rows(Recording(at_rest, "r"))[1] is None
+
+
+@pytest.mark.slow
+def test_a_stale_row_is_no_torque_spike():
+    """Generator D's seed 117 (Stribeck friction, impedance law, chirp, 0.4 % stale rows: the bridge re-sent
+    its previous sample): each stale row is a step and back in the angle's second difference, and the
+    Stribeck term was lost (`none`). Re-interpolated: `stribeck`, with a note."""
+    case = make_case_d(**draw_case_d(117))
+    diag = diagnose(case.ident, case.valid, plant="ankle", cfg=case.nominal_cfg)
+    assert diag.causes == ["stribeck"], (diag.causes, diag.notes)
+    assert any("stale row" in n for n in diag.notes)
+
+
+@pytest.mark.slow
+def test_a_stribeck_term_at_its_grid_edge_that_the_transition_fits_is_not_named():
+    """Generator D's effect-free seed 101: motors that stick have a Coulomb transition sharper than any tanh;
+    a Stribeck term at 2 v_eps (the grid's edge) with a 0.34 N m excess fitted it, and the
+    `coulomb_transition` calibration 3.6 better in the criterion. Rejected with the reason."""
+    case = make_case_d(**draw_case_d(101))
+    diag = diagnose(case.ident, case.valid, plant="ankle", cfg=case.nominal_cfg)
+    assert "stribeck" not in diag.causes
+    assert any("stribeck rejected" in n and "coulomb_transition fits as well" in n for n in diag.notes)

@@ -28,7 +28,7 @@ from ankle_rt.diagnosis.candidates import (CABLE_CANDIDATES, INPUT_GROUPS, MOTOR
                                            catch_all_cable, catch_all_motor, folded_coulomb, time_columns,
                                            without_groups)
 from ankle_rt.diagnosis.regression import rss_only
-from ankle_rt.diagnosis.resample import to_uniform_grid
+from ankle_rt.diagnosis.resample import repair_stale_rows, to_uniform_grid
 from ankle_rt.diagnosis.screening import Screening, screen, strain_gauge_drift, strain_gauge_offset
 from ankle_rt.diagnosis.selection import (IC_THRESHOLD, LARGE_REDUCTION, MIN_REDUCTION, MIN_SIZE, MIN_SIZE_UNKNOWN,
                                           MIN_UNKNOWN_REDUCTION, AMBIGUOUS_IC, ChannelModels, ChannelResult, Score,
@@ -383,7 +383,9 @@ def _rejection(res: ChannelResult, cf: ChannelFit, i: int) -> str | None:
     """Why the ``i``-th effect of a channel's joint fit cannot be named (None: it can): its fitted
     parameters are non-finite or outside the effect's range, or its nonlinear parameter sits in the outer
     cell of its grid (between the end and its neighbour) while it explains almost nothing (generator C's
-    seed 118: a 0.4 ms delay explaining 0.04 % beside a load offset)."""
+    seed 118: a 0.4 ms delay explaining 0.04 % beside a load offset) or while a calibration fits nearly as
+    well in its place (generator D's seed 101: a Stribeck term at 2 v_eps mimicking the true, sharper
+    Coulomb transition of a motor that sticks)."""
     cand, nl, nl_sd = cf.specs[i]
     sl = cf.slices[i]
     base = cf.coef[:cf.n_base]
@@ -392,11 +394,16 @@ def _rejection(res: ChannelResult, cf: ChannelFit, i: int) -> str | None:
     if reason or cand.nonlinear is None or cand.integer:
         return reason
     grid = sorted(cand.grid(res.channel))
-    share = next(ts.share for ts in res.terms if ts.term.candidate is cand)
+    stats = next(ts for ts in res.terms if ts.term.candidate is cand)
     # refined between grid neighbours, a value in an outer cell may be held there by the grid's end
-    if len(grid) > 2 and (nl <= grid[1] or nl >= grid[-2]) and share < EDGE_MIN_SHARE:
-        return (f"{cand.nonlinear} = {nl:.4g} lies in the edge cell of its grid and the effect explains only "
-                f"{100 * share:.2f} % of the residual: the form does not describe what it fits")
+    if len(grid) > 2 and (nl <= grid[1] or nl >= grid[-2]):
+        if stats.share < EDGE_MIN_SHARE:
+            return (f"{cand.nonlinear} = {nl:.4g} lies in the edge cell of its grid and the effect explains only "
+                    f"{100 * stats.share:.2f} % of the residual: the form does not describe what it fits")
+        if stats.rival in CALIBRATIONS and stats.rival_margin < AMBIGUOUS_IC:
+            return (f"{cand.nonlinear} = {nl:.4g} lies in the edge cell of its grid and the calibration "
+                    f"{stats.rival} fits as well (criterion {stats.rival_margin:.1f} apart): what it fits is "
+                    "the calibration's (a Coulomb transition sharper than the configured one), not an effect")
     return None
 
 
@@ -467,6 +474,9 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
             raise InterchangeError("validation file has a different number of motors", validation.source,
                                    "motor_pos_2", 0)
         vname = validation.source
+    ident, note = repair_stale_rows(ident)
+    validation, vnote = repair_stale_rows(validation)
+    notes += [n for n in (note, vnote) if n]
     scr: Screening = screen(ident, inputs.v_eps, inputs.current_limit, f"identification data ({ident.source})")
     vscr: Screening = screen(validation, inputs.v_eps, inputs.current_limit, f"validation data ({vname})")
     unusable = scr.unusable or vscr.unusable
