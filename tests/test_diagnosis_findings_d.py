@@ -67,31 +67,6 @@ def test_a_remainder_smaller_than_a_named_effect_is_not_unknown():
     assert diag.adequacy["motor"]["catch_all_size"] < 0.003
 
 
-def test_a_resting_motor_weighs_nothing_in_the_motor_channel():
-    """The motor channel's filter gives the samples of a rest weight 0 on both sides of every regression:
-    the delayed torque is shifted before the filter, so the target and its regressors weigh alike."""
-    case = make_case_d(113, ["torque_offset"], motion="steps", controller="impedance", ident_s=4, valid_s=2)
-    ch = MotorChannel(case.ident, 1.66, None, 0.01)
-    rest = ch.resting.any(axis=1)
-    assert rest.any() and np.array_equal(ch.sm.weight, (~rest).astype(float))
-    spike = np.zeros((ch.n_samples, 1))
-    spike[np.flatnonzero(rest)[len(np.flatnonzero(rest)) // 2]] = 1.0
-    assert not ch.sm.smooth(spike).any()
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("seed, truth", [(108, ["load_dependent_friction"]), (122, ["load_dependent_friction"]),
-                                         (134, ["none"])])
-def test_holding_torques_of_stuck_motors_are_no_effect(seed, truth):
-    """Generator D's seeds whose motors stick for long (impedance steps, 108; walking under the PD law with a
-    torque-constant error, 134, a third of the record at rest): the holding torques swamped the load-dependent
-    friction (108 `none`), read as a 1.3 ms delay beside it (122) and as a load offset with friction asymmetry
-    (134). With the rests weighing nothing: the truth."""
-    case = make_case_d(**draw_case_d(seed))
-    diag = diagnose(case.ident, case.valid, plant="ankle", cfg=case.nominal_cfg)
-    assert diag.causes == truth, (seed, diag.causes, diag.notes)
-
-
 def test_stale_rows_are_re_interpolated_and_a_motor_at_rest_is_not_stale():
     from ankle_rt.diagnosis.resample import repair_stale_rows
     from ankle_rt.interchange import Recording

@@ -55,9 +55,6 @@ class Smoother:
     fast_window: int
     step: int          # decimation factor
     margin: int        # rows dropped at each end
-    #: per-sample weight applied to every raw signal before L (None: all ones); the motor channel gives its
-    #: rests weight 0, so its equation reads 0 = 0 there on both sides alike
-    weight: np.ndarray | None = None
 
     @classmethod
     def for_period(cls, dt: float) -> "Smoother":
@@ -76,8 +73,6 @@ class Smoother:
             d = np.zeros_like(x)
             d[1:-1] = (x[2:] - 2.0 * x[1:-1] + x[:-2]) / self.dt ** 2
             x = d
-        if self.weight is not None:
-            x = x * (self.weight[:, None] if x.ndim == 2 else self.weight)
         return sosfiltfilt(self.sos, x, axis=0)
 
     def fast_derivative(self, x: np.ndarray, deriv: int = 1) -> np.ndarray:
@@ -199,15 +194,11 @@ class MotorChannel(_StackedChannel):
         self.geometry = geometry
         self.vel = sm.fast_derivative(self.pos)
         self.resting = resting(self.pos, max(3, int(round(REST_S / self.dt))))
-        # a stuck motor's static friction takes whatever torque holds it: no friction law of velocity
-        # describes those samples, so they weigh nothing on either side of every regression (left in, the
-        # holding torques read as a load offset, friction asymmetry, delay or an unknown remainder)
-        sm.weight = (~self.resting.any(axis=1)).astype(float)
-        self._torque: dict[float, np.ndarray] = {}
         self._acc = sm.fast_derivative(self.pos, 2)
         self.v_eps = v_eps
         self.L_acc = sm.smooth(self.pos, 2)
         self.L_vel = sm.smooth(self.pos, 1)
+        self.L_tau = sm.smooth(self.tau)
         self.L_tc = sm.smooth(self.tc)
         self.set_smoothing_velocity(v_eps)
 
@@ -233,11 +224,8 @@ class MotorChannel(_StackedChannel):
         return out
 
     def torque(self, delay_s: float = 0.0) -> np.ndarray:
-        """L[tau] at the kept rows for an actuation delay (s), ZOH half sample included (stacked); the
-        torque is shifted before L, which weighs the rests (cached per delay)."""
-        if delay_s not in self._torque:
-            self._torque[delay_s] = self.pick(self.sm.smooth(shift_rows(self.tau, 0.5 + delay_s / self.dt)))
-        return self._torque[delay_s]
+        """L[tau] at the kept rows for an actuation delay (s), ZOH half sample included (stacked)."""
+        return self.pick(shift_rows(self.L_tau, 0.5 + delay_s / self.dt))
 
     def measured(self) -> np.ndarray:
         """What an NRMSE is relative to: the filtered motor torque (stacked)."""
