@@ -60,10 +60,12 @@ def repair_stale_rows(rec: Recording) -> tuple[Recording, str | None]:
     gauges never repeat all at once, a bridge re-sending its last sample does. Left in, each one is a step
     and back in the second difference of the angle, a torque spike the fits read as an effect (generator
     D: a Stribeck term lost); masked, each would take the filter's reach with it. Its true values lie
-    between its neighbours: interpolated linearly in time. Unchanged (no note) when there is none."""
+    between its neighbours: interpolated linearly in time. Unchanged (no note) when there is none, or
+    without strain gauges: a slow motor's count alone repeats between two changes by nature (generator A's
+    actuator records)."""
     cols = [c for c in MEASURED if c in rec]
     motors = [c for c in ("motor_pos_1", "motor_pos_2") if c in rec]
-    if len(rec) < 4 or not motors:
+    if len(rec) < 4 or not motors or not any(c.startswith("sg_") for c in cols):
         return rec, None
     X = np.column_stack([rec[c] for c in cols])
     same = np.all(X[1:-1] == X[:-2], axis=1)

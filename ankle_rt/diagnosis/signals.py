@@ -37,7 +37,10 @@ ORDER = 3
 KERNEL_POINTS = 16         # midpoints per sample of the triangle mean of the velocity regressors
 DECIMATED_RATE_HZ = 250.0  # rows kept for the regressions
 EDGE_S = 0.06              # s dropped at each end (filter transients, delay shifts)
-REST_S = 0.01              # s a motor's encoder must stay unchanged to count as resting (stuck)
+#: s a motor's encoder must stay unchanged to count as resting (stuck): generator D's sticking motors rest
+#: 50-300 ms at a time, while a tanh-friction motor reversing slowly keeps its count 10-50 ms as it moves
+#: (generator A's seed 1022 lost its cogging to a 10 ms threshold: the ripple shows best at reversals)
+REST_S = 0.05
 
 
 def _odd_window(seconds: float, dt: float, least: int) -> int:
