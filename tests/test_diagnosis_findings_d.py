@@ -85,26 +85,3 @@ def test_stale_rows_are_re_interpolated_and_a_motor_at_rest_is_not_stale():
     assert repair_stale_rows(Recording(at_rest, "r"))[1] is None
     no_gauges = {k: v for k, v in stale.items() if not k.startswith("sg_")}   # a slow count repeats by nature
     assert repair_stale_rows(Recording(no_gauges, "a"))[1] is None
-
-
-@pytest.mark.slow
-def test_a_stale_row_is_no_torque_spike():
-    """Generator D's seed 117 (Stribeck friction, impedance law, chirp, 0.4 % stale rows: the bridge re-sent
-    its previous sample): each stale row is a step and back in the angle's second difference, and the
-    Stribeck term was lost (`none`). Re-interpolated: `stribeck`, with a note."""
-    case = make_case_d(**draw_case_d(117))
-    diag = diagnose(case.ident, case.valid, plant="ankle", cfg=case.nominal_cfg)
-    assert diag.causes == ["stribeck"], (diag.causes, diag.notes)
-    assert any("stale row" in n for n in diag.notes)
-
-
-@pytest.mark.slow
-def test_a_stribeck_term_at_its_grid_edge_that_the_transition_fits_is_not_named():
-    """Generator D's effect-free seed 101: motors that stick have a Coulomb transition sharper than any tanh;
-    a Stribeck term at 2 v_eps (the grid's edge) with a 0.34 N m excess fitted it, and the
-    `coulomb_transition` calibration 3.6 better in the criterion. Rejected with the reason (a true Stribeck
-    term at the edge that beats the calibration stays: generator A's seed 1022, 10 better)."""
-    case = make_case_d(**draw_case_d(101))
-    diag = diagnose(case.ident, case.valid, plant="ankle", cfg=case.nominal_cfg)
-    assert "stribeck" not in diag.causes
-    assert any("stribeck rejected" in n and "coulomb_transition fits at least as well" in n for n in diag.notes)
