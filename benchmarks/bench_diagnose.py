@@ -23,7 +23,11 @@ Generator C (benchmarks/diagnosis_cases_c.py, diag4): written without the diagno
 linear discretisation with Heun nonlinear forces, quantised sensors in the loop, a Coulomb transition
 sharper than the config's, own effect forms, quadratic drag and a viscoelastic cable outside the vocabulary).
 
-    python benchmarks/bench_diagnose.py [--n 64] [--seed 1000] [--generator a|b|c|both|all]
+Generator D (benchmarks/diagnosis_cases_d.py, diagD): written blind as well, from a real device's physics and
+logs (semi-implicit integration with a true stuck state, capstan sheath friction, gear backlash with impact,
+LuGre bristles, a first-order current loop, late control ticks, a 500 Hz log, stale and dropped rows).
+
+    python benchmarks/bench_diagnose.py [--n 64] [--seed 1000] [--generator a|b|c|d|both|all]
 """
 
 from __future__ import annotations
@@ -51,6 +55,7 @@ from ankle_rt.timing_reference import reference_step_s  # noqa: E402
 from tests.diagnosis_cases import README_RUN_YAML, draw_scenario, make_case, primary_error  # noqa: E402
 from tests.diagnosis_cases_b import draw_case_b, make_case_b, write_case_b  # noqa: E402
 from benchmarks.diagnosis_cases_c import draw_case_c, make_case_c, write_case_c  # noqa: E402
+from benchmarks.diagnosis_cases_d import draw_case_d, make_case_d, write_case_d  # noqa: E402
 
 NAMES_EXCLUDED = ("none", "unknown")
 REF_S = [float("nan")]     # s per reference step, measured once per run in main()
@@ -265,19 +270,32 @@ def generator_c(args: argparse.Namespace) -> list[Row]:
     return rows
 
 
+def generator_d(args: argparse.Namespace) -> list[Row]:
+    """Generator D (benchmarks/diagnosis_cases_d.py): a real device's physics and logs, written blind."""
+    cases = (make_case_d(**draw_case_d(args.seed + i)) for i in range(args.n))
+    rows = run_generated("d", cases, args.save_d, write_case_d, f"{'ctl':<9} {'motion':<9} {'kinds':<52}",
+                         lambda c: f"{c.controller:<9} {c.motion:<9} {','.join(c.kinds) or '-':<52}")
+    if args.runtime_s > 0:   # walking with three effects, backlash's impacts among them
+        print_runtime("D", make_case_d(args.seed - 1, ["backlash", "load_dependent_friction", "cogging"],
+                                       controller="impedance", motion="walking", ident_s=args.runtime_s,
+                                       valid_s=args.runtime_s / 3), args.runtime_s)
+    return rows
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=64, help="number of cases per generator (>= 60 for the issue's figures)")
     ap.add_argument("--seed", type=int, default=1000, help="first seed; case i uses seed + i")
     ap.add_argument("--runtime-s", type=float, default=30.0, help="length of the runtime file (0: skip)")
-    ap.add_argument("--generator", choices=("a", "b", "c", "both", "all"), default="both",
+    ap.add_argument("--generator", choices=("a", "b", "c", "d", "both", "all"), default="both",
                     help="a: the project simulator's cases; b, c: the independent generators; both: a and b side "
-                    "by side; all: a, b and c")
+                    "by side; all: a, b, c and d")
     ap.add_argument("--save-b", type=Path, metavar="DIR", help="also write generator B's cases there as interchange "
                     "CSVs (b<seed>_ident.csv, b<seed>_valid.csv) with their truth in truth.txt")
     ap.add_argument("--save-c", type=Path, metavar="DIR", help="the same for generator C (c<seed>_*.csv)")
+    ap.add_argument("--save-d", type=Path, metavar="DIR", help="the same for generator D (d<seed>_*.csv)")
     args = ap.parse_args()
-    for d in (args.save_b, args.save_c):
+    for d in (args.save_b, args.save_c, args.save_d):
         if d:
             d.mkdir(parents=True, exist_ok=True)
     REF_S[0] = reference_step_s()     # the machine-independent unit (ankle_rt.timing_reference)
@@ -292,6 +310,9 @@ def main() -> int:
         print()
     if args.generator in ("c", "all"):
         rows["C"] = generator_c(args)
+        print()
+    if args.generator in ("d", "all"):
+        rows["D"] = generator_d(args)
         print()
     for name, generated in rows.items():
         results[name] = summary(generated)

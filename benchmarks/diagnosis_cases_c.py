@@ -491,11 +491,11 @@ def draw_case_c(seed: int) -> dict:
             "with_refs": bool(rng.random() < 0.3)}
 
 
-def write_case_c(case: CaseC, directory: Path) -> tuple[Path, Path]:
-    """The case's two recordings as interchange CSVs (c<seed>_ident.csv, c<seed>_valid.csv)."""
+def write_case_c(case: CaseC, directory: Path, prefix: str = "c") -> tuple[Path, Path]:
+    """The case's two recordings as interchange CSVs (<prefix><seed>_ident.csv, <prefix><seed>_valid.csv)."""
     paths = []
     for part, rec in (("ident", case.ident), ("valid", case.valid)):
-        p = directory / f"c{case.seed}_{part}.csv"
+        p = directory / f"{prefix}{case.seed}_{part}.csv"
         write_csv(p, rec.columns)
         paths.append(p)
     return paths[0], paths[1]

@@ -200,12 +200,17 @@ class Cogging(Candidate):
     def count_range(self, ch) -> tuple[int, int]:
         """(fewest, most) periods per revolution searched: at least MIN_COGGING_PERIODS in the travel
         (fewer cannot be told from a spring or preload); at most where the ripple leaves the pass band at
-        the slowest tenth of the motion, and never fewer than MIN_COGGING_SEARCH."""
+        the slowest tenth of the motion, and never fewer than MIN_COGGING_SEARCH; never more than the
+        encoder resolves (COUNTS_PER_PERIOD counts a period, when the config gives its counts: where the
+        motors stick, the slowest tenth is at rest and the pass-band bound alone reached 500 000, a period
+        below one count that fitted the residual of the rests)."""
         span = max(float(np.ptp(ch.pos)), 1e-12)
         n_min = max(1, math.ceil(2.0 * np.pi * MIN_COGGING_PERIODS / span))
         v_slow = float(np.percentile(np.abs(ch.vel[ch.rows]), 10))
         n_fast = 2.0 * np.pi * ch.sm.cutoff_hz / max(v_slow, 1e-12)
         n_max = int(min(max(n_fast, MIN_COGGING_SEARCH, n_min + 300), MAX_COGGING_BINS // 8))
+        if ch.counts_per_rev:
+            n_max = min(n_max, max(n_min, ch.counts_per_rev // COUNTS_PER_PERIOD))
         return n_min, n_max
 
     def grid(self, ch):
@@ -221,6 +226,7 @@ class Cogging(Candidate):
         back = ch.sm.smooth(full)                                # adjoint of "filter, keep rows"
         turn = np.mod(ch.pos, 2.0 * np.pi) / (2.0 * np.pi)      # fraction of a revolution, 0..1
         speed = np.abs(ch.vel)
+        moving = ~ch.resting
         # speed bands, within which the taper of a count's ripple is nearly one number
         edges = np.unique(np.quantile(speed, np.linspace(0.0, 1.0, SPEED_BANDS + 1)))
         band = np.clip(np.searchsorted(edges, speed, side="right") - 1, 0, len(edges) - 2)
@@ -235,7 +241,7 @@ class Cogging(Candidate):
                     continue
                 v_b = float(np.sqrt(max(edges[b], 1e-12) * max(edges[b + 1], 1e-12)))
                 w = self.taper(ch, counts * v_b)
-                r = back[sel, i]
+                r = back[sel, i] * moving[sel, i]
                 # the taper is zero beyond n_b: this band's grid need only resolve counts up to n_b
                 # (a fast band's transform is short; only the slowest bands need the full grid)
                 if not w.any():
@@ -281,7 +287,7 @@ class Cogging(Candidate):
         waves = []
         for h in range(1, self.harmonics + 1):
             ang = h * nl * ch.pos
-            w = self.taper(ch, h * nl * ch.vel)
+            w = self.taper(ch, h * nl * ch.vel) * ~ch.resting     # a stuck motor's static friction holds it
             waves += [w * np.sin(ang), w * np.cos(ang)]
         filtered = ch.sm.smooth(np.hstack(waves))                 # one filter pass for all
         m = ch.m
@@ -605,6 +611,7 @@ SCALE_RANGE = (0.5, 2.0)           # plausible torque-constant calibration scale
 ENCODER_SCALE_RANGE = (0.8, 1.25)  # plausible motor / ankle encoder scale ratios
 SLACK_SHARE = (0.3, 2.0)           # share of the axis stiffness a dead zone may take away (ideal slack: 1)
 MIN_COGGING_SEARCH = 2500          # periods per revolution searched at least (rotor cogging x gearbox)
+COUNTS_PER_PERIOD = 8              # encoder counts a cogging period must span to be measured
 MAX_COGGING_BINS = 1 << 22         # angle-domain grid points per revolution, at most
 SPEED_BANDS = 16                   # speed bands of the angle-domain spectrum
 TAPER_START, TAPER_END = 3.0, 6.0  # x the filter's cut-off: the cogging regressor's taper (Cogging.taper)

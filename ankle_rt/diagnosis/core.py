@@ -28,7 +28,7 @@ from ankle_rt.diagnosis.candidates import (CABLE_CANDIDATES, INPUT_GROUPS, MOTOR
                                            catch_all_cable, catch_all_motor, folded_coulomb, time_columns,
                                            without_groups)
 from ankle_rt.diagnosis.regression import rss_only
-from ankle_rt.diagnosis.resample import to_uniform_grid
+from ankle_rt.diagnosis.resample import repair_stale_rows, to_uniform_grid
 from ankle_rt.diagnosis.screening import Screening, screen, strain_gauge_drift, strain_gauge_offset
 from ankle_rt.diagnosis.selection import (IC_THRESHOLD, LARGE_REDUCTION, MIN_REDUCTION, MIN_SIZE, MIN_SIZE_UNKNOWN,
                                           MIN_UNKNOWN_REDUCTION, AMBIGUOUS_IC, ChannelModels, ChannelResult, Score,
@@ -141,6 +141,7 @@ class Inputs:
     notes: list[str]
     cogging_prior: float | None = None      # periods per output revolution, from the config
     current_limit: float | None = None      # A, the amplifier's peak limit, from the config
+    counts_per_rev: int | None = None       # motor encoder counts per output revolution (ankle plant)
 
 
 def resolve_inputs(rec: Recording, plant: str, cfg: Config | None) -> Inputs:
@@ -162,14 +163,16 @@ def resolve_inputs(rec: Recording, plant: str, cfg: Config | None) -> Inputs:
     else:
         v_eps = fit_smoothing_velocity(rec, kt, geometry)
         notes.append(f"no config: Coulomb smoothing velocity fitted from the data: {v_eps:.3g} (position unit/s)")
-    prior = limit = None
+    prior = limit = counts = None
     if cfg is not None:
+        if plant == "ankle":
+            counts = int(cfg["actuator"]["encoder_counts_per_rev"])
         per_motor_rev = (cfg.get("diagnosis") or {}).get("cogging_periods_per_motor_rev")
         if per_motor_rev:
             prior = float(per_motor_rev) * cfg["actuator"]["gear_ratio"]
         if rec.input_kind == "current":
             limit = cfg["amplifier"]["current_limit_peak"]
-    return Inputs(kt, v_eps, geometry, notes, prior, limit)
+    return Inputs(kt, v_eps, geometry, notes, prior, limit, counts)
 
 
 def fit_smoothing_velocity(rec: Recording, kt: float | None, geometry: Geometry | None) -> float:
@@ -191,7 +194,7 @@ def fit_smoothing_velocity(rec: Recording, kt: float | None, geometry: Geometry 
 
 def build_channels(rec: Recording, inputs: Inputs, good: np.ndarray | None = None) -> dict[str, Channel]:
     chans: dict[str, Channel] = {"motor": MotorChannel(rec, inputs.kt, inputs.geometry, inputs.v_eps, good,
-                                                       inputs.cogging_prior)}
+                                                       inputs.cogging_prior, inputs.counts_per_rev)}
     if inputs.geometry is not None and CableChannel.available(rec):
         chans["cable"] = CableChannel(rec, inputs.geometry, good)
     return chans
@@ -464,6 +467,9 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
             raise InterchangeError("validation file has a different number of motors", validation.source,
                                    "motor_pos_2", 0)
         vname = validation.source
+    ident, note = repair_stale_rows(ident)
+    validation, vnote = repair_stale_rows(validation)
+    notes += [n for n in (note, vnote) if n]
     scr: Screening = screen(ident, inputs.v_eps, inputs.current_limit, f"identification data ({ident.source})")
     vscr: Screening = screen(validation, inputs.v_eps, inputs.current_limit, f"validation data ({vname})")
     unusable = scr.unusable or vscr.unusable

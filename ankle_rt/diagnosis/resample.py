@@ -48,3 +48,41 @@ def to_uniform_grid(rec: Recording, good: np.ndarray) -> tuple[Recording, np.nda
     note = (f"{rec.source}: irregular sample times (period spread {100 * spread:.1f} % of the median "
             f"{1e3 * dt:.3g} ms): re-sampled onto a uniform grid (set values held, measurements interpolated)")
     return Recording(cols, rec.source, dict(rec.extra)), good[k] & good[k + 1], note
+
+
+#: measured columns a stale row repeats (a sensor bridge that re-sent its previous sample)
+MEASURED = ("motor_pos_1", "motor_pos_2", "sg_torque_dp", "sg_torque_ie", "ankle_dp", "ankle_ie")
+
+
+def repair_stale_rows(rec: Recording) -> tuple[Recording, str | None]:
+    """(``rec`` with its stale rows re-interpolated, a note). A row is stale when every measured column
+    repeats the row before while a motor's count changes on both sides of it: a moving motor and noisy
+    gauges never repeat all at once, a bridge re-sending its last sample does. Left in, each one is a step
+    and back in the second difference of the angle, a torque spike the fits read as an effect (generator
+    D: a Stribeck term lost); masked, each would take the filter's reach with it. Its true values lie
+    between its neighbours: interpolated linearly in time. Unchanged (no note) when there is none, or
+    without strain gauges: a slow motor's count alone repeats between two changes by nature (generator A's
+    actuator records)."""
+    cols = [c for c in MEASURED if c in rec]
+    motors = [c for c in ("motor_pos_1", "motor_pos_2") if c in rec]
+    if len(rec) < 4 or not motors or not any(c.startswith("sg_") for c in cols):
+        return rec, None
+    X = np.column_stack([rec[c] for c in cols])
+    same = np.all(X[1:-1] == X[:-2], axis=1)
+    P = np.column_stack([rec[c] for c in motors])
+    moving = np.any((P[:-2] != np.r_[P[:1], P[:-3]]) & (P[2:] != P[1:-1]), axis=1)
+    stale = np.flatnonzero(same & moving) + 1
+    stale = stale[(stale > 1) & (stale < len(rec) - 1)]
+    if not stale.size:
+        return rec, None
+    keep = np.ones(len(rec), dtype=bool)
+    keep[stale] = False
+    t = np.asarray(rec["t"], dtype=float)
+    out = dict(rec.columns)
+    for c in cols:
+        x = np.array(rec[c], dtype=float)
+        x[stale] = np.interp(t[stale], t[keep], x[keep])
+        out[c] = x
+    note = (f"{rec.source}: {stale.size} stale row(s) ({100 * stale.size / len(rec):.2f} %: every measurement "
+            "repeats the row before while a motor moves): re-interpolated from their neighbours")
+    return Recording(out, rec.source, dict(rec.extra)), note

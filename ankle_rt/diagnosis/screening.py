@@ -71,14 +71,17 @@ def _noise_sd(x: np.ndarray) -> float:
     return float(1.4826 * np.median(np.abs(np.diff(x, 2))) / math.sqrt(6.0)) if len(x) > 2 else 0.0
 
 
-def _clipped_noisy(x: np.ndarray) -> np.ndarray:
+def _clipped_noisy(x: np.ndarray, still: np.ndarray | None = None) -> np.ndarray:
     """Samples of a rail that noise added after the clip keeps from being exactly flat: the moving mean
     over CLIP_WINDOW samples stays within CLIP_FLAT noise sd of its extreme for at least CLIP_SHARE of
     the record (noise alone moves it by 1/sqrt(CLIP_WINDOW) sd), at a level CLIP_SNR noise sd or more
     from the median. A smooth peak passes that level in a few samples; a physical torque plateau (a
     motor at its current clamp) keeps following the load (<= 0.8 % of the record in the simulated
     cases, 1.5-18 % per side for a gauge clipped at 70 % of its peak); a signal a few noise sd strong
-    (the README's chirp on the IE gauge) lingers near its crests by noise alone."""
+    (the README's chirp on the IE gauge) lingers near its crests by noise alone. Only samples where a
+    motor moves (``still``: none does) count towards CLIP_SHARE: motors that stick hold the cables'
+    stretch, and the gauges then read a flat static load wherever it lies (generator D: 3-7 % of a record
+    at rest near a crest read as a clipped gauge)."""
     out = np.zeros(len(x), dtype=bool)
     sd = _noise_sd(x)
     if sd <= 0.0 or len(x) < 4 * CLIP_WINDOW:
@@ -88,7 +91,8 @@ def _clipped_noisy(x: np.ndarray) -> np.ndarray:
     mean[:CLIP_WINDOW] = mean[-CLIP_WINDOW:] = np.median(x)          # edges: windows cut short
     for top in (mean, -mean):
         at = top >= np.max(top) - CLIP_FLAT * sd
-        if np.mean(at) >= CLIP_SHARE and np.max(top) - np.median(top) >= CLIP_SNR * sd:
+        counted = at if still is None else at & ~still
+        if np.mean(counted) >= CLIP_SHARE and np.max(top) - np.median(top) >= CLIP_SNR * sd:
             out |= np.convolve(at.astype(float), box, mode="same") > 0.5
     return out
 
@@ -139,6 +143,7 @@ def screen(rec: Recording, v_eps: float, current_limit: float | None = None, lab
                             f"{1e3 * longest:.0f} ms: the samples around them are masked")
     motors = [c for c in ("motor_pos_1", "motor_pos_2") if c in rec]
     at_rest = {}
+    still = None
     if motors:
         from ankle_rt.diagnosis.signals import Smoother
         vel = Smoother.for_period(dt).fast_derivative(np.column_stack([rec[c] for c in motors]))
@@ -147,6 +152,7 @@ def screen(rec: Recording, v_eps: float, current_limit: float | None = None, lab
         for i, c in enumerate(motors):
             pos = np.asarray(rec[c], dtype=float)
             at_rest[f"current_cmd_{i + 1}"] = np.concatenate([[True], np.diff(pos) == 0.0]) | ~moving[:, i]
+        still = np.logical_and.reduce([at_rest[f"current_cmd_{i + 1}"] for i in range(len(motors))])
     inputs = [c for c in ("current_cmd_1", "current_cmd_2", "motor_torque_1", "motor_torque_2") if c in rec]
     gauges = [c for c in ("sg_torque_dp", "sg_torque_ie") if c in rec]
     for col in inputs + gauges:
@@ -157,7 +163,7 @@ def screen(rec: Recording, v_eps: float, current_limit: float | None = None, lab
             # it is the controller's own clamp, which the amplifier delivers
             rail = np.abs(x) >= 0.999 * current_limit
         else:
-            rail = _flat_at_extreme(x) | (_clipped_noisy(x) if col in gauges else False)
+            rail = _flat_at_extreme(x) | (_clipped_noisy(x, still) if col in gauges else False)
         held = _held(x, rail, at_rest.get(col))
         what = "set current" if is_current else ("motor torque" if col in inputs else "strain gauge")
         if rail.any():

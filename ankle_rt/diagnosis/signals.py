@@ -37,6 +37,10 @@ ORDER = 3
 KERNEL_POINTS = 16         # midpoints per sample of the triangle mean of the velocity regressors
 DECIMATED_RATE_HZ = 250.0  # rows kept for the regressions
 EDGE_S = 0.06              # s dropped at each end (filter transients, delay shifts)
+#: s a motor's encoder must stay unchanged to count as resting (stuck): generator D's sticking motors rest
+#: 50-300 ms at a time, while a tanh-friction motor reversing slowly keeps its count 10-50 ms as it moves
+#: (generator A's seed 1022 lost its cogging to a 10 ms threshold: the ripple shows best at reversals)
+REST_S = 0.05
 
 
 def _odd_window(seconds: float, dt: float, least: int) -> int:
@@ -88,6 +92,20 @@ class Smoother:
         reach = self.margin
         bad = np.convolve((~good).astype(float), np.ones(2 * reach + 1), mode="same") > 0.5
         return idx[~bad[idx]]
+
+
+def resting(pos: np.ndarray, samples: int) -> np.ndarray:
+    """Per sample and motor: the encoder count stays unchanged through a run of at least ``samples``
+    samples (samples x motors). A real motor sticks there: its static friction takes whatever torque holds
+    it, so a torque that depends on the angle (cogging) does not move it and shows in no residual."""
+    out = np.zeros(pos.shape, dtype=bool)
+    for i in range(pos.shape[1]):
+        same = np.r_[False, np.diff(pos[:, i]) == 0.0, False]
+        edges = np.flatnonzero(np.diff(same.astype(np.int8)))      # run starts and ends, in pairs
+        for a, b in zip(edges[::2], edges[1::2]):
+            if b - a + 1 >= samples:
+                out[a:b + 1, i] = True
+    return out
 
 
 def shift_rows(x: np.ndarray, samples: float) -> np.ndarray:
@@ -156,9 +174,11 @@ class MotorChannel(_StackedChannel):
     """Motor-side signals of all motors in a recording (columns = motors)."""
 
     def __init__(self, rec: Recording, kt: float | None, geometry: Geometry | None, v_eps: float,
-                 good: np.ndarray | None = None, cogging_prior: float | None = None):
+                 good: np.ndarray | None = None, cogging_prior: float | None = None,
+                 counts_per_rev: int | None = None):
         super().__init__(rec, good)
         self.cogging_prior = cogging_prior      # periods per output revolution from the config, if known
+        self.counts_per_rev = counts_per_rev    # motor encoder counts per output revolution, if known
         sm = self.sm
         n = self.n_samples
         if n < 2 * sm.margin + 20 * sm.step or self.n_rows < 20:
@@ -176,6 +196,7 @@ class MotorChannel(_StackedChannel):
             self.tc = tau_j @ geometry.R_inv_T.T
         self.geometry = geometry
         self.vel = sm.fast_derivative(self.pos)
+        self.resting = resting(self.pos, max(3, int(round(REST_S / self.dt))))
         self._acc = sm.fast_derivative(self.pos, 2)
         self.v_eps = v_eps
         self.L_acc = sm.smooth(self.pos, 2)
