@@ -258,28 +258,30 @@ def generator_b(args: argparse.Namespace) -> list[Row]:
     return rows
 
 
-def generator_c(args: argparse.Namespace) -> list[Row]:
-    """Generator C (benchmarks/diagnosis_cases_c.py): written without the diagnosis' or A/B's code."""
-    cases = (make_case_c(**draw_case_c(args.seed + i)) for i in range(args.n))
-    rows = run_generated("c", cases, args.save_c, write_case_c, f"{'ctl':<9} {'motion':<9} {'kinds':<52}",
+def _independent(name: str, make, draw, save, write, runtime_effects: list[str], args: argparse.Namespace) -> list[Row]:
+    """Generator ``name`` (C or D: the same case interface): ``args.n`` drawn cases, then the runtime
+    file, walking under the impedance law with ``runtime_effects``."""
+    cases = (make(**draw(args.seed + i)) for i in range(args.n))
+    rows = run_generated(name.lower(), cases, save, write, f"{'ctl':<9} {'motion':<9} {'kinds':<52}",
                          lambda c: f"{c.controller:<9} {c.motion:<9} {','.join(c.kinds) or '-':<52}")
-    if args.runtime_s > 0:   # three effects at once, cogging among them
-        print_runtime("C", make_case_c(args.seed - 1, ["cogging", "load_dependent_friction", "backlash"],
-                                       controller="impedance", motion="walking", ident_s=args.runtime_s,
-                                       valid_s=args.runtime_s / 3), args.runtime_s)
+    if args.runtime_s > 0:
+        print_runtime(name, make(args.seed - 1, runtime_effects, controller="impedance", motion="walking",
+                                 ident_s=args.runtime_s, valid_s=args.runtime_s / 3), args.runtime_s)
     return rows
+
+
+def generator_c(args: argparse.Namespace) -> list[Row]:
+    """Generator C (benchmarks/diagnosis_cases_c.py): written without the diagnosis' or A/B's code; its
+    runtime file has three effects at once, cogging among them."""
+    return _independent("C", make_case_c, draw_case_c, args.save_c, write_case_c,
+                        ["cogging", "load_dependent_friction", "backlash"], args)
 
 
 def generator_d(args: argparse.Namespace) -> list[Row]:
-    """Generator D (benchmarks/diagnosis_cases_d.py): a real device's physics and logs, written blind."""
-    cases = (make_case_d(**draw_case_d(args.seed + i)) for i in range(args.n))
-    rows = run_generated("d", cases, args.save_d, write_case_d, f"{'ctl':<9} {'motion':<9} {'kinds':<52}",
-                         lambda c: f"{c.controller:<9} {c.motion:<9} {','.join(c.kinds) or '-':<52}")
-    if args.runtime_s > 0:   # walking with three effects, backlash's impacts among them
-        print_runtime("D", make_case_d(args.seed - 1, ["backlash", "load_dependent_friction", "cogging"],
-                                       controller="impedance", motion="walking", ident_s=args.runtime_s,
-                                       valid_s=args.runtime_s / 3), args.runtime_s)
-    return rows
+    """Generator D (benchmarks/diagnosis_cases_d.py): a real device's physics and logs, written blind; its
+    runtime file has three effects, backlash's impacts among them."""
+    return _independent("D", make_case_d, draw_case_d, args.save_d, write_case_d,
+                        ["backlash", "load_dependent_friction", "cogging"], args)
 
 
 def main() -> int:
