@@ -193,6 +193,12 @@ class Gait(Profile):
     def bounds(self) -> tuple[tuple[float, float], tuple[float, float]]:
         return ((min(self.dp) - self.dp0, max(self.dp) - self.dp0), (min(self.ie) - self.ie0, max(self.ie) - self.ie0))
 
+    def rates(self) -> list[tuple[float, float]]:
+        """(DP, IE) rate (rad/s) over each segment of the stride's table: what the loop must follow."""
+        per_s = self.TABLE_SIZE / self.stride
+        return [((self.dp[i + 1] - self.dp[i]) * per_s, (self.ie[i + 1] - self.ie[i]) * per_s)
+                for i in range(self.TABLE_SIZE)]
+
 
 class CsvProfile(Profile):
     """Absolute references from a CSV with columns ``t`` (s), ``ref_dp``, ``ref_ie`` (rad), linearly
