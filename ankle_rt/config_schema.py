@@ -601,6 +601,7 @@ def check_consistency(cfg: Mapping[str, Any], origin: Callable[[KeyPath], str]) 
     check_device_deadlines(cfg, origin)
     check_gait_load_thresholds(cfg, origin)
     check_profile_rate(cfg, origin)
+    check_notch_frequencies(cfg, origin)
     for (section, name), limit, value in checks:
         if value > limit:
             limit_key = f"controller.gain_limits.{name.split('_')[0]}"
@@ -675,6 +676,16 @@ def check_profile_rate(cfg: Mapping[str, Any], origin: Callable[[KeyPath], str])
                           f"rad/s, beyond safety.max_motor_speed_rad_s ({most:g}); the loop cannot follow and runs "
                           f"between the peak currents, got {p[key]:g}", origin(("reference", name, key)),
                           f"reference.{name}.{key}")
+
+
+def check_notch_frequencies(cfg: Mapping[str, Any], origin: Callable[[KeyPath], str]) -> None:
+    """A torque-loop notch lies below the loop's Nyquist frequency: the sampled band-stop has nowhere
+    else to be (the schema's MAX_NOTCH_HZ is the 1 kHz loop's; controller.rate_hz goes down to 250 Hz)."""
+    rate, loop = cfg["controller"]["rate_hz"], cfg["controller"]["torque_loop"]
+    for key in ("notch_hz_dp", "notch_hz_ie"):
+        if loop[key] >= 0.5 * rate:
+            raise ConfigError(f"must be < {0.5 * rate:g} Hz, the Nyquist frequency of controller.rate_hz ({rate}), got "
+                              f"{loop[key]:g}", origin(("controller", "torque_loop", key)), f"controller.torque_loop.{key}")
 
 
 DEVICE_MAX_STALL_S = 0.1           # s: the longest the device may act on old data or old set values

@@ -106,3 +106,13 @@ def test_the_opt_in_notch_config_renders_k200_at_2_hz_where_the_shipped_loop_doe
         assert res.fault == "NONE" and res.passive()
         errors[name] = abs(res.sines[0]["dynamic_stiffness_error_pct"])
     assert errors["notch"] <= 15.0 < errors["shipped"], errors
+
+
+def test_a_notch_beyond_the_loops_nyquist_frequency_is_refused_naming_its_key():
+    """The schema admits notch_hz up to 400 Hz (the 1 kHz loop's); at controller.rate_hz 250 a 200 Hz
+    notch cannot be sampled. It was refused, but as a failed model naming kp_dp; now the key is named."""
+    from ankle_rt.schema import ConfigError
+
+    with pytest.raises(ConfigError) as err:
+        load_config(default_config_path(), {"controller": {"rate_hz": 250, "torque_loop": {"notch_hz_ie": 200.0}}})
+    assert err.value.key == "controller.torque_loop.notch_hz_ie" and "Nyquist" in err.value.message
