@@ -601,6 +601,7 @@ def check_consistency(cfg: Mapping[str, Any], origin: Callable[[KeyPath], str]) 
     check_device_deadlines(cfg, origin)
     check_gait_load_thresholds(cfg, origin)
     check_profile_rate(cfg, origin)
+    check_reference_rate_limit(cfg, origin)
     check_notch_frequencies(cfg, origin)
     for (section, name), limit, value in checks:
         if value > limit:
@@ -676,6 +677,20 @@ def check_profile_rate(cfg: Mapping[str, Any], origin: Callable[[KeyPath], str])
                           f"rad/s, beyond safety.max_motor_speed_rad_s ({most:g}); the loop cannot follow and runs "
                           f"between the peak currents, got {p[key]:g}", origin(("reference", name, key)),
                           f"reference.{name}.{key}")
+
+
+def check_reference_rate_limit(cfg: Mapping[str, Any], origin: Callable[[KeyPath], str]) -> None:
+    """reference.max_rate_rad_s, the rate a commanded or CSV reference is limited to, asks no motor to
+    move faster than safety.max_motor_speed_rad_s with both axes at that rate (|R| (1, 1)). Up to 20
+    rad/s was accepted: a commanded 5 Hz, 0.6 rad DP sine then held the 15 A clamp in a quarter of the
+    cycles until the motor-speed fault 0.18 s in."""
+    R = motor_ratio(TransmissionParams(**cfg["transmission"]))
+    most, rate = cfg["safety"]["max_motor_speed_rad_s"], cfg["reference"]["max_rate_rad_s"]
+    per_rad_s = max(abs(R[i, 0]) + abs(R[i, 1]) for i in range(2))   # motor rad/s per ankle rad/s
+    if rate * per_rad_s > most:
+        raise ConfigError(f"must be <= {most / per_rad_s:.3g} rad/s: at {rate:g} the motors would have to move at up to "
+                          f"{rate * per_rad_s:.3g} rad/s, beyond safety.max_motor_speed_rad_s ({most:g}), got {rate:g}",
+                          origin(("reference", "max_rate_rad_s")), "reference.max_rate_rad_s")
 
 
 def check_notch_frequencies(cfg: Mapping[str, Any], origin: Callable[[KeyPath], str]) -> None:

@@ -37,7 +37,7 @@ from ankle_rt.log.writer import LogWriter, Rotation, log_metadata
 from ankle_rt.loop import FixedRateLoop
 from ankle_rt.params import TransmissionParams
 from ankle_rt.references import (Hold, Profile, RampTo, ReferenceGenerator, make_profile,
-                                  reference_from_config, validate_profile_params)
+                                  max_reference_step, reference_from_config, validate_profile_params)
 from ankle_rt.safety import Fault, Safety, State
 from ankle_rt.service import protocol as proto
 from ankle_rt.service.loader import BackgroundLoader, Job, pause
@@ -58,11 +58,13 @@ class Daemon:
     ``backend``: an opened backend on the same ``clock`` (default: the config's). ``controller``:
     any :class:`CycleController` (default: the config's PD or impedance controller tracking the
     configured reference). ``recorder``: the record sink (a LogWriter or MemoryRecorder) or None.
+    ``reference``: the config's controller tracks this generator instead of the configured profile,
+    as given (no rate limit): a replay of recorded references on a simulated plant only.
     """
 
     def __init__(self, cfg: Config, clock: Clock, *, backend: Backend | None = None,
                  controller: CycleController | None = None, recorder: Any = None,
-                 service: "ServiceLink | None" = None):
+                 service: "ServiceLink | None" = None, reference: ReferenceGenerator | None = None):
         self.cfg = cfg
         self.clock = clock
         rate = cfg["controller"]["rate_hz"]
@@ -80,12 +82,12 @@ class Daemon:
         self.own_controller = controller is None
         self.reference_commanded = False   # a set_reference / start_profile command chose the reference
         if controller is None:
-            self.reference = reference_from_config(cfg)
+            self.reference = reference if reference is not None else reference_from_config(cfg)
             self.controller = build_controller(cfg, self.kin, self.reference.ref)
         else:   # an experiment brings its own excitation: no reference (logged as NaN)
             self.reference = ReferenceGenerator(Hold(math.nan, math.nan))
             self.controller = controller
-        self.max_reference_step = cfg["reference"]["max_rate_rad_s"] * self.dt   # rad per cycle, commanded
+        self.max_reference_step = max_reference_step(cfg)
         self.gain_maxima = gain_maxima(cfg["controller"]["gain_limits"])
         self.loader = BackgroundLoader()
         # N m [motor 1, motor 2]: the controller sets ``torque``, the cycle reads ``_torque_values``
@@ -101,6 +103,10 @@ class Daemon:
         self.activations = 0
         self.owns_backend = backend is None
         self.backend = backend if backend is not None else open_backend(cfg, clock)
+        if reference is not None and not self.simulated_plant:
+            self.close()
+            raise ValueError("a reference generator is given only to a simulated plant (a replay): on the device "
+                             "every reference is the configured one or a command's, rate limited")
         limits = self.overrun_limits   # asks the opened backend too
         self.loop = FixedRateLoop(clock, self.period_ns, limits["max_consecutive_overruns"],
                                   on_overrun_limit=self._missed_deadlines,
@@ -221,11 +227,13 @@ class Daemon:
         dp, ie = self.ankle_now()
         if self.activations > 0:
             self.reference.start(Hold(dp, ie))
-        elif self.own_controller and not self.reference_commanded and isinstance(self.reference.profile, Hold):
-            # the configured hold is approached from where the ankle is, over reference.ramp_s
-            hold = self.reference.profile
+        elif self.own_controller and not self.reference_commanded and not self.reference.profile.relative:
+            # a configured hold is approached from where the ankle is over reference.ramp_s, a CSV
+            # profile from there at reference.max_rate_rad_s
+            profile = self.reference.profile
             self.reference.ref[0], self.reference.ref[1] = dp, ie
-            self.reference.start(RampTo(hold.dp, hold.ie, self.cfg["reference"]["ramp_s"]))
+            if isinstance(profile, Hold):
+                self.reference.start(RampTo(profile.dp, profile.ie, self.cfg["reference"]["ramp_s"]))
         try:
             self.controller.reset(self._controller_est)
         except Exception as exc:   # a plugin's reset may raise anything; nothing is enabled yet
@@ -635,18 +643,19 @@ class RunResult:
 
 
 def run_lockstep(cfg: Config, duration_s: float, *, controller: CycleController | None = None,
-                 backend: Backend | None = None, log_path: str | Path | None = None) -> RunResult:
+                 backend: Backend | None = None, log_path: str | Path | None = None,
+                 reference: ReferenceGenerator | None = None) -> RunResult:
     """Run the real loop against a SimClock as fast as possible for ``duration_s`` of simulated time.
 
     ``controller=None``: the config's controller and reference profile. ``backend=None``: the
     config's backend, opened on a fresh SimClock (closed again at the end); a given backend keeps its
     own clock (``backend.clock``, which must be a SimClock) and stays open. ``log_path``: also write
-    the records as a run log there.
+    the records as a run log there. ``reference``: as :class:`Daemon` takes it (a replay).
     """
     clock = backend.clock if backend is not None else SimClock()
     if not getattr(clock, "simulated", False):
         raise ValueError("run_lockstep needs a backend on a SimClock")
-    daemon = Daemon(cfg, clock, backend=backend, controller=controller)
+    daemon = Daemon(cfg, clock, backend=backend, controller=controller, reference=reference)
     recorder = daemon.recorder = MemoryRecorder(-(-round(duration_s * 1e9) // daemon.period_ns) + 1)
     try:
         daemon.run(duration_s)

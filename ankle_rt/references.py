@@ -327,8 +327,9 @@ class ReferenceGenerator:
         self.t0 = t0
         self.pending: Profile | None = None
         self.max_step = math.inf
-        """rad per update the reference may move (inf: unlimited); the daemon sets it for commanded
-        references, so no command can make the reference jump."""
+        """rad per update the reference may move (inf: unlimited): set for commanded references (by
+        the daemon) and CSV ones (:func:`reference_from_config`), so neither a command nor a file can
+        make the reference jump or outrun the motors."""
         profile.begin(self.base)
 
     def start(self, profile: Profile) -> None:
@@ -371,4 +372,13 @@ def reference_from_config(cfg: Mapping[str, Any]) -> ReferenceGenerator:
         raise ConfigError(exc.message, source, f"reference.{name}.{exc.key.split('.')[-1]}") from None
     except InterchangeError as exc:      # the CSV file itself is bad: say which file, column and row
         raise ConfigError(str(exc), source, "reference.csv.path") from None
-    return ReferenceGenerator(profile)
+    generator = ReferenceGenerator(profile)
+    if name == "csv":   # a file's rate cannot be checked like a formula's: limited as a commanded one is
+        generator.max_step = max_reference_step(cfg)
+    return generator
+
+
+def max_reference_step(cfg: Mapping[str, Any]) -> float:
+    """rad per cycle a commanded or CSV reference may move: ``reference.max_rate_rad_s`` over one
+    period of ``controller.rate_hz``."""
+    return cfg["reference"]["max_rate_rad_s"] / cfg["controller"]["rate_hz"]

@@ -251,3 +251,27 @@ def test_a_configured_gait_stride_the_motors_cannot_follow_is_refused():
     assert r.summary["fault"] == "NONE"
     assert max(np.abs(r["current_cmd_1"][late]).max(), np.abs(r["current_cmd_2"][late]).max()) < 8.0
     assert np.degrees(np.ptp(r["ankle_dp"][late])) > 40.0
+
+
+def test_a_configured_csv_profile_is_rate_limited_like_a_commanded_one(tmp_path):
+    """A configured CSV profile was played as written: a 5 Hz, 0.6 rad DP sine in the file held the PD
+    at the 15 A clamp in 95 % of 10 s (RMS 14.7 A), no fault, as the configured sine did before its
+    check (a file's rate cannot be checked like a formula's). Now it is limited to reference.max_rate_rad_s, approached from where
+    the ankle is, as the same file started by a command is; and that limit itself must keep the motors
+    below safety.max_motor_speed_rad_s (20 rad/s was accepted)."""
+    from ankle_rt.daemon import run_lockstep
+
+    t = np.arange(0.0, 3.0, 1e-3)
+    path = tmp_path / "fast.csv"
+    path.write_text("t,ref_dp,ref_ie\n" + "".join(f"{x:.3f},{0.6 * math.sin(2 * math.pi * 5.0 * x):.6f},0\n" for x in t))
+    sim = ROOT / "config" / "sim.yaml"
+    cfg = load_config(sim, {"reference": {"profile": "csv", "csv": {"path": str(path)}}, "sim": {"disturbances": []}})
+    r = run_lockstep(cfg, 2.0)
+    active = (r["state"][1:] == 1) & (r["state"][:-1] == 1)
+    rate = np.abs(np.diff(r["ref_dp"]))[active] / np.diff(r["t"])[active]
+    assert active.sum() > 1500 and rate.max() <= cfg["reference"]["max_rate_rad_s"] * (1 + 1e-9)
+    assert r.summary["fault"] == "NONE" and r.summary["saturated_cycles"] == 0
+    assert np.abs(r["ref_dp"]).max() > 0.1          # it follows the file, only slower
+    with pytest.raises(ConfigError) as err:
+        load_config(sim, {"reference": {"max_rate_rad_s": 20.0}})
+    assert err.value.key == "reference.max_rate_rad_s" and "max_motor_speed_rad_s" in err.value.message

@@ -107,10 +107,14 @@ def test_csv_profile_interpolates_and_bad_files_name_column_and_row(sim_cfg, tmp
     good.write_text("t,ref_dp,ref_ie\n0,0,0\n1,0.2,-0.1\n")
     cfg = variant(sim_cfg, reference={"profile": "csv", "csv": {"path": str(good)}})
     gen = reference_from_config(cfg)
-    gen.update(0.5)
-    assert tuple(gen.ref) == pytest.approx((0.1, -0.05))
-    gen.update(3.0)
-    assert tuple(gen.ref) == pytest.approx((0.2, -0.1))
+    assert gen.profile.value(0.5) == pytest.approx((0.1, -0.05))
+    assert gen.profile.value(3.0) == pytest.approx((0.2, -0.1))
+    step = cfg["reference"]["max_rate_rad_s"] / cfg["controller"]["rate_hz"]   # rate limited, as commanded
+    for k in range(1, 201):
+        gen.update(k * 1e-3)
+    assert tuple(gen.ref) == pytest.approx((0.04, -0.02))   # slower than the limit: as written
+    gen.update(3.0)                                          # 2.8 s of the file in one update: one step
+    assert tuple(gen.ref) == pytest.approx((0.04 + step, -0.02 - step))
     bad = tmp_path / "bad.csv"
     bad.write_text("t,ref_dp,ref_ie\n0,0,0\n1,abc,0\n")
     with pytest.raises(InterchangeError) as err:

@@ -108,6 +108,23 @@ def test_sim_overrun_limits_need_the_backend_to_say_its_plant_is_simulated(sim_c
     daemon.close()
 
 
+def test_a_replayed_reference_is_refused_for_a_device(sim_cfg):
+    """A reference generator handed to the daemon is played as given (no rate limit: a replay of
+    recorded references): only on a simulated plant; a device follows configured or commanded ones."""
+    from ankle_rt.daemon import Daemon
+    from ankle_rt.references import Hold, ReferenceGenerator
+
+    clock = WallLikeClock()
+    backend = DeviceBackend(sim_cfg, clock)
+    with pytest.raises(ValueError, match="only to a simulated plant"):
+        Daemon(sim_cfg, clock, backend=backend, reference=ReferenceGenerator(Hold(0.3, 0.0)))
+    assert not backend.active
+    replayed = ReferenceGenerator(Hold(0.3, 0.0))
+    daemon = lockstep_daemon(sim_cfg, backend=InjectingBackend(sim_cfg, SimClock()), reference=replayed)
+    assert daemon.reference is replayed
+    daemon.close()
+
+
 def test_transports_count_as_hardware_unless_they_started_their_own_emulator(sim_cfg):
     from ankle_rt.backend import ForwardingBackend
     from hardware.serial_backend import SerialBackend

@@ -29,7 +29,6 @@ is left then is what the sensors' own noise would leave.
 from __future__ import annotations
 
 import math
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -40,8 +39,9 @@ from ankle_rt.config import Config, validate
 from ankle_rt.identification.inertia import TorqueStepExperiment
 from ankle_rt.identification.runner import actuator_config, recording_of, run_lockstep_recording, with_overrides
 from ankle_rt.identification.signals import IdentificationError, centred_velocity
-from ankle_rt.interchange import PLAUSIBLE_ABS, Recording, write_csv
+from ankle_rt.interchange import PLAUSIBLE_ABS, Recording
 from ankle_rt.plotting import MISSING, pyplot
+from ankle_rt.references import CsvProfile, ReferenceGenerator
 
 SINE_FREQUENCIES_HZ = (0.5, 1.0, 2.0)
 SINE_AMPLITUDE_IE = math.radians(10.0)   # rad, the paper's Fig. 7 moves IE
@@ -236,20 +236,19 @@ def simulate_references(rec: Recording, model_cfg: Config, controller: dict | No
     PD) and the ankle disturbances the recording's log header says the plant saw (a known input, not
     model error). The result's ``extra["controller_config"]`` is the controller section used."""
     _check_rate(rec, model_cfg)
-    with tempfile.TemporaryDirectory() as tmp:
-        path = Path(tmp) / "references.csv"
-        write_csv(path, {"t": rec["t"], "ref_dp": rec["ref_dp"], "ref_ie": rec["ref_ie"]})
-        overrides = pd_validation_overrides(model_cfg)
-        if controller is not None:
-            overrides["controller"] = controller
-        disturbances = recorded_disturbances(rec)
-        if disturbances:
-            overrides["sim"]["disturbances"] = disturbances
-        cfg = with_overrides(model_config(model_cfg), reference={"profile": "csv", "csv": {"path": str(path)}},
-                             **overrides)
-        from ankle_rt.daemon import run_lockstep
-        duration = float(rec["t"][-1] - rec["t"][0]) + rec.dt
-        sim = recording_of(run_lockstep(cfg, duration), "simulation (references replayed)")
+    overrides = pd_validation_overrides(model_cfg)
+    if controller is not None:
+        overrides["controller"] = controller
+    disturbances = recorded_disturbances(rec)
+    if disturbances:
+        overrides["sim"]["disturbances"] = disturbances
+    cfg = with_overrides(model_config(model_cfg), **overrides)
+    t, dp, ie = (rec[name].tolist() for name in ("t", "ref_dp", "ref_ie"))
+    # as recorded, steps and all (a configured CSV would be rate limited like a commanded reference)
+    replayed = ReferenceGenerator(CsvProfile.from_columns(t, dp, ie, ((min(dp), max(dp)), (min(ie), max(ie)))))
+    from ankle_rt.daemon import run_lockstep
+    duration = float(rec["t"][-1] - rec["t"][0]) + rec.dt
+    sim = recording_of(run_lockstep(cfg, duration, reference=replayed), "simulation (references replayed)")
     sim.extra["controller_config"] = cfg["controller"]
     return sim
 
