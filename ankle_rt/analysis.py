@@ -705,13 +705,20 @@ def loop_margin_db(p: PlantParams, c: ImpedanceLoop, *, load_coefficient: float 
     if unstable[0].any():
         return -math.inf
     first = np.where(unstable.any(axis=0), unstable.argmax(axis=0), len(grid))   # first unstable grid point per case
-    case = int(np.argmin(first))
-    if first[case] == len(grid):
+    point = int(first.min())
+    if point == len(grid):
         return _MARGIN_CAP_DB
-    lo, hi = float(grid[first[case] - 1]), float(grid[first[case]])
+    # every case that turns unstable within that grid step: the first of them need not cross first
+    return min(_bisect_margin_db(T0[case], Tu[case], float(grid[point - 1]), float(grid[point]))
+               for case in np.flatnonzero(first == point))
+
+
+def _bisect_margin_db(T0: np.ndarray, Tu: np.ndarray, lo: float, hi: float) -> float:
+    """dB: the gain between ``lo`` (stable) and ``hi`` (unstable) where the loop ``T0 + g Tu`` turns
+    unstable, bisected to 1/256 of the step (the stable side)."""
     for _ in range(8):
         mid = math.sqrt(lo * hi)
-        lo, hi = (mid, hi) if spectral_radius(T0[case] + mid * Tu[case]) < 1.0 else (lo, mid)
+        lo, hi = (mid, hi) if spectral_radius(T0 + mid * Tu) < 1.0 else (lo, mid)
     return 20.0 * math.log10(lo)
 
 

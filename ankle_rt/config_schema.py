@@ -87,11 +87,14 @@ FRICTION_FF = Section({
                              "this file); empty: this config's actuator and sim.effects", default=""),
 }, optional=True)
 
-# The joint-torque loop's shipped gains (margins in docs/daemon.md, `ankle-rt bench impedance`).
-KP_DEFAULT, KI_DEFAULT, KD_DP_DEFAULT, KD_IE_DEFAULT = 6.0, 10.0, 0.03, 0.06
+# The joint-torque loop's shipped gains, DP with the notch below (issue 19, docs/daemon.md "Shipped: the notched
+# DP loop"; found by benchmarks/study_torque_loop_shaping.py, measured with `ankle-rt bench impedance` and
+# `bench walk`; the loop shipped before: config/torque-loop-classic.yaml). ki in 1/s, torque_rate in s.
+LOOP_DEFAULTS = {"kp_dp": 15.0, "kp_ie": 6.0, "ki_dp": 15.0, "ki_ie": 10.0, "torque_rate_dp": 0.10,
+                 "torque_rate_ie": 0.06, "cutoff_hz": 80.0}
 # DP max correction 30 N m: the reflected motor inertia of a 15 N m, 2 Hz push at K_dp 200 needs ~23 N m of
 # correction (20 clamped it: 9 N m/rad rendered); it is also what a wrong torque reading can add (docs/daemon.md)
-CUTOFF_DEFAULT, MAX_CORRECTION_DP_DEFAULT, MAX_CORRECTION_IE_DEFAULT = 80.0, 30.0, 20.0
+MAX_CORRECTION_DP_DEFAULT, MAX_CORRECTION_IE_DEFAULT = 30.0, 20.0
 # The torque loop's gain ceilings (MAX_TORQUE_KP/KI/RATE) are ankle_rt.command_limits' (set_gains
 # checks them too): far beyond what the loop's margins allow, so a typo or a non-finite value is refused.
 MAX_CORRECTION = 100.0
@@ -99,18 +102,17 @@ MAX_CORRECTION = 100.0
 DOB_HZ_DEFAULT, DOB_INERTIA_DEFAULT, MAX_OBSERVER_DEFAULT = 0.0, 1.0, 20.0
 TANK_J_DEFAULT, TANK_CREDIT_DEFAULT = 0.5, 0.8
 MAX_DOB_HZ, MAX_OBSERVER, MAX_TANK_J = 200.0, 100.0, 10.0
-# The notch on the torque loop's P and rate terms over the free foot's cable mode (docs/daemon.md, fourth pass).
-NOTCH_HZ_DEFAULT, NOTCH_ZETA_DEFAULT, NOTCH_DEPTH_DEFAULT = (0.0, 0.0), 0.2, 0.5
+# The notch [DP, IE] on the torque loop's P and rate terms over the free foot's cable mode (DP 98 Hz nominal;
+# docs/daemon.md, fourth pass): what lets kp_dp rise above ~10 with >= 7 dB over cables x0.7-1.3. IE: none.
+NOTCH_HZ_DEFAULT, NOTCH_ZETA_DEFAULT, NOTCH_DEPTH_DEFAULT = (87.5, 0.0), (0.34, 0.2), (0.37, 0.5)
 MAX_NOTCH_HZ = 400.0   # below the 1 kHz loop's Nyquist frequency
 
 IMPEDANCE_DEFAULTS = {"stiffness_dp": 20.0, "stiffness_ie": 10.0, "damping_dp": 0.5, "damping_ie": 0.25}
 # The gains of a set (what ankle_rt.analysis.gain_set_margin_db checks and set_gains names) and the
 # shipped set (what a limiting gain is found against).
 IMPEDANCE_GAINS = tuple(IMPEDANCE_DEFAULTS)
-LOOP_GAINS = ("kp_dp", "kp_ie", "ki_dp", "ki_ie", "torque_rate_dp", "torque_rate_ie", "cutoff_hz")
-SHIPPED_GAINS = {**IMPEDANCE_DEFAULTS, "kp_dp": KP_DEFAULT, "kp_ie": KP_DEFAULT, "ki_dp": KI_DEFAULT,
-                 "ki_ie": KI_DEFAULT, "torque_rate_dp": KD_DP_DEFAULT, "torque_rate_ie": KD_IE_DEFAULT,
-                 "cutoff_hz": CUTOFF_DEFAULT}
+LOOP_GAINS = tuple(LOOP_DEFAULTS)
+SHIPPED_GAINS = {**IMPEDANCE_DEFAULTS, **LOOP_DEFAULTS}
 # the motor-side PD's shipped set (what a limiting PD gain is found against): the paper's step gains,
 # config/nominal-params.yaml controller.step_gains
 SHIPPED_PD_GAINS = {"kp": 90.0, "kd": 5.0}
@@ -139,15 +141,18 @@ GAIN_LIMITS = Section({
 }, optional=True, doc="run-time gain maxima (the configured gains must lie within them too)")
 
 TORQUE_LOOP = Section({
-    "kp_dp": non_negative("N m per N m of joint-torque error, DP", default=KP_DEFAULT, high=MAX_TORQUE_KP),
-    "kp_ie": non_negative("N m per N m of joint-torque error, IE", default=KP_DEFAULT, high=MAX_TORQUE_KP),
-    "ki_dp": non_negative("1/s, integral gain on the DP torque error", default=KI_DEFAULT, high=MAX_TORQUE_KI),
-    "ki_ie": non_negative("1/s, integral gain on the IE torque error", default=KI_DEFAULT, high=MAX_TORQUE_KI),
+    "kp_dp": non_negative("N m per N m of joint-torque error, DP", default=LOOP_DEFAULTS["kp_dp"], high=MAX_TORQUE_KP),
+    "kp_ie": non_negative("N m per N m of joint-torque error, IE", default=LOOP_DEFAULTS["kp_ie"], high=MAX_TORQUE_KP),
+    "ki_dp": non_negative("1/s, integral gain on the DP torque error", default=LOOP_DEFAULTS["ki_dp"],
+                          high=MAX_TORQUE_KI),
+    "ki_ie": non_negative("1/s, integral gain on the IE torque error", default=LOOP_DEFAULTS["ki_ie"],
+                          high=MAX_TORQUE_KI),
     "torque_rate_dp": non_negative("s, gain on the rate of the measured DP torque (damps the motor-on-cable mode)",
-                                   default=KD_DP_DEFAULT, high=MAX_TORQUE_RATE),
-    "torque_rate_ie": non_negative("s, gain on the rate of the measured IE torque", default=KD_IE_DEFAULT, high=MAX_TORQUE_RATE),
+                                   default=LOOP_DEFAULTS["torque_rate_dp"], high=MAX_TORQUE_RATE),
+    "torque_rate_ie": non_negative("s, gain on the rate of the measured IE torque",
+                                   default=LOOP_DEFAULTS["torque_rate_ie"], high=MAX_TORQUE_RATE),
     "cutoff_hz": Field(float, "Hz, first-order low-pass of the measured joint torque (below the 77-98 Hz cable modes)",
-                       default=CUTOFF_DEFAULT, low=1.0, high=400.0),
+                       default=LOOP_DEFAULTS["cutoff_hz"], low=1.0, high=400.0),
     "max_correction_dp": positive("N m at the ankle the DP feedback may add (anti-windup; bounds a wrong reading)",
                                   default=MAX_CORRECTION_DP_DEFAULT, high=MAX_CORRECTION),
     "max_correction_ie": positive("N m at the ankle the IE feedback may add", default=MAX_CORRECTION_IE_DEFAULT,
@@ -173,9 +178,11 @@ TORQUE_LOOP = Section({
                                         high=MAX_NOTCH_HZ)
        for i, axis in enumerate(("dp", "ie"))},
     **{f"notch_zeta_{axis}": Field(float, f"the {axis.upper()} notch's width (damping ratio of its poles)",
-                                   default=NOTCH_ZETA_DEFAULT, low=0.02, high=2.0) for axis in ("dp", "ie")},
+                                   default=NOTCH_ZETA_DEFAULT[i], low=0.02, high=2.0)
+       for i, axis in enumerate(("dp", "ie"))},
     **{f"notch_depth_{axis}": Field(float, f"the {axis.upper()} notch's gain at its centre (1 = none)",
-                                    default=NOTCH_DEPTH_DEFAULT, low=0.0, high=1.0) for axis in ("dp", "ie")},
+                                    default=NOTCH_DEPTH_DEFAULT[i], low=0.0, high=1.0)
+       for i, axis in enumerate(("dp", "ie"))},
 }, optional=True, doc="joint-torque feedback of the impedance controller (docs/daemon.md)")
 
 # The gait-phase controller's shipped parameters, for a 75 kg wearer at normal cadence (tuned on the

@@ -27,6 +27,16 @@ def traced_memory(run: Callable[[], None]) -> tuple[int, int]:
         tracemalloc.stop()
 
 
+def classic_torque_loop() -> dict:
+    """controller.torque_loop of config/torque-loop-classic.yaml (the loop shipped before the notched DP
+    one): for what the shipped loop's margin does not admit, e.g. the disturbance observer (docs/daemon.md)."""
+    import yaml
+
+    from ankle_rt.paths import CONFIG_DIR
+
+    return yaml.safe_load((CONFIG_DIR / "torque-loop-classic.yaml").read_text())["controller"]["torque_loop"]
+
+
 def variant(cfg: Config, **sections: dict) -> Config:
     """A deep copy of ``cfg`` with the given sections updated key by key."""
     out = cfg.deep_copy()

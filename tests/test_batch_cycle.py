@@ -3,6 +3,8 @@ and on floats, so equal to rounding (1e-9 of each signal's span)."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -12,6 +14,7 @@ from ankle_rt.controller_registry import BUILTIN_CONTROLLERS
 from ankle_rt.daemon import run_lockstep
 from ankle_rt.safety import Fault
 from ankle_rt.sweep.cycle import BatchRun
+from tests.daemon_helpers import classic_torque_loop
 
 SECONDS = 3.0
 # an identified friction model (as diagnose --write-model writes) in the plant and in the feed-forward
@@ -26,7 +29,7 @@ def _variants(base):
     c = base.deep_copy()
     out.append(c)
     c = base.deep_copy()
-    c["transmission"]["cable_stiffness"] *= 0.7
+    _cables(c, 0.7)
     c["actuator"]["coulomb"] *= 1.3
     c["sim"]["seed"] = 3
     out.append(c)
@@ -39,6 +42,13 @@ def _variants(base):
     c["safety"]["max_sg_step_nm"] = 0.05     # the gauges' noise trips SG_JUMP: the safety layer must stop it
     out.append(c)
     return out
+
+
+def _cables(cfg, factor):
+    """Cable stiffness x ``factor``, the torque loop's notch re-centred on the moved cable mode (x sqrt(factor):
+    the shipped notch holds the margin only near the cable stiffness it was placed for, docs/daemon.md)."""
+    cfg["transmission"]["cable_stiffness"] *= factor
+    cfg["controller"]["torque_loop"]["notch_hz_dp"] *= math.sqrt(factor)
 
 
 def _compare(cfgs, tolerance=1e-9):
@@ -92,7 +102,7 @@ def test_batched_identified_friction_feed_forward_matches_the_daemon(sim_cfg, fe
     sim_cfg["controller"]["friction_ff"].update(enabled=True, model="identified", model_file="")
     cfgs = [sim_cfg.deep_copy() for _ in range(3)]
     loop = cfgs[1]["controller"]["torque_loop"]
-    loop.update(ki_ie=0.5 * loop["ki_ie"], torque_rate_dp=1.5 * loop["torque_rate_dp"], cutoff_hz=60.0,
+    loop.update(ki_ie=0.5 * loop["ki_ie"], torque_rate_dp=1.2 * loop["torque_rate_dp"], cutoff_hz=100.0,
                 max_correction_dp=0.7 * loop["max_correction_dp"])
     cfgs[1]["sim"]["effects"][2]["coefficient"] = 0.2
     cfgs[1]["reference"]["profile"] = "hold"
@@ -105,7 +115,8 @@ def test_batched_observer_and_angle_sources_match_the_daemon(sim_cfg):
     """The disturbance observer with its energy tank (a small tank that runs dry on one plant), and
     the law's angle from the joint encoders on some plants, through the cables on another."""
     sim_cfg["controller"]["type"] = "impedance"
-    sim_cfg["controller"]["torque_loop"].update(dob_hz=10.0, ki_dp=0.0, ki_ie=0.0)
+    # on the classic loop: with the shipped notched DP loop the observer keeps 5.5 dB of margin (refused)
+    sim_cfg["controller"]["torque_loop"].update(classic_torque_loop(), dob_hz=10.0, ki_dp=0.0, ki_ie=0.0)
     cfgs = [sim_cfg.deep_copy() for _ in range(3)]
     cfgs[1]["controller"]["impedance"]["angle_source"] = "estimated"
     cfgs[2]["controller"]["torque_loop"].update(dob_inertia_dp=0.9, tank_j=0.001, tank_friction_credit=0.2)
@@ -153,7 +164,7 @@ def test_batched_walking_scenario_matches_the_daemon(sim_cfg, controller):
     sim_cfg["reference"]["gait"] = dict(walking["reference"]["gait"])
     sim_cfg["sim"]["disturbances"] = [dict(d) for d in walking["sim"]["disturbances"][:3]]
     other = sim_cfg.deep_copy()
-    other["transmission"]["cable_stiffness"] *= 1.2
+    _cables(other, 1.2)
     other["sim"]["seed"] = 5
     assert _compare([sim_cfg, other]) == [0, 0]
 

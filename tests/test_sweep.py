@@ -73,8 +73,9 @@ def _same(a: list[dict], b: list[dict]) -> None:
     ({"parameters": {"controller.step_gains.kp": {"dist": "uniform", "low": 600.0, "high": 700.0}}},  # > gain_limits.kp
      "parameters.controller.step_gains.kp"),
     ({"overrides": {"controller": {"type": "impedance"}},      # the loop's limits move with the sampled plant
-      "parameters": {"actuator.damping": {"dist": "uniform", "low": 0.05, "high": 0.06}}},
-     "actuator.damping=0.05"),
+      "parameters": {"transmission.cable_stiffness": {"dist": "uniform", "low": 0.8, "high": 0.81,   # off the notch
+                                                      "relative": True}}},
+     "the config rejects it: controller.torque_loop.kp_dp"),
     ({"base": 5}, "base"),
     ({"criteria": ["max_overshoot_pct"]}, "criteria"),
     ({"metrics": ["cable_pretension_n"]}, "metrics"),

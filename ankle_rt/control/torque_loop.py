@@ -73,21 +73,22 @@ MAX_STIFFNESS_FRACTION = (0.3, 0.5)
 
 @dataclass(frozen=True)
 class TorqueLoopGains:
-    """Per-axis gains [DP, IE] of the joint-torque loop (ankle coordinates)."""
+    """Per-axis gains [DP, IE] of the joint-torque loop (ankle coordinates). No defaults here: the shipped
+    values are the config schema's (``controller.torque_loop``), read by :meth:`from_config`."""
 
     kp: tuple[float, float]                  # N m per N m of torque error
     ki: tuple[float, float]                  # 1/s, integral of the torque error
     torque_rate: tuple[float, float]         # s, kd on the rate of the filtered measured torque
     cutoff_hz: float                         # first-order low-pass of the measured joint torque
     max_correction_nm: tuple[float, float]   # |kp e + ki int e - kd rate| at most this (anti-windup, fault bound)
-    dob_hz: float = 0.0                      # disturbance observer's low-pass; 0: no observer
-    dob_inertia: tuple[float, float] = (1.0, 1.0)    # J_n as a fraction of the reflected motor inertia
-    max_observer_nm: tuple[float, float] = (0.0, 0.0)   # |d| at most this
-    tank_j: float = 0.0                      # J, the energy tank's capacity
-    tank_friction_credit: float = 0.0        # share of the identified friction's dissipation the tank gets
-    notch_hz: tuple[float, float] = (0.0, 0.0)       # band-stop on the P and rate terms; 0: none
-    notch_zeta: tuple[float, float] = (0.2, 0.2)     # its width (the denominator's damping ratio)
-    notch_depth: tuple[float, float] = (0.5, 0.5)    # its gain at notch_hz
+    dob_hz: float                            # disturbance observer's low-pass; 0: no observer
+    dob_inertia: tuple[float, float]         # J_n as a fraction of the reflected motor inertia
+    max_observer_nm: tuple[float, float]     # |d| at most this
+    tank_j: float                            # J, the energy tank's capacity
+    tank_friction_credit: float              # share of the identified friction's dissipation the tank gets
+    notch_hz: tuple[float, float]            # band-stop on the P and rate terms; 0: none
+    notch_zeta: tuple[float, float]          # its width (the denominator's damping ratio)
+    notch_depth: tuple[float, float]         # its gain at notch_hz
 
     def sections(self, dt: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
         """The notch of each axis [DP, IE] as a second-order section over ``dt`` (:func:`notch_section`)."""
