@@ -275,3 +275,22 @@ def test_a_configured_csv_profile_is_rate_limited_like_a_commanded_one(tmp_path)
     with pytest.raises(ConfigError) as err:
         load_config(sim, {"reference": {"max_rate_rad_s": 20.0}})
     assert err.value.key == "reference.max_rate_rad_s" and "max_motor_speed_rad_s" in err.value.message
+
+
+def test_a_configured_hold_is_approached_at_most_at_the_reference_rate_limit():
+    """Safety9: a configured hold is approached from where the ankle is over reference.ramp_s, which
+    accepts 0: a hold of (0.6, 0.3) rad with ramp_s 0 was a 34 / 17 deg step at activation under the
+    PD, the 15 A clamp, MOTOR_JUMP 0.07 s after activation and the unpowered foot coasting on to
+    116 deg. The approach now moves at most at reference.max_rate_rad_s, as a CSV profile's does."""
+    from ankle_rt.daemon import run_lockstep
+
+    sim = ROOT / "config" / "sim.yaml"
+    cfg = load_config(sim, {"reference": {"profile": "hold", "hold": {"dp": 0.6, "ie": 0.3}, "ramp_s": 0.0},
+                            "sim": {"disturbances": []}})
+    r = run_lockstep(cfg, 1.0)
+    active = (r["state"][1:] == 1) & (r["state"][:-1] == 1)
+    rate = np.abs(np.diff(np.column_stack([r["ref_dp"], r["ref_ie"]]), axis=0))[active] / np.diff(r["t"])[active, None]
+    assert active.sum() > 800 and rate.max() <= cfg["reference"]["max_rate_rad_s"] * (1 + 1e-9)
+    assert r.summary["fault"] == "NONE" and r.summary["saturated_cycles"] == 0
+    assert np.degrees(np.abs(r["ankle_dp"])).max() < cfg["limits"]["ankle_range_deg"]
+    assert r["ref_dp"][-1] > 0.5                     # on its way to the hold, only slower
