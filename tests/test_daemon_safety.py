@@ -286,3 +286,9 @@ def test_the_governor_takes_only_the_current_that_would_speed_a_fast_motor_up(si
                                (g - 1.0, 0.0, (5.0, 5.0), (5.0, 5.0))]:             # below the governor
         s._v1, s._v2 = v1, v2
         assert s.limit_currents(*sent) == 0 and s.current == list(kept)
+    # the batched cycle runs the same code on arrays (one device per column)
+    b = Safety.stack([s, Safety(sim_cfg, 1e-3)])
+    b.state = np.array([State.ACTIVE, State.ACTIVE])
+    b._v1, b._v2 = np.array([g + 1.0, g + 1.0]), np.array([-(g + 1.0), 0.0])
+    b.limit_currents(np.array([5.0, -5.0]), np.array([-5.0, -5.0]))
+    assert [list(c) for c in b.current] == [[0.0, -5.0], [0.0, -5.0]]
