@@ -249,8 +249,11 @@ CONTROLLER = Section({
 })
 
 ESTIMATION = Section({
-    "velocity_cutoff_hz": Field(float, "Hz, first-order low-pass on the backward-difference motor velocity",
-                                default=100.0, low=1.0, high=1000.0),
+    # every controller's damping acts on this velocity, and walking's stance mode (4-6 Hz) needs it nearly
+    # unlagged: 10 Hz faulted the walk (OSCILLATION at 100 kg normal; 5 Hz: SG_MISMATCH at 75 kg), 15 Hz did not
+    "velocity_cutoff_hz": Field(float, "Hz, first-order low-pass on the backward-difference motor velocity (at "
+                                       "least 20 Hz: the damping every controller renders acts on it)",
+                                default=100.0, low=20.0, high=1000.0),
     "tare_samples": Field(int, "strain-gauge samples averaged for the tare before activation", default=100,
                           low=1, high=100_000),
 }, optional=True)

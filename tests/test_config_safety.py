@@ -294,3 +294,19 @@ def test_a_configured_hold_is_approached_at_most_at_the_reference_rate_limit():
     assert r.summary["fault"] == "NONE" and r.summary["saturated_cycles"] == 0
     assert np.degrees(np.abs(r["ankle_dp"])).max() < cfg["limits"]["ankle_range_deg"]
     assert r["ref_dp"][-1] > 0.5                     # on its way to the hold, only slower
+
+
+def test_a_velocity_filter_too_slow_for_walking_is_refused(tmp_path):
+    """Safety9: estimation.velocity_cutoff_hz accepted down to 1 Hz, and every controller's damping
+    acts on that filtered velocity. With config/walk.yaml (the gait phases' margins checked) 10 Hz
+    faulted the walk at 100 kg normal cadence (OSCILLATION; 5 Hz: SG_MISMATCH at 75 kg with healthy
+    gauges); 15 and 20 Hz walk all 108 strides of `bench walk` without a fault. Now at least 20 Hz,
+    refused naming the key below; at 20 Hz the 100 kg wearer walks."""
+    from ankle_rt.bench.walk import run_walk
+
+    walk = ROOT / "config" / "walk.yaml"
+    with pytest.raises(ConfigError) as err:
+        load_config(walk, {"estimation": {"velocity_cutoff_hz": 10.0}})
+    assert err.value.key == "estimation.velocity_cutoff_hz"
+    path = write(tmp_path, {"include": [str(walk)], "estimation": {"velocity_cutoff_hz": 20.0}})
+    assert run_walk(str(path), 100.0, "normal", strides=2).fault == "NONE"
