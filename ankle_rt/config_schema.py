@@ -244,8 +244,9 @@ CONTROLLER = Section({
     "gain_limits": GAIN_LIMITS,
     "gain_ramp_s": Field(float, "s; run-time gain changes ramp linearly over this time (bumpless; also the rate "
                                 "limit of gain changes, so it cannot be 0)", default=0.2, low=0.01, high=10.0),
-    "soft_start_s": non_negative("s; the controller output ramps in over this time after activation", default=0.2,
-                                 high=10.0),
+    "soft_start_s": non_negative("s; the controller output ramps in over this time after activation; at most 2 s: "
+                                 "a wearer may walk meanwhile on the scaled-down output (10 s: the 100 kg wearer "
+                                 "pushed the ankle into its range)", default=0.2, high=2.0),
 })
 
 ESTIMATION = Section({
@@ -307,10 +308,11 @@ SAFETY = Section({
                                   "safety.oscillation_hold_s is an oscillation fault; below what a 20 Hz oscillation of the "
                                   "continuous current shows it (check_oscillation_limit: 1.97 A at 1 kHz and 5 A continuous)",
                                   default=1.0, high=5.0),
-    "oscillation_hold_s": positive("s the band RMS must stay above safety.oscillation_rms_a to fault (a stable "
-                                   "loop's saturated step keeps it above for up to ~0.3 s); at most 1 s: a longer "
-                                   "hold only lets a limit cycle between the peak currents run on the wearer",
-                                   default=0.5, high=1.0),
+    "oscillation_hold_s": Field(float, "s the band RMS must stay above safety.oscillation_rms_a to fault; at "
+                                       "least 0.35 s: a stable loop's saturated step keeps it above for up to "
+                                       "~0.3 s (0.1 s faulted the 100 kg walk); at most 1 s: a longer hold only "
+                                       "lets a limit cycle between the peak currents run on the wearer",
+                                default=0.5, low=0.35, high=1.0),
     "max_actuation_delay_s": non_negative("s between a set value and the motor torque it makes (amplifier, bus, "
                                           "bridge) that the strain-gauge cross-check allows for", default=0.012,
                                           high=0.05),

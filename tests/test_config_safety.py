@@ -310,3 +310,24 @@ def test_a_velocity_filter_too_slow_for_walking_is_refused(tmp_path):
     assert err.value.key == "estimation.velocity_cutoff_hz"
     path = write(tmp_path, {"include": [str(walk)], "estimation": {"velocity_cutoff_hz": 20.0}})
     assert run_walk(str(path), 100.0, "normal", strides=2).fault == "NONE"
+
+
+def test_an_oscillation_hold_or_soft_start_that_faults_walking_is_refused(tmp_path):
+    """Safety9, config/walk.yaml (`bench walk` wearers, 3 strides): safety.oscillation_hold_s was
+    accepted down to 0: 0.1 s faulted the 100 kg walk (OSCILLATION, normal and fast cadence; 0.01 s
+    every wearer), below the ~0.3 s a stable loop's saturated step keeps the band up, as the key's own
+    description said. controller.soft_start_s was accepted up to 10 s, and the wearer walks while the
+    output is scaled down: 10 s let the 100 kg wearer at fast cadence push the ankle into its range
+    (ANKLE_RANGE; 4 s did not). Now at least 0.35 s and at most 2 s, refused naming the key beyond;
+    at those bounds the 100 kg wearer walks."""
+    from ankle_rt.bench.walk import run_walk
+
+    walk = ROOT / "config" / "walk.yaml"
+    for key, value in [(("safety", "oscillation_hold_s"), 0.1), (("controller", "soft_start_s"), 10.0)]:
+        with pytest.raises(ConfigError) as err:
+            load_config(walk, {key[0]: {key[1]: value}})
+        assert err.value.key == ".".join(key)
+    path = write(tmp_path, {"include": [str(walk)], "safety": {"oscillation_hold_s": 0.35},
+                            "controller": {"soft_start_s": 2.0}})
+    for cadence in ("normal", "fast"):
+        assert run_walk(str(path), 100.0, cadence, strides=3).fault == "NONE"
