@@ -331,3 +331,21 @@ def test_an_oscillation_hold_or_soft_start_that_faults_walking_is_refused(tmp_pa
                             "controller": {"soft_start_s": 2.0}})
     for cadence in ("normal", "fast"):
         assert run_walk(str(path), 100.0, cadence, strides=3).fault == "NONE"
+
+
+def test_the_motors_must_render_the_wearers_walk_with_the_torque_loops_correction():
+    """Safety9, config/walk.yaml (`bench walk`, 100 kg at fast cadence): the joint-torque loop's
+    max_correction_dp was accepted up to 100 N m: on top of the wearer's push-off it held the 15 A clamp
+    in 776 cycles (72 ms in a row; 50 N m: 14.7 A peak, none); an amplifier.current_limit_peak of 12 A
+    held it in 580 cycles of 6 strides. The DP torque both motors give at the peak current must now
+    cover the heaviest wearer's rendered walking moment (1.8 N m/kg x wearer.mass_kg) plus the
+    correction, refused naming the key otherwise; a bench config that nobody walks on keeps its range."""
+    walk = ROOT / "config" / "walk.yaml"
+    for over, key in [({"controller": {"torque_loop": {"max_correction_dp": 100.0}}}, "controller.torque_loop.max_correction_dp"),
+                      ({"amplifier": {"current_limit_peak": 12.0}}, "amplifier.current_limit_peak")]:
+        with pytest.raises(ConfigError) as err:
+            load_config(walk, over)
+        assert err.value.key == key and "wearer.mass_kg" in err.value.message
+    load_config(walk, {"controller": {"torque_loop": {"max_correction_dp": 40.0}}})
+    load_config(ROOT / "config" / "sim.yaml", {"controller": {"type": "impedance",
+                                                              "torque_loop": {"max_correction_dp": 100.0}}})
