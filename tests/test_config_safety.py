@@ -349,3 +349,18 @@ def test_the_motors_must_render_the_wearers_walk_with_the_torque_loops_correctio
     load_config(walk, {"controller": {"torque_loop": {"max_correction_dp": 40.0}}})
     load_config(ROOT / "config" / "sim.yaml", {"controller": {"type": "impedance",
                                                               "torque_loop": {"max_correction_dp": 100.0}}})
+
+
+def test_a_gait_phase_dwell_longer_than_a_walking_phase_is_refused(tmp_path):
+    """Safety9: controller.gait_phase.min_dwell_s was accepted up to 1 s, though no transition may
+    happen before it and walking's shortest phase is 0.157 s (late stance, 100 kg fast, `bench walk`):
+    0.3 s and 1 s faulted the 50 kg wearer at fast cadence (ANKLE_RANGE). Now at most 0.1 s, refused
+    naming the key beyond; at 0.1 s that wearer walks."""
+    from ankle_rt.bench.walk import run_walk
+
+    walk = ROOT / "config" / "walk.yaml"
+    with pytest.raises(ConfigError) as err:
+        load_config(walk, {"controller": {"gait_phase": {"min_dwell_s": 0.3}}})
+    assert err.value.key == "controller.gait_phase.min_dwell_s"
+    path = write(tmp_path, {"include": [str(walk)], "controller": {"gait_phase": {"min_dwell_s": 0.1}}})
+    assert run_walk(str(path), 50.0, "fast", strides=3).fault == "NONE"
