@@ -364,3 +364,14 @@ def test_a_gait_phase_dwell_longer_than_a_walking_phase_is_refused(tmp_path):
     assert err.value.key == "controller.gait_phase.min_dwell_s"
     path = write(tmp_path, {"include": [str(walk)], "controller": {"gait_phase": {"min_dwell_s": 0.1}}})
     assert run_walk(str(path), 50.0, "fast", strides=3).fault == "NONE"
+
+
+def test_a_torque_loop_gain_that_limits_a_gait_phase_is_named_by_its_own_key():
+    """Safety9: with the gait-phase controller a torque-loop gain that failed a phase's margin was
+    named as a phase key that does not exist (controller.gait_phase.late_stance.cutoff_hz)."""
+    from tests.daemon_helpers import lockstep_daemon
+
+    cfg = load_config(ROOT / "config" / "walk.yaml", {"controller": {"torque_loop": {"cutoff_hz": 1.0}}})
+    with pytest.raises(ConfigError) as err:
+        lockstep_daemon(cfg)                     # the phases' margins are checked when it is built
+    assert err.value.key == "controller.torque_loop.cutoff_hz"
