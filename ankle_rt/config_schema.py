@@ -225,7 +225,9 @@ GAIT_PHASE = Section({
     "late_swing_angle": Field(float, "rad; early swing becomes late swing above this DP angle ...", default=-0.09,
                               low=-MAX_EQUILIBRIUM, high=MAX_EQUILIBRIUM),
     "late_swing_velocity": Field(float, "rad/s ... and below this DP rate", default=1.0, low=-20.0, high=20.0),
-    "min_dwell_s": non_negative("s in a phase before any transition", default=0.05, high=1.0),
+    "min_dwell_s": non_negative("s in a phase before any transition; at most 0.1 s: shorter than every walking "
+                                "phase (the shortest on bench walk: late stance, 0.157 s at 100 kg fast; 0.3 s "
+                                "faulted the 50 kg wearer at fast cadence)", default=0.05, high=0.1),
     "timeout_s": Field(float, "s in one phase after which the controller falls back to the safe phase; at most "
                               "2 s: no walking phase lasts a stride (the slowest is 1.38 s), and a wearer who stops "
                               "in late stance feels the push-off equilibrium until then", default=1.5, low=0.1,
@@ -251,13 +253,17 @@ CONTROLLER = Section({
     "gain_limits": GAIN_LIMITS,
     "gain_ramp_s": Field(float, "s; run-time gain changes ramp linearly over this time (bumpless; also the rate "
                                 "limit of gain changes, so it cannot be 0)", default=0.2, low=0.01, high=10.0),
-    "soft_start_s": non_negative("s; the controller output ramps in over this time after activation", default=0.2,
-                                 high=10.0),
+    "soft_start_s": non_negative("s; the controller output ramps in over this time after activation; at most 2 s: "
+                                 "a wearer may walk meanwhile on the scaled-down output (10 s: the 100 kg wearer "
+                                 "pushed the ankle into its range)", default=0.2, high=2.0),
 })
 
 ESTIMATION = Section({
-    "velocity_cutoff_hz": Field(float, "Hz, first-order low-pass on the backward-difference motor velocity",
-                                default=100.0, low=1.0, high=1000.0),
+    # every controller's damping acts on this velocity, and walking's stance mode (4-6 Hz) needs it nearly
+    # unlagged: 10 Hz faulted the walk (OSCILLATION at 100 kg normal; 5 Hz: SG_MISMATCH at 75 kg), 15 Hz did not
+    "velocity_cutoff_hz": Field(float, "Hz, first-order low-pass on the backward-difference motor velocity (at "
+                                       "least 20 Hz: the damping every controller renders acts on it)",
+                                default=100.0, low=20.0, high=1000.0),
     "tare_samples": Field(int, "strain-gauge samples averaged for the tare before activation", default=100,
                           low=1, high=100_000),
 }, optional=True)
@@ -311,10 +317,11 @@ SAFETY = Section({
                                   "safety.oscillation_hold_s is an oscillation fault; below what a 20 Hz oscillation of the "
                                   "continuous current shows it (check_oscillation_limit: 1.97 A at 1 kHz and 5 A continuous)",
                                   default=1.0, high=5.0),
-    "oscillation_hold_s": positive("s the band RMS must stay above safety.oscillation_rms_a to fault (a stable "
-                                   "loop's saturated step keeps it above for up to ~0.3 s); at most 1 s: a longer "
-                                   "hold only lets a limit cycle between the peak currents run on the wearer",
-                                   default=0.5, high=1.0),
+    "oscillation_hold_s": Field(float, "s the band RMS must stay above safety.oscillation_rms_a to fault; at "
+                                       "least 0.35 s: a stable loop's saturated step keeps it above for up to "
+                                       "~0.3 s (0.1 s faulted the 100 kg walk); at most 1 s: a longer hold only "
+                                       "lets a limit cycle between the peak currents run on the wearer",
+                                default=0.5, low=0.35, high=1.0),
     "max_actuation_delay_s": non_negative("s between a set value and the motor torque it makes (amplifier, bus, "
                                           "bridge) that the strain-gauge cross-check allows for", default=0.012,
                                           high=0.05),
@@ -361,6 +368,9 @@ WALKING_PEAK_MOMENT_PER_KG = 2.0   # N m/kg
 # walking scenario under the gait-phase controller: 0.13 N m/kg per ms at 50 kg fast, 8.6 N m at 100 kg
 # fast; rounded up)
 WALKING_TORQUE_STEP_PER_KG = 0.15  # N m/kg per ms
+# ... and the motors must render the moment the controller renders (bench walk: up to 1.76 N m/kg,
+# rounded up) plus what the joint-torque loop may add, at the peak current (check_walking_current)
+WALKING_RENDERED_MOMENT_PER_KG = 1.8  # N m/kg
 
 WEARER = Section({
     "mass_kg": Field(float, "kg, the heaviest wearer the device is set up for: the strain-gauge rail and jump "
@@ -604,6 +614,7 @@ def check_consistency(cfg: Mapping[str, Any], origin: Callable[[KeyPath], str]) 
     checks += [(("impedance", name), limits[name.split("_")[0]], ctl["impedance"][name])
                for name in ("stiffness_dp", "stiffness_ie", "damping_dp", "damping_ie")]
     check_walking_limits(cfg, origin)
+    check_walking_current(cfg, origin)
     check_oscillation_limit(cfg, origin)
     check_device_deadlines(cfg, origin)
     check_gait_load_thresholds(cfg, origin)
@@ -778,3 +789,34 @@ def check_walking_limits(cfg: Mapping[str, Any], origin: Callable[[KeyPath], str
         raise ConfigError(f"must be >= {step:.3g} N m for a {mass:g} kg wearer at {cfg['controller']['rate_hz']} Hz "
                           f"(walking's fastest torque change per sample with margin), got {safety['max_sg_step_nm']:g}",
                           origin(("safety", "max_sg_step_nm")), "safety.max_sg_step_nm")
+
+
+def check_walking_current(cfg: Mapping[str, Any], origin: Callable[[KeyPath], str]) -> None:
+    """Where someone walks (on the device, or the simulator's walking scenario), the DP torque both
+    motors give at the peak current covers the heaviest wearer's rendered walking moment
+    (WALKING_RENDERED_MOMENT_PER_KG x wearer.mass_kg) plus, with the joint-torque loop, its
+    max_correction_dp: else the push-off runs at the current clamp (max_correction_dp 100 N m: 776
+    cycles at 15 A in 12 strides at 100 kg fast, up to 72 ms in a row; a 12 A peak: 580 in 6)."""
+    if cfg["backend"] == "sim" and cfg["sim"]["scenario"] != "walking":
+        return
+    R = motor_ratio(TransmissionParams(**cfg["transmission"]))
+    peak = cfg["amplifier"]["current_limit_peak"]
+    per_amp = (abs(R[0, 0]) + abs(R[1, 0])) * cfg["actuator"]["torque_constant"]   # N m DP per A on both motors
+    mass = cfg["wearer"]["mass_kg"]
+    need = WALKING_RENDERED_MOMENT_PER_KG * mass
+    walking = f"a {mass:g} kg wearer's rendered walking moment ({need:g} N m: wearer.mass_kg x " \
+              f"{WALKING_RENDERED_MOMENT_PER_KG:g} N m/kg)"
+    if per_amp * peak < need:
+        raise ConfigError(f"must be >= {need / per_amp:.4g} A: both motors at the peak current give {per_amp * peak:.3g} "
+                          f"N m DP, below {walking}, got {peak:g}", origin(("amplifier", "current_limit_peak")),
+                          "amplifier.current_limit_peak")
+    ctl = cfg["controller"]
+    if ctl["type"] not in ("impedance", "gait_phase") or ctl["impedance"]["torque_feedback"] == "off":
+        return
+    most = per_amp * peak - need
+    if ctl["torque_loop"]["max_correction_dp"] > most:
+        raise ConfigError(f"must be <= {most:.3g} N m: both motors at the peak current give {per_amp * peak:.3g} N m DP, "
+                          f"and {walking} plus the correction must fit in it, got "
+                          f"{ctl['torque_loop']['max_correction_dp']:g}",
+                          origin(("controller", "torque_loop", "max_correction_dp")),
+                          "controller.torque_loop.max_correction_dp")

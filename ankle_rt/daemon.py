@@ -229,7 +229,7 @@ class Daemon:
             self.reference.start(Hold(dp, ie))
         elif self.own_controller and not self.reference_commanded and not self.reference.profile.relative:
             # a configured hold is approached from where the ankle is over reference.ramp_s, a CSV
-            # profile from there at reference.max_rate_rad_s
+            # profile from there; both at most at reference.max_rate_rad_s
             profile = self.reference.profile
             self.reference.ref[0], self.reference.ref[1] = dp, ie
             if isinstance(profile, Hold):

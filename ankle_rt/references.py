@@ -328,8 +328,8 @@ class ReferenceGenerator:
         self.pending: Profile | None = None
         self.max_step = math.inf
         """rad per update the reference may move (inf: unlimited): set for commanded references (by
-        the daemon) and CSV ones (:func:`reference_from_config`), so neither a command nor a file can
-        make the reference jump or outrun the motors."""
+        the daemon) and configured CSV and hold ones (:func:`reference_from_config`), so neither a
+        command, a file nor a hold's approach can make the reference jump or outrun the motors."""
         profile.begin(self.base)
 
     def start(self, profile: Profile) -> None:
@@ -373,7 +373,9 @@ def reference_from_config(cfg: Mapping[str, Any]) -> ReferenceGenerator:
     except InterchangeError as exc:      # the CSV file itself is bad: say which file, column and row
         raise ConfigError(str(exc), source, "reference.csv.path") from None
     generator = ReferenceGenerator(profile)
-    if name == "csv":   # a file's rate cannot be checked like a formula's: limited as a commanded one is
+    # a file's rate cannot be checked like a formula's, and a hold is approached from wherever the
+    # ankle is (over reference.ramp_s, which may be 0): both limited as a commanded reference is
+    if name in ("csv", "hold"):
         generator.max_step = max_reference_step(cfg)
     return generator
 

@@ -73,6 +73,12 @@ class Fault(enum.IntEnum):
         return _DESCRIPTIONS[self]
 
 
+# A set value may not drive a motor that already turns faster than this share of
+# safety.max_motor_speed_rad_s faster still (Safety.limit_currents, safety9): beyond the limit
+# MOTOR_JUMP leaves the motors unpowered at speed and the foot coasts far past the ankle range (a
+# configured 34 / 17 deg step under the PD: 118 deg). The walking scenario's fastest motor is at 20 rad/s.
+GOVERNOR_SHARE = 0.8
+
 _DESCRIPTIONS = {
     Fault.NONE: "no fault",
     Fault.ANKLE_RANGE: "ankle angle beyond the software limit",
@@ -154,6 +160,7 @@ class Safety:
         # ankle angle estimated from the motors means nothing; only joint encoders are checked then.
         self.check_estimated_ankle = bool(cfg["sim"]["cables"])
         self.max_motor_speed = _configured(cfg, "safety.max_motor_speed_rad_s")
+        self.governor_speed = GOVERNOR_SHARE * self.max_motor_speed
         self.max_sg_step = _configured(cfg, "safety.max_sg_step_nm")
         self.sg_rail = _configured(cfg, "safety.sg_rail_nm")
         self.stale_cycles = int(_configured(cfg, "safety.stale_cycles"))
@@ -183,6 +190,7 @@ class Safety:
         self._stale = 0
         self._have_last = False
         self._p1 = self._p2 = self._s0 = self._s1 = self._t = 0.0
+        self._v1 = self._v2 = 0.0      # rad/s, each motor's speed over the last sample (as MOTOR_JUMP sees it)
 
     # -- state machine (commands; not per cycle) ---------------------------------------------------
     def trip(self, fault: Value, t: float) -> None:
@@ -267,9 +275,12 @@ class Safety:
             | (abs(j0) > lim) | (abs(j1) > lim)           # NaN (no joint encoders) compares False
         if self._have_last:
             h = t - self._t
-            allowed = self.max_motor_speed * (h if h > self.dt else self.dt)
+            h = h if h > self.dt else self.dt
+            allowed = self.max_motor_speed * h
             step = self.max_sg_step
             motor_jump = (abs(p1 - self._p1) > allowed) | (abs(p2 - self._p2) > allowed)
+            self._v1 = (p1 - self._p1) / h
+            self._v2 = (p2 - self._p2) / h
             sg_jump = (abs(s0 - self._s0) > step) | (abs(s1 - self._s1) > step)
         else:
             motor_jump = sg_jump = False
@@ -290,14 +301,18 @@ class Safety:
         """Clamp set values (A) to the peak current into ``self.current`` and update the I^2 t
         estimate; return OVERCURRENT once the peak budget is spent, OUTPUT_INVALID for NaN,
         OSCILLATION once the clamped set values have oscillated (:mod:`ankle_rt.oscillation`).
+        A set value that would drive a motor turning faster than ``governor_speed`` (GOVERNOR_SHARE
+        of safety.max_motor_speed_rad_s, its speed over the last sample) faster still is zero.
         Element-wise; on a :meth:`stack` only the devices ``where`` holds count (saturation, I^2 t,
         faults): the others are not driven this cycle."""
-        cur, pk = self.current, self.i_peak
+        cur, pk, g, v1, v2 = self.current, self.i_peak, self.governor_speed, self._v1, self._v2
         valid = (i1 + i2) * 0.0 == 0.0          # False for NaN or inf
         counted = valid & where
         self.saturated = self.saturated + (counted & ((abs(i1) > pk) | (abs(i2) > pk)))
         i1 = clip(i1, -pk, pk)
         i2 = clip(i2, -pk, pk)
+        i1 = select(((v1 > g) & (i1 > 0.0)) | ((v1 < -g) & (i1 < 0.0)), 0.0, i1)
+        i2 = select(((v2 > g) & (i2 > 0.0)) | ((v2 < -g) & (i2 < 0.0)), 0.0, i2)
         cur[0] = select(valid, i1, 0.0)
         cur[1] = select(valid, i2, 0.0)
         dt, ic2, q = self.dt, self.i_cont2, self.i2t

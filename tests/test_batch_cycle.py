@@ -206,6 +206,6 @@ def test_the_batch_runs_the_gauge_cross_check_and_the_oscillation_detector(sim_c
         cfg["sim"]["effects"] = [*cfg["sim"]["effects"], {"type": "torque_offset", "torque_1": torque}]
     assert _compare(cfgs) == [0, Fault.SG_MISMATCH]
     cfgs = [sim_cfg.deep_copy() for _ in range(2)]
-    cfgs[0]["safety"]["oscillation_rms_a"] = 0.1
-    cfgs[0]["safety"]["oscillation_hold_s"] = 0.02
+    cfgs[0]["safety"]["oscillation_rms_a"] = 0.01
+    cfgs[0]["safety"]["oscillation_hold_s"] = 0.35      # the shortest hold accepted
     assert _compare(cfgs) == [Fault.OSCILLATION, 0]

@@ -275,3 +275,103 @@ def test_a_configured_csv_profile_is_rate_limited_like_a_commanded_one(tmp_path)
     with pytest.raises(ConfigError) as err:
         load_config(sim, {"reference": {"max_rate_rad_s": 20.0}})
     assert err.value.key == "reference.max_rate_rad_s" and "max_motor_speed_rad_s" in err.value.message
+
+
+def test_a_configured_hold_is_approached_at_most_at_the_reference_rate_limit():
+    """Safety9: a configured hold is approached from where the ankle is over reference.ramp_s, which
+    accepts 0: a hold of (0.6, 0.3) rad with ramp_s 0 was a 34 / 17 deg step at activation under the
+    PD, the 15 A clamp, MOTOR_JUMP 0.07 s after activation and the unpowered foot coasting on to
+    116 deg. The approach now moves at most at reference.max_rate_rad_s, as a CSV profile's does."""
+    from ankle_rt.daemon import run_lockstep
+
+    sim = ROOT / "config" / "sim.yaml"
+    cfg = load_config(sim, {"reference": {"profile": "hold", "hold": {"dp": 0.6, "ie": 0.3}, "ramp_s": 0.0},
+                            "sim": {"disturbances": []}})
+    r = run_lockstep(cfg, 1.0)
+    active = (r["state"][1:] == 1) & (r["state"][:-1] == 1)
+    rate = np.abs(np.diff(np.column_stack([r["ref_dp"], r["ref_ie"]]), axis=0))[active] / np.diff(r["t"])[active, None]
+    assert active.sum() > 800 and rate.max() <= cfg["reference"]["max_rate_rad_s"] * (1 + 1e-9)
+    assert r.summary["fault"] == "NONE" and r.summary["saturated_cycles"] == 0
+    assert np.degrees(np.abs(r["ankle_dp"])).max() < cfg["limits"]["ankle_range_deg"]
+    assert r["ref_dp"][-1] > 0.5                     # on its way to the hold, only slower
+
+
+def test_a_velocity_filter_too_slow_for_walking_is_refused(tmp_path):
+    """Safety9: estimation.velocity_cutoff_hz accepted down to 1 Hz, and every controller's damping
+    acts on that filtered velocity. With config/walk.yaml (the gait phases' margins checked) 10 Hz
+    faulted the walk at 100 kg normal cadence (OSCILLATION; 5 Hz: SG_MISMATCH at 75 kg with healthy
+    gauges); 15 and 20 Hz walk all 108 strides of `bench walk` without a fault. Now at least 20 Hz,
+    refused naming the key below; at 20 Hz the 100 kg wearer walks."""
+    from ankle_rt.bench.walk import run_walk
+
+    walk = ROOT / "config" / "walk.yaml"
+    with pytest.raises(ConfigError) as err:
+        load_config(walk, {"estimation": {"velocity_cutoff_hz": 10.0}})
+    assert err.value.key == "estimation.velocity_cutoff_hz"
+    path = write(tmp_path, {"include": [str(walk)], "estimation": {"velocity_cutoff_hz": 20.0}})
+    assert run_walk(str(path), 100.0, "normal", strides=2).fault == "NONE"
+
+
+def test_an_oscillation_hold_or_soft_start_that_faults_walking_is_refused(tmp_path):
+    """Safety9, config/walk.yaml (`bench walk` wearers, 3 strides): safety.oscillation_hold_s was
+    accepted down to 0: 0.1 s faulted the 100 kg walk (OSCILLATION, normal and fast cadence; 0.01 s
+    every wearer), below the ~0.3 s a stable loop's saturated step keeps the band up, as the key's own
+    description said. controller.soft_start_s was accepted up to 10 s, and the wearer walks while the
+    output is scaled down: 10 s let the 100 kg wearer at fast cadence push the ankle into its range
+    (ANKLE_RANGE; 4 s did not). Now at least 0.35 s and at most 2 s, refused naming the key beyond;
+    at those bounds the 100 kg wearer walks."""
+    from ankle_rt.bench.walk import run_walk
+
+    walk = ROOT / "config" / "walk.yaml"
+    for key, value in [(("safety", "oscillation_hold_s"), 0.1), (("controller", "soft_start_s"), 10.0)]:
+        with pytest.raises(ConfigError) as err:
+            load_config(walk, {key[0]: {key[1]: value}})
+        assert err.value.key == ".".join(key)
+    path = write(tmp_path, {"include": [str(walk)], "safety": {"oscillation_hold_s": 0.35},
+                            "controller": {"soft_start_s": 2.0}})
+    for cadence in ("normal", "fast"):
+        assert run_walk(str(path), 100.0, cadence, strides=3).fault == "NONE"
+
+
+def test_the_motors_must_render_the_wearers_walk_with_the_torque_loops_correction():
+    """Safety9, config/walk.yaml (`bench walk`, 100 kg at fast cadence): the joint-torque loop's
+    max_correction_dp was accepted up to 100 N m: on top of the wearer's push-off it held the 15 A clamp
+    in 776 cycles (72 ms in a row; 50 N m: 14.7 A peak, none); an amplifier.current_limit_peak of 12 A
+    held it in 580 cycles of 6 strides. The DP torque both motors give at the peak current must now
+    cover the heaviest wearer's rendered walking moment (1.8 N m/kg x wearer.mass_kg) plus the
+    correction, refused naming the key otherwise; a bench config that nobody walks on keeps its range."""
+    walk = ROOT / "config" / "walk.yaml"
+    for over, key in [({"controller": {"torque_loop": {"max_correction_dp": 100.0}}}, "controller.torque_loop.max_correction_dp"),
+                      ({"amplifier": {"current_limit_peak": 12.0}}, "amplifier.current_limit_peak")]:
+        with pytest.raises(ConfigError) as err:
+            load_config(walk, over)
+        assert err.value.key == key and "wearer.mass_kg" in err.value.message
+    load_config(walk, {"controller": {"torque_loop": {"max_correction_dp": 40.0}}})
+    load_config(ROOT / "config" / "sim.yaml", {"controller": {"type": "impedance",
+                                                              "torque_loop": {"max_correction_dp": 100.0}}})
+
+
+def test_a_gait_phase_dwell_longer_than_a_walking_phase_is_refused(tmp_path):
+    """Safety9: controller.gait_phase.min_dwell_s was accepted up to 1 s, though no transition may
+    happen before it and walking's shortest phase is 0.157 s (late stance, 100 kg fast, `bench walk`):
+    0.3 s and 1 s faulted the 50 kg wearer at fast cadence (ANKLE_RANGE). Now at most 0.1 s, refused
+    naming the key beyond; at 0.1 s that wearer walks."""
+    from ankle_rt.bench.walk import run_walk
+
+    walk = ROOT / "config" / "walk.yaml"
+    with pytest.raises(ConfigError) as err:
+        load_config(walk, {"controller": {"gait_phase": {"min_dwell_s": 0.3}}})
+    assert err.value.key == "controller.gait_phase.min_dwell_s"
+    path = write(tmp_path, {"include": [str(walk)], "controller": {"gait_phase": {"min_dwell_s": 0.1}}})
+    assert run_walk(str(path), 50.0, "fast", strides=3).fault == "NONE"
+
+
+def test_a_torque_loop_gain_that_limits_a_gait_phase_is_named_by_its_own_key():
+    """Safety9: with the gait-phase controller a torque-loop gain that failed a phase's margin was
+    named as a phase key that does not exist (controller.gait_phase.late_stance.cutoff_hz)."""
+    from tests.daemon_helpers import lockstep_daemon
+
+    cfg = load_config(ROOT / "config" / "walk.yaml", {"controller": {"torque_loop": {"cutoff_hz": 1.0}}})
+    with pytest.raises(ConfigError) as err:
+        lockstep_daemon(cfg)                     # the phases' margins are checked when it is built
+    assert err.value.key == "controller.torque_loop.cutoff_hz"

@@ -122,12 +122,13 @@ def test_gain_change_is_bumpless_and_reaches_the_new_gains(sim_cfg):
 
 
 def test_soft_start_ramps_the_output_in(sim_cfg):
-    cfg = variant(sim_cfg, reference={"profile": "hold", "hold": {"dp": 0.1, "ie": 0.0}, "ramp_s": 0.0})
+    # a step from the start (a hold's approach is rate limited): the reference stands 0.1 rad away
+    cfg = variant(sim_cfg, reference={"profile": "step", "step": {"dp": 0.1, "ie": 0.0, "start_s": 0.0}})
     res = run_lockstep(cfg, 0.3)
     first = int(np.flatnonzero(res["state"] == State.ACTIVE)[0])
     g = cfg["controller"]["step_gains"]
     kin = Kinematics.from_params(TransmissionParams(**cfg["transmission"]))
-    k = first + 1          # the activation cycle still holds the ankle where it is; the hold acts from here
+    k = first + 1          # the second active cycle: the scale stands at 2 / 200
     full = g["kp"] * ((kin.R @ [0.1, 0.0])[0] - res["motor_pos_1"][k]) - g["kd"] * res["motor_vel_1"][k]
     steps = cfg["controller"]["soft_start_s"] * cfg["controller"]["rate_hz"]
     tau = res["torque_cmd_1"]

@@ -253,3 +253,42 @@ def test_set_values_reach_the_amplifiers_only_while_active(sim_cfg):
     assert all(state[k] == State.ACTIVE for k, _, _ in nonzero)
     assert all(k < AT for k, _, _ in nonzero)
     assert np.all(state[AT + 50:] == State.SAFE)
+
+
+def test_no_set_value_drives_a_motor_beyond_the_governor_speed_faster(sim_cfg):
+    """Safety9: a configured step under an accepted PD (kp 500, kd 10; 22 deg DP) drove the motors at
+    the 15 A clamp past safety.max_motor_speed_rad_s: MOTOR_JUMP, the amplifiers off at 30 rad/s and
+    the unpowered foot coasting on to 144 deg. A set value may no longer drive a motor that turns
+    faster than GOVERNOR_SHARE of the limit faster still: the step is taken at up to 24.4 rad/s and
+    the ankle stops at the target."""
+    cfg = variant(sim_cfg, controller={"step_gains": {"kp": 500.0, "kd": 10.0},
+                                       "gain_limits": {**sim_cfg["controller"]["gain_limits"], "kp": 500.0, "kd": 10.0}},
+                  reference={"step": {"dp": 0.38, "ie": 0.0, "start_s": 0.5}}, sim={"disturbances": []})
+    r = run_lockstep(cfg, 1.5)
+    most = cfg["safety"]["max_motor_speed_rad_s"]
+    speed = np.maximum(np.abs(np.diff(r["motor_pos_1"])), np.abs(np.diff(r["motor_pos_2"]))) / np.diff(r["t"])
+    assert r.summary["fault"] == "NONE"
+    from ankle_rt.safety import GOVERNOR_SHARE
+
+    assert GOVERNOR_SHARE * most < speed.max() < (GOVERNOR_SHARE + 0.05) * most    # it got there and no further
+    assert np.degrees(np.abs(r["ankle_dp"]).max()) < 0.38 * 180 / math.pi + 2.0
+    assert abs(r["ankle_dp"][-1] - 0.38) < 0.01
+
+
+def test_the_governor_takes_only_the_current_that_would_speed_a_fast_motor_up(sim_cfg):
+    from ankle_rt.safety import Safety
+
+    s = Safety(sim_cfg, 1e-3)
+    s.state = State.ACTIVE
+    g = s.governor_speed
+    for v1, v2, sent, kept in [(g + 1.0, -(g + 1.0), (5.0, -5.0), (0.0, 0.0)),      # would speed them up
+                               (g + 1.0, -(g + 1.0), (-5.0, 5.0), (-5.0, 5.0)),     # brakes them
+                               (g - 1.0, 0.0, (5.0, 5.0), (5.0, 5.0))]:             # below the governor
+        s._v1, s._v2 = v1, v2
+        assert s.limit_currents(*sent) == 0 and s.current == list(kept)
+    # the batched cycle runs the same code on arrays (one device per column)
+    b = Safety.stack([s, Safety(sim_cfg, 1e-3)])
+    b.state = np.array([State.ACTIVE, State.ACTIVE])
+    b._v1, b._v2 = np.array([g + 1.0, g + 1.0]), np.array([-(g + 1.0), 0.0])
+    b.limit_currents(np.array([5.0, -5.0]), np.array([-5.0, -5.0]))
+    assert [list(c) for c in b.current] == [[0.0, -5.0], [0.0, -5.0]]

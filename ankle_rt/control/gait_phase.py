@@ -195,8 +195,10 @@ class GaitPhaseController(ImpedanceController):
                        ankle_limit=math.radians(cfg["limits"]["ankle_range_deg"]),
                        gain_maxima=c["gain_limits"], friction=friction, torque_loop=loop, limits=limits,
                        margin_cfg=_estimated_angle(cfg))
-        except GainError as exc:
-            raise ConfigError(str(exc), getattr(cfg, "source", None), f"controller.gait_phase.{exc.gain}") from None
+        except GainError as exc:   # a phase's parameter, or the torque-loop gain that limits its margin
+            gain = exc.gain.split(".")[-1]
+            key = f"torque_loop.{gain}" if gain in c["torque_loop"] else f"gait_phase.{exc.gain}"
+            raise ConfigError(str(exc), getattr(cfg, "source", None), f"controller.{key}") from None
 
     @property
     def phase(self) -> int:
