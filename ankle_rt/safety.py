@@ -191,6 +191,7 @@ class Safety:
         self._have_last = False
         self._p1 = self._p2 = self._s0 = self._s1 = self._t = 0.0
         self._v1 = self._v2 = 0.0      # rad/s, each motor's speed over the last sample (as MOTOR_JUMP sees it)
+        self._governed = False         # some motor beyond governor_speed at the last sample: _v1, _v2 are set
 
     # -- state machine (commands; not per cycle) ---------------------------------------------------
     def trip(self, fault: Value, t: float) -> None:
@@ -276,14 +277,20 @@ class Safety:
         if self._have_last:
             h = t - self._t
             h = h if h > self.dt else self.dt
-            allowed = self.max_motor_speed * h
+            d1, d2 = p1 - self._p1, p2 - self._p2
+            governed = self.governor_speed * h
+            # a jump is beyond the governor's speed too: the common cycle compares once per motor
+            self._governed = any_true((abs(d1) > governed) | (abs(d2) > governed))
+            if self._governed:
+                allowed = self.max_motor_speed * h
+                motor_jump = (abs(d1) > allowed) | (abs(d2) > allowed)
+                self._v1, self._v2 = d1 / h, d2 / h
+            else:
+                motor_jump = False
             step = self.max_sg_step
-            motor_jump = (abs(p1 - self._p1) > allowed) | (abs(p2 - self._p2) > allowed)
-            self._v1 = (p1 - self._p1) / h
-            self._v2 = (p2 - self._p2) / h
             sg_jump = (abs(s0 - self._s0) > step) | (abs(s1 - self._s1) > step)
         else:
-            motor_jump = sg_jump = False
+            motor_jump = sg_jump = self._governed = False
         self._have_last = True
         self._p1, self._p2, self._s0, self._s1, self._t = p1, p2, s0, s1, t
         if not any_true(invalid | railed | motor_jump | sg_jump | ranged):
@@ -305,14 +312,16 @@ class Safety:
         of safety.max_motor_speed_rad_s, its speed over the last sample) faster still is zero.
         Element-wise; on a :meth:`stack` only the devices ``where`` holds count (saturation, I^2 t,
         faults): the others are not driven this cycle."""
-        cur, pk, g, v1, v2 = self.current, self.i_peak, self.governor_speed, self._v1, self._v2
+        cur, pk = self.current, self.i_peak
         valid = (i1 + i2) * 0.0 == 0.0          # False for NaN or inf
         counted = valid & where
         self.saturated = self.saturated + (counted & ((abs(i1) > pk) | (abs(i2) > pk)))
         i1 = clip(i1, -pk, pk)
         i2 = clip(i2, -pk, pk)
-        i1 = select(((v1 > g) & (i1 > 0.0)) | ((v1 < -g) & (i1 < 0.0)), 0.0, i1)
-        i2 = select(((v2 > g) & (i2 > 0.0)) | ((v2 < -g) & (i2 < 0.0)), 0.0, i2)
+        if self._governed:
+            g, v1, v2 = self.governor_speed, self._v1, self._v2
+            i1 = select(((v1 > g) & (i1 > 0.0)) | ((v1 < -g) & (i1 < 0.0)), 0.0, i1)
+            i2 = select(((v2 > g) & (i2 > 0.0)) | ((v2 < -g) & (i2 < 0.0)), 0.0, i2)
         cur[0] = select(valid, i1, 0.0)
         cur[1] = select(valid, i2, 0.0)
         dt, ic2, q = self.dt, self.i_cont2, self.i2t

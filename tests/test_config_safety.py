@@ -301,14 +301,16 @@ def test_a_velocity_filter_too_slow_for_walking_is_refused(tmp_path):
     acts on that filtered velocity. With config/walk.yaml (the gait phases' margins checked) 10 Hz
     faulted the walk at 100 kg normal cadence (OSCILLATION; 5 Hz: SG_MISMATCH at 75 kg with healthy
     gauges); 15 and 20 Hz walk all 108 strides of `bench walk` without a fault. Now at least 20 Hz,
-    refused naming the key below; at 20 Hz the 100 kg wearer walks."""
+    refused naming the key below; at 20 Hz the 100 kg wearer walks (on the classic torque loop: the
+    shipped notched loop's gait-phase margins refuse the walk at 60 Hz and below)."""
     from ankle_rt.bench.walk import run_walk
 
     walk = ROOT / "config" / "walk.yaml"
     with pytest.raises(ConfigError) as err:
         load_config(walk, {"estimation": {"velocity_cutoff_hz": 10.0}})
     assert err.value.key == "estimation.velocity_cutoff_hz"
-    path = write(tmp_path, {"include": [str(walk)], "estimation": {"velocity_cutoff_hz": 20.0}})
+    path = write(tmp_path, {"include": [str(walk), str(ROOT / "config" / "torque-loop-classic.yaml")],
+                            "estimation": {"velocity_cutoff_hz": 20.0}})
     assert run_walk(str(path), 100.0, "normal", strides=2).fault == "NONE"
 
 

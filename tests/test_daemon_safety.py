@@ -278,17 +278,23 @@ def test_no_set_value_drives_a_motor_beyond_the_governor_speed_faster(sim_cfg):
 def test_the_governor_takes_only_the_current_that_would_speed_a_fast_motor_up(sim_cfg):
     from ankle_rt.safety import Safety
 
-    s = Safety(sim_cfg, 1e-3)
-    s.state = State.ACTIVE
-    g = s.governor_speed
+    from ankle_rt.estimation import Estimate
+
+    def moving(safety, v1, v2):
+        """``safety`` after two samples 1 ms apart with the motors at v1, v2 (rad/s)."""
+        safety.state = State.ACTIVE
+        assert safety.check_values(0.0, 0.0 * v1, 0.0 * v2, 0.0, 0.0, Estimate()) is not None
+        assert np.all(safety.check_values(1e-3, 1e-3 * v1, 1e-3 * v2, 0.0, 0.0, Estimate()) == 0)
+        return safety
+
+    g = Safety(sim_cfg, 1e-3).governor_speed
     for v1, v2, sent, kept in [(g + 1.0, -(g + 1.0), (5.0, -5.0), (0.0, 0.0)),      # would speed them up
                                (g + 1.0, -(g + 1.0), (-5.0, 5.0), (-5.0, 5.0)),     # brakes them
                                (g - 1.0, 0.0, (5.0, 5.0), (5.0, 5.0))]:             # below the governor
-        s._v1, s._v2 = v1, v2
-        assert s.limit_currents(*sent) == 0 and s.current == list(kept)
+        s = moving(Safety(sim_cfg, 1e-3), v1, v2)
+        assert s.limit_currents(*sent) == 0 and s.current == pytest.approx(list(kept))
     # the batched cycle runs the same code on arrays (one device per column)
-    b = Safety.stack([s, Safety(sim_cfg, 1e-3)])
-    b.state = np.array([State.ACTIVE, State.ACTIVE])
-    b._v1, b._v2 = np.array([g + 1.0, g + 1.0]), np.array([-(g + 1.0), 0.0])
+    b = moving(Safety.stack([Safety(sim_cfg, 1e-3), Safety(sim_cfg, 1e-3)]),
+               np.array([g + 1.0, g + 1.0]), np.array([-(g + 1.0), 0.0]))
     b.limit_currents(np.array([5.0, -5.0]), np.array([-5.0, -5.0]))
     assert [list(c) for c in b.current] == [[0.0, -5.0], [0.0, -5.0]]
