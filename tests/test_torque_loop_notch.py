@@ -206,3 +206,13 @@ def test_a_notch_moved_beyond_the_nyquist_frequency_is_refused_naming_its_key():
         load_config(default_config_path(), changes)
     except ConfigError as exc:
         assert exc.key != "controller.torque_loop.notch_hz_ie"
+
+
+def test_config_check_prints_where_the_notch_runs():
+    """`config check` shows the notch moved to the configured cable and what it was placed for."""
+    from ankle_rt.commands.config import describe
+
+    lines = [line for line in describe(_on_cable(1.1)) if line.startswith("torque loop:")]
+    assert len(lines) == 1
+    assert f"DP {87.5 * math.sqrt(1.1):.4g} Hz (notch_hz_dp 87.5)" in lines[0]
+    assert f"notch_cable_stiffness {K_NOMINAL:g} N/m" in lines[0]
