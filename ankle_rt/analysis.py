@@ -348,7 +348,8 @@ class ImpedanceLoop:
     ff_viscous: float = 0.0                 # N m s/rad per motor: the friction feed-forward's viscous slope
     # per axis [DP, IE], discrete second-order sections (b0, b1, b2, a1, a2) in cascade on the loop's
     # proportional and rate terms (kp e - kd d/dt LP(tau_sg)), not on the integral: the daemon's notch
-    # (ankle_rt.notch.Notch, on the configured cable) and the shapes studied in benchmarks/study_torque_loop_shaping.py
+    # (ankle_rt.notch.Notch, on the configured cable) and the shapes studied in
+    # benchmarks/study_torque_loop_shaping.py
     shaping: tuple[tuple[tuple[float, ...], ...], tuple[tuple[float, ...], ...]] = ((), ())
     dt: float = 1e-3
     delay_cycles: int = 1

@@ -714,7 +714,8 @@ def check_notch_frequencies(cfg: Mapping[str, Any], origin: Callable[[KeyPath], 
     """A torque-loop notch lies below the loop's Nyquist frequency where the loop runs it (moved to the
     configured cable, :class:`ankle_rt.notch.Notch`): the sampled band-stop has nowhere else to be (the
     schema's MAX_NOTCH_HZ is the 1 kHz loop's; controller.rate_hz goes down to 250 Hz)."""
-    rate, loop, k = cfg["controller"]["rate_hz"], cfg["controller"]["torque_loop"], cfg["transmission"]["cable_stiffness"]
+    rate, loop = cfg["controller"]["rate_hz"], cfg["controller"]["torque_loop"]
+    k = cfg["transmission"]["cable_stiffness"]
     scale = cable_scale(loop, k)
     for key, hz in zip(("notch_hz_dp", "notch_hz_ie"), Notch.from_config(loop, k).hz):
         if hz >= 0.5 * rate:

@@ -1,6 +1,6 @@
 """The notch on the joint-torque loop's P and rate terms (issue 19, fourth pass): it takes gain out at
 the free foot's cable mode only, the daemon's loop and the linear model run the same section, and the
-margin check counts it (a high-gain set is stable only with it)."""
+margin check counts it (a high-gain set is stable only with it); it follows the configured cable stiffness."""
 
 from __future__ import annotations
 
