@@ -29,7 +29,7 @@ import numpy as np
 
 from ankle_rt.config_schema import IMPEDANCE_GAINS, LOOP_GAINS, SHIPPED_GAINS, SHIPPED_PD_GAINS
 from ankle_rt.linear_model import N_X, LinearModel
-from ankle_rt.notch import IDENTITY_SECTION, config_notch_sections
+from ankle_rt.notch import IDENTITY_SECTION, Notch
 from ankle_rt.params import PlantParams
 
 AXES = ("dp", "ie")
@@ -348,7 +348,8 @@ class ImpedanceLoop:
     ff_viscous: float = 0.0                 # N m s/rad per motor: the friction feed-forward's viscous slope
     # per axis [DP, IE], discrete second-order sections (b0, b1, b2, a1, a2) in cascade on the loop's
     # proportional and rate terms (kp e - kd d/dt LP(tau_sg)), not on the integral: the daemon's notch
-    # (TorqueLoopGains.sections) and the shapes studied in benchmarks/study_torque_loop_shaping.py
+    # (ankle_rt.notch.Notch, on the configured cable) and the shapes studied in
+    # benchmarks/study_torque_loop_shaping.py
     shaping: tuple[tuple[tuple[float, ...], ...], tuple[tuple[float, ...], ...]] = ((), ())
     dt: float = 1e-3
     delay_cycles: int = 1
@@ -365,16 +366,17 @@ class ImpedanceLoop:
         pair = lambda sec, key: (float(sec[key + "_dp"]), float(sec[key + "_ie"])) if closed else (0.0, 0.0)  # noqa: E731
         inertia = ReflectedActuator.from_config(cfg).inertia
         frac = pair(tl, "dob_inertia")
+        dt = 1.0 / c["rate_hz"]
         return cls(stiffness=(imp["stiffness_dp"], imp["stiffness_ie"]), damping=(imp["damping_dp"], imp["damping_ie"]),
                    kp=pair(tl, "kp"), ki=pair(tl, "ki"), torque_rate_gain=pair(tl, "torque_rate"),
                    cutoff_hz=tl["cutoff_hz"], dob_hz=float(tl["dob_hz"]) if closed else 0.0,
                    dob_inertia=(frac[0] * inertia[0], frac[1] * inertia[1]), joint_encoders=uses_joint_encoders(cfg),
                    velocity_cutoff_hz=cfg["estimation"]["velocity_cutoff_hz"],
                    ff_viscous=0.0 if closed else ff_viscous,
-                   shaping=tuple(() if s == IDENTITY_SECTION else (s,)
-                                 for s in config_notch_sections(tl, 1.0 / c["rate_hz"]))
+                   shaping=tuple(() if s == IDENTITY_SECTION else (s,) for s in
+                                 Notch.from_config(tl, cfg["transmission"]["cable_stiffness"]).sections(dt))
                    if closed else ((), ()),
-                   dt=1.0 / c["rate_hz"], delay_cycles=delay_cycles)
+                   dt=dt, delay_cycles=delay_cycles)
 
     GAINS = (*LOOP_GAINS, *IMPEDANCE_GAINS)
 

@@ -18,6 +18,7 @@ from ankle_rt.command_limits import MAX_TORQUE_KI, MAX_TORQUE_KP, MAX_TORQUE_RAT
 from ankle_rt.controller_registry import check_controller_name
 from ankle_rt.oscillation import BAND_HZ, band_floor
 from ankle_rt.kinematics import motor_ratio
+from ankle_rt.notch import Notch, cable_scale
 from ankle_rt.params import GRAVITY, TransmissionParams
 from ankle_rt.references import PROFILE_PARAMS, Gait
 from ankle_rt.schema import ConfigError, Field, KeyPath, ListOf, Section, non_negative, positive
@@ -105,6 +106,9 @@ MAX_DOB_HZ, MAX_OBSERVER, MAX_TANK_J = 200.0, 100.0, 10.0
 # The notch [DP, IE] on the torque loop's P and rate terms over the free foot's cable mode (DP 98 Hz nominal;
 # docs/daemon.md, fourth pass): what lets kp_dp rise above ~10 with >= 7 dB over cables x0.7-1.3. IE: none.
 NOTCH_HZ_DEFAULT, NOTCH_ZETA_DEFAULT, NOTCH_DEPTH_DEFAULT = (87.5, 0.0), (0.34, 0.2), (0.37, 0.5)
+# N/m: the cable stiffness NOTCH_HZ_DEFAULT is placed for, config/nominal-params.yaml's; the loop moves the notch
+# to the configured cable as sqrt(transmission.cable_stiffness / this) (ankle_rt.notch)
+NOTCH_CABLE_STIFFNESS_DEFAULT = 218800.0
 MAX_NOTCH_HZ = 400.0   # below the 1 kHz loop's Nyquist frequency
 
 IMPEDANCE_DEFAULTS = {"stiffness_dp": 20.0, "stiffness_ie": 10.0, "damping_dp": 0.5, "damping_ie": 0.25}
@@ -177,6 +181,12 @@ TORQUE_LOOP = Section({
                                         f"free foot's cable mode); 0 = no notch", default=NOTCH_HZ_DEFAULT[i],
                                         high=MAX_NOTCH_HZ)
        for i, axis in enumerate(("dp", "ie"))},
+    "notch_cable_stiffness": positive("N/m, the cable stiffness notch_hz_dp and notch_hz_ie are placed for: the loop "
+                                      "runs each notch at notch_hz x sqrt(transmission.cable_stiffness / this), where "
+                                      "the configured cable puts the mode it sits on (`config check` prints it). "
+                                      "Placing notch_hz for your own cable? Set this to your transmission."
+                                      "cable_stiffness too, or the notch is moved a second time",
+                                      default=NOTCH_CABLE_STIFFNESS_DEFAULT, high=1e8),
     **{f"notch_zeta_{axis}": Field(float, f"the {axis.upper()} notch's width (damping ratio of its poles)",
                                    default=NOTCH_ZETA_DEFAULT[i], low=0.02, high=2.0)
        for i, axis in enumerate(("dp", "ie"))},
@@ -712,13 +722,20 @@ def check_reference_rate_limit(cfg: Mapping[str, Any], origin: Callable[[KeyPath
 
 
 def check_notch_frequencies(cfg: Mapping[str, Any], origin: Callable[[KeyPath], str]) -> None:
-    """A torque-loop notch lies below the loop's Nyquist frequency: the sampled band-stop has nowhere
-    else to be (the schema's MAX_NOTCH_HZ is the 1 kHz loop's; controller.rate_hz goes down to 250 Hz)."""
+    """A torque-loop notch lies below the loop's Nyquist frequency where the loop runs it (moved to the
+    configured cable, :class:`ankle_rt.notch.Notch`): the sampled band-stop has nowhere else to be (the
+    schema's MAX_NOTCH_HZ is the 1 kHz loop's; controller.rate_hz goes down to 250 Hz)."""
     rate, loop = cfg["controller"]["rate_hz"], cfg["controller"]["torque_loop"]
-    for key in ("notch_hz_dp", "notch_hz_ie"):
-        if loop[key] >= 0.5 * rate:
-            raise ConfigError(f"must be < {0.5 * rate:g} Hz, the Nyquist frequency of controller.rate_hz ({rate}), got "
-                              f"{loop[key]:g}", origin(("controller", "torque_loop", key)), f"controller.torque_loop.{key}")
+    k = cfg["transmission"]["cable_stiffness"]
+    scale = cable_scale(loop, k)
+    for key, hz in zip(("notch_hz_dp", "notch_hz_ie"), Notch.from_config(loop, k).hz):
+        if hz >= 0.5 * rate:
+            moved = "" if scale == 1.0 else (
+                f" (it runs at {hz:g} Hz: placed for controller.torque_loop.notch_cable_stiffness "
+                f"{loop['notch_cable_stiffness']:g} N/m, moved x{scale:.3g} to transmission.cable_stiffness {k:g})")
+            raise ConfigError(f"must be < {0.5 * rate / scale:.4g} Hz: the notch must lie below the Nyquist frequency "
+                              f"of controller.rate_hz ({rate}), {0.5 * rate:g} Hz{moved}, got {loop[key]:g}",
+                              origin(("controller", "torque_loop", key)), f"controller.torque_loop.{key}")
 
 
 DEVICE_MAX_STALL_S = 0.1           # s: the longest the device may act on old data or old set values

@@ -1,14 +1,19 @@
-"""The joint-torque loop's band-stop as one second-order section (b0, b1, b2, a1, a2): shared by the
-daemon's loop (ankle_rt.control.torque_loop) and the sampled linear model (ankle_rt.analysis), so the
-margin check counts exactly the filter the loop runs. A leaf module: the model imports it without the
-control package."""
+"""The joint-torque loop's band-stops [DP, IE], each one second-order section (b0, b1, b2, a1, a2): one
+:class:`Notch` serves the daemon's loop (ankle_rt.control.torque_loop) and the sampled linear model
+(ankle_rt.analysis), so the margin check counts exactly the filter the loop runs. The configured centres
+(``notch_hz_dp`` / ``notch_hz_ie``) are placed for the cable stiffness ``notch_cable_stiffness``; the
+loop runs them where the configured cable (``transmission.cable_stiffness``) puts the cable modes they
+sit on: x sqrt(k / notch_cable_stiffness), a mode of fixed inertias on a spring of stiffness k. A leaf
+module: the model imports it without the control package."""
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Any, Mapping
 
 IDENTITY_SECTION = (1.0, 0.0, 0.0, 0.0, 0.0)   # (b0, b1, b2, a1, a2): passes its input through
+AXES = ("dp", "ie")
 
 
 def notch_section(f0: float, zeta: float, depth: float, dt: float) -> tuple[float, float, float, float, float]:
@@ -27,7 +32,28 @@ def notch_section(f0: float, zeta: float, depth: float, dt: float) -> tuple[floa
             2.0 * (w * w - c * c) / a0, (c * c - d1 + w * w) / a0)
 
 
-def config_notch_sections(torque_loop: Mapping[str, Any], dt: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
-    """The notch of each axis [DP, IE] of ``controller.torque_loop`` over ``dt``."""
-    return tuple(notch_section(float(torque_loop[f"notch_hz_{a}"]), float(torque_loop[f"notch_zeta_{a}"]),
-                               float(torque_loop[f"notch_depth_{a}"]), dt) for a in ("dp", "ie"))
+def cable_scale(torque_loop: Mapping[str, Any], cable_stiffness: float) -> float:
+    """How far the cable modes moved from where the notches were placed: sqrt(``cable_stiffness`` /
+    ``notch_cable_stiffness``), both N/m (exactly 1 when they are equal)."""
+    return math.sqrt(float(cable_stiffness) / float(torque_loop["notch_cable_stiffness"]))
+
+
+@dataclass(frozen=True)
+class Notch:
+    """The band-stops [DP, IE] on the torque loop's P and rate terms as the loop runs them."""
+
+    hz: tuple[float, float]        # centres on the configured cable; 0: none
+    zeta: tuple[float, float]      # widths (the denominator's damping ratio)
+    depth: tuple[float, float]     # gains at the centres
+
+    @classmethod
+    def from_config(cls, torque_loop: Mapping[str, Any], cable_stiffness: float) -> "Notch":
+        """From ``controller.torque_loop`` on a cable of ``cable_stiffness`` N/m (``transmission.cable_stiffness``):
+        the configured centres moved by :func:`cable_scale`."""
+        pair = lambda key: tuple(float(torque_loop[f"{key}_{a}"]) for a in AXES)  # noqa: E731
+        scale = cable_scale(torque_loop, cable_stiffness)
+        return cls(hz=tuple(f * scale for f in pair("notch_hz")), zeta=pair("notch_zeta"), depth=pair("notch_depth"))
+
+    def sections(self, dt: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
+        """The notch of each axis [DP, IE] as a second-order section over ``dt`` (:func:`notch_section`)."""
+        return tuple(notch_section(self.hz[a], self.zeta[a], self.depth[a], dt) for a in (0, 1))

@@ -3,7 +3,6 @@ and on floats, so equal to rounding (1e-9 of each signal's span)."""
 
 from __future__ import annotations
 
-import math
 
 import numpy as np
 import pytest
@@ -45,10 +44,8 @@ def _variants(base):
 
 
 def _cables(cfg, factor):
-    """Cable stiffness x ``factor``, the torque loop's notch re-centred on the moved cable mode (x sqrt(factor):
-    the shipped notch holds the margin only near the cable stiffness it was placed for, docs/daemon.md)."""
+    """Cable stiffness x ``factor`` (the torque loop's notch follows it, ankle_rt.notch)."""
     cfg["transmission"]["cable_stiffness"] *= factor
-    cfg["controller"]["torque_loop"]["notch_hz_dp"] *= math.sqrt(factor)
 
 
 def _compare(cfgs, tolerance=1e-9):

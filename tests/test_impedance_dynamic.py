@@ -83,7 +83,8 @@ def test_the_empty_tank_lets_the_observer_only_brake(base):
     the observer's torque along the motion is cut, while braking stays allowed."""
     tl = dict(base["controller"]["torque_loop"], dob_hz=20.0, tank_j=0.01, tank_friction_credit=0.0,
               kp_dp=0.0, kp_ie=0.0, ki_dp=0.0, ki_ie=0.0, torque_rate_dp=0.0, torque_rate_ie=0.0)
-    loop = JointTorqueLoop(TorqueLoopGains.from_config(tl), 1e-3, ReflectedActuator.from_config(base))
+    gains = TorqueLoopGains.from_config(tl, base["transmission"]["cable_stiffness"])
+    loop = JointTorqueLoop(gains, 1e-3, ReflectedActuator.from_config(base))
     loop.reset_state(0.0, 0.0)
     # constant speed, no cable torque: what the loop commands looks like friction to the observer
     outs = [loop.update(2.0, 0.0, 0.0, 0.0, 1.0, 0.0, True)[0] - 2.0 for _ in range(400)]
@@ -97,7 +98,8 @@ def test_activation_does_not_read_the_rate_left_from_before_as_a_disturbance(bas
     """The observer differences the motor rate from the last cycle: after a reset at rest, a rate
     left from before (the ankle moving fast when the run was deactivated) must not kick it."""
     tl = dict(base["controller"]["torque_loop"], dob_hz=20.0)
-    gains, act = TorqueLoopGains.from_config(tl), ReflectedActuator.from_config(base)
+    gains = TorqueLoopGains.from_config(tl, base["transmission"]["cable_stiffness"])
+    act = ReflectedActuator.from_config(base)
     used, fresh = JointTorqueLoop(gains, 1e-3, act), JointTorqueLoop(gains, 1e-3, act)
     for _ in range(50):
         used.update(0.0, 0.0, 0.0, 0.0, 8.0, -6.0, True)    # moving fast, then deactivated

@@ -53,7 +53,8 @@ class TorqueStep:
     """Test controller: the joint-torque loop alone, tracking a desired joint-torque step [DP, IE]."""
 
     def __init__(self, cfg, step_nm, t_step):
-        self.loop = JointTorqueLoop(TorqueLoopGains.from_config(cfg["controller"]["torque_loop"]),
+        self.loop = JointTorqueLoop(TorqueLoopGains.from_config(cfg["controller"]["torque_loop"],
+                                                                  cfg["transmission"]["cable_stiffness"]),
                                     1.0 / cfg["controller"]["rate_hz"], ReflectedActuator.from_config(cfg))
         self.RiT = Kinematics.from_params(TransmissionParams(**cfg["transmission"])).R_inv_T
         self.step, self.t_step = step_nm, t_step

@@ -16,6 +16,7 @@ from ankle_rt.control.torque_loop import JointTorqueLoop, TorqueLoopGains
 from ankle_rt.daemon import run_lockstep
 from ankle_rt.bench.impedance import bench_config
 from ankle_rt.kinematics import Kinematics
+from ankle_rt.notch import Notch
 from ankle_rt.oscillation import OscillationDetector, band_floor
 from ankle_rt.params import TransmissionParams
 from ankle_rt.paths import default_config_path
@@ -35,13 +36,15 @@ def cfg():
 
 
 def shipped_gains(cfg) -> TorqueLoopGains:
-    return TorqueLoopGains.from_config(cfg["controller"]["torque_loop"])
+    return TorqueLoopGains.from_config(cfg["controller"]["torque_loop"],
+                                       cfg["transmission"]["cable_stiffness"])
 
 
 def issue_gains(cfg, max_correction) -> TorqueLoopGains:
     """The issue's hot loop: kp 100 on the loop shipped then (ki 10/s, rate 0.03 / 0.06 s, no notch)."""
     return dataclasses.replace(shipped_gains(cfg), kp=(100.0, 100.0), ki=(10.0, 10.0), torque_rate=(0.03, 0.06),
-                               notch_hz=(0.0, 0.0), max_correction_nm=(max_correction, max_correction))
+                               notch=Notch((0.0, 0.0), (0.3, 0.3), (1.0, 1.0)),
+                               max_correction_nm=(max_correction, max_correction))
 
 
 def loop_controller(cfg, g: TorqueLoopGains):

@@ -88,9 +88,27 @@ def describe(cfg) -> list[str]:
         f"safety:      ankle range +/-{cfg['limits']['ankle_range_deg']:g} deg, current peak "
         f"{amp['current_limit_peak']:g} A / continuous {amp['current_limit_continuous']:g} A, "
         f"{'activates itself after the tare' if safety['auto_activate'] else 'waits for ankle-rt ctl activate'}",
+    ] + _torque_loop_lines(cfg) + [
         "logging:     " + (f"on, into {log['directory']}" if log["enabled"] else "off"),
         "service:     " + (_socket_line(cfg) if service["enabled"] else "no command socket"),
     ] + ([_lsl_line(cfg)] if cfg["lsl"]["enabled"] else [])
+
+
+def _torque_loop_lines(cfg) -> list[str]:
+    """The joint-torque loop under the impedance or gait-phase controller, its notches where the loop runs
+    them: moved from the cable they are placed for (``notch_cable_stiffness``) to the configured one."""
+    from ankle_rt.loop_setup import torque_feedback
+    from ankle_rt.notch import AXES, Notch, cable_scale
+
+    c = cfg["controller"]
+    if c["type"] not in ("impedance", "gait_phase") or not torque_feedback(cfg):
+        return []
+    tl, k = c["torque_loop"], cfg["transmission"]["cable_stiffness"]
+    notch = Notch.from_config(tl, k)
+    notches = ", ".join(f"{a.upper()} {hz:.4g} Hz (notch_hz_{a} {tl[f'notch_hz_{a}']:g})" if hz > 0.0
+                        else f"{a.upper()} none" for a, hz in zip(AXES, notch.hz))
+    return [f"torque loop: kp {tl['kp_dp']:g} / {tl['kp_ie']:g}; notch {notches}: placed for notch_cable_stiffness "
+            f"{tl['notch_cable_stiffness']:g} N/m, x{cable_scale(tl, k):.4g} for transmission.cable_stiffness {k:g}"]
 
 
 def _lsl_line(cfg) -> str:

@@ -135,6 +135,6 @@ def actuation_from_config(cfg: "Config", friction: FrictionFeedForward | None
     if not torque_feedback(cfg):
         return None, None, friction
     c = cfg["controller"]
-    loop = JointTorqueLoop(TorqueLoopGains.from_config(c["torque_loop"]), 1.0 / c["rate_hz"],
-                           ReflectedActuator.from_config(cfg))
+    loop = JointTorqueLoop(TorqueLoopGains.from_config(c["torque_loop"], cfg["transmission"]["cable_stiffness"]),
+                           1.0 / c["rate_hz"], ReflectedActuator.from_config(cfg))
     return loop, ImpedanceLimits.from_config(cfg), friction.without_viscous() if friction is not None else None

@@ -24,7 +24,9 @@ deliver, so per ankle axis this loop drives the measured torque to the desired o
 - A **notch** (``notch_hz`` > 0, a second-order band-stop of width ``notch_zeta`` and gain
   ``notch_depth`` at ``notch_hz``) on ``kp e - kd d/dt LP(tau_sg)`` (not the integral) takes gain out
   of the loop at the free foot's cable mode only, so kp and kd may be larger below it (a smaller
-  felt inertia J / (1 + kp)) with the same margin (benchmarks/study_torque_loop_shaping.py).
+  felt inertia J / (1 + kp)) with the same margin (benchmarks/study_torque_loop_shaping.py). It
+  follows the configured cable: ``notch_hz`` is placed for ``notch_cable_stiffness`` and runs at
+  x sqrt(transmission.cable_stiffness / notch_cable_stiffness) (:class:`ankle_rt.notch.Notch`).
 - The integral is held while the correction is clamped and pushing the same way (conditional
   integration): a large, fast push no longer winds it up (the old loop rendered 9 N m/rad for a
   15 N m 2 Hz sine at K 200).
@@ -57,7 +59,7 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 from ankle_rt.elementwise import Value, clip, select, stack
 from ankle_rt.loop_setup import ReflectedActuator
-from ankle_rt.notch import notch_section
+from ankle_rt.notch import Notch
 
 if TYPE_CHECKING:
     import numpy as np
@@ -86,23 +88,18 @@ class TorqueLoopGains:
     max_observer_nm: tuple[float, float]     # |d| at most this
     tank_j: float                            # J, the energy tank's capacity
     tank_friction_credit: float              # share of the identified friction's dissipation the tank gets
-    notch_hz: tuple[float, float]            # band-stop on the P and rate terms; 0: none
-    notch_zeta: tuple[float, float]          # its width (the denominator's damping ratio)
-    notch_depth: tuple[float, float]         # its gain at notch_hz
-
-    def sections(self, dt: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
-        """The notch of each axis [DP, IE] as a second-order section over ``dt`` (:func:`notch_section`)."""
-        return tuple(notch_section(self.notch_hz[a], self.notch_zeta[a], self.notch_depth[a], dt) for a in (0, 1))
+    notch: Notch                             # band-stops on the P and rate terms, on the configured cable
 
     @classmethod
-    def from_config(cls, c: Mapping[str, Any]) -> "TorqueLoopGains":
-        """From ``controller.torque_loop``."""
+    def from_config(cls, c: Mapping[str, Any], cable_stiffness: float) -> "TorqueLoopGains":
+        """From ``controller.torque_loop``, the notches moved to the cable of ``cable_stiffness`` N/m
+        (``transmission.cable_stiffness``; :meth:`ankle_rt.notch.Notch.from_config`)."""
         pair = lambda key: (float(c[key + "_dp"]), float(c[key + "_ie"]))  # noqa: E731
         return cls(kp=pair("kp"), ki=pair("ki"), torque_rate=pair("torque_rate"),
                    cutoff_hz=float(c["cutoff_hz"]), max_correction_nm=pair("max_correction"),
                    dob_hz=float(c["dob_hz"]), dob_inertia=pair("dob_inertia"), max_observer_nm=pair("max_observer"),
                    tank_j=float(c["tank_j"]), tank_friction_credit=float(c["tank_friction_credit"]),
-                   notch_hz=pair("notch_hz"), notch_zeta=pair("notch_zeta"), notch_depth=pair("notch_depth"))
+                   notch=Notch.from_config(c, cable_stiffness))
 
 
 class JointTorqueLoop:
@@ -120,7 +117,7 @@ class JointTorqueLoop:
         self.lim0, self.lim1 = gains.max_correction_nm
         self.alpha = 1.0 - math.exp(-2.0 * math.pi * gains.cutoff_hz * dt)
         (self.nb00, self.nb01, self.nb02, self.na01, self.na02), (self.nb10, self.nb11, self.nb12, self.na11, self.na12) \
-            = gains.sections(dt)
+            = gains.notch.sections(dt)
         on = gains.dob_hz > 0.0
         if on and actuator is None:
             raise ValueError("JointTorqueLoop: the disturbance observer needs the reflected actuator")
