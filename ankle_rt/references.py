@@ -373,14 +373,15 @@ def reference_from_config(cfg: Mapping[str, Any]) -> ReferenceGenerator:
     except InterchangeError as exc:      # the CSV file itself is bad: say which file, column and row
         raise ConfigError(str(exc), source, "reference.csv.path") from None
     generator = ReferenceGenerator(profile)
-    # a file's rate cannot be checked like a formula's, and a hold is approached from wherever the
-    # ankle is (over reference.ramp_s, which may be 0): both limited as a commanded reference is
-    if name in ("csv", "hold"):
+    # the absolute profiles (a CSV file, whose rate cannot be checked like a formula's, and a hold,
+    # approached from wherever the ankle is over reference.ramp_s, which may be 0) are limited as a
+    # commanded reference is
+    if not profile.relative:
         generator.max_step = max_reference_step(cfg)
     return generator
 
 
 def max_reference_step(cfg: Mapping[str, Any]) -> float:
-    """rad per cycle a commanded or CSV reference may move: ``reference.max_rate_rad_s`` over one
-    period of ``controller.rate_hz``."""
+    """rad per cycle a commanded or configured absolute (CSV, hold) reference may move:
+    ``reference.max_rate_rad_s`` over one period of ``controller.rate_hz``."""
     return cfg["reference"]["max_rate_rad_s"] / cfg["controller"]["rate_hz"]
