@@ -27,8 +27,9 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from ankle_rt.config_schema import IMPEDANCE_GAINS, LOOP_GAINS, SHIPPED_GAINS, SHIPPED_PD_GAINS
+from ankle_rt.config_schema import IMPEDANCE_GAINS, LOOP_GAINS, SHIPPED_GAINS, SHIPPED_PD_GAINS, torque_loop_cutoffs
 from ankle_rt.linear_model import N_X, LinearModel
+from ankle_rt.lag import Lag
 from ankle_rt.notch import IDENTITY_SECTION, Notch
 from ankle_rt.params import PlantParams
 
@@ -340,16 +341,17 @@ class ImpedanceLoop:
     kp: tuple[float, float] = (0.0, 0.0)    # torque loop (all zero: open loop)
     ki: tuple[float, float] = (0.0, 0.0)    # 1/s
     torque_rate_gain: tuple[float, float] = (0.0, 0.0)   # s, on the filtered measured torque's rate
-    cutoff_hz: float = 30.0
+    cutoff_hz: float = 30.0                 # the shared key (a gain of GAINS) ...
+    axis_cutoff_hz: tuple[float | None, float | None] = (None, None)   # ... unless an axis has its own
     dob_hz: float = 0.0                     # disturbance observer's low-pass (0: no observer)
     dob_inertia: tuple[float, float] = (0.0, 0.0)   # kg m^2, the observer's nominal (ankle-side) inertia
     joint_encoders: bool = False            # the impedance law's angle: joint encoders (else through the cables)
     velocity_cutoff_hz: float = 100.0       # estimation.velocity_cutoff_hz
     ff_viscous: float = 0.0                 # N m s/rad per motor: the friction feed-forward's viscous slope
     # per axis [DP, IE], discrete second-order sections (b0, b1, b2, a1, a2) in cascade on the loop's
-    # proportional and rate terms (kp e - kd d/dt LP(tau_sg)), not on the integral: the daemon's notch
-    # (ankle_rt.notch.Notch, on the configured cable) and the shapes studied in
-    # benchmarks/study_torque_loop_shaping.py
+    # proportional and rate terms (kp e - kd d/dt LP(tau_sg)), not on the integral: the daemon's lag
+    # (ankle_rt.lag.Lag) then notch (ankle_rt.notch.Notch, on the configured cable), and the shapes
+    # studied in benchmarks/study_torque_loop_shaping.py
     shaping: tuple[tuple[tuple[float, ...], ...], tuple[tuple[float, ...], ...]] = ((), ())
     dt: float = 1e-3
     delay_cycles: int = 1
@@ -369,12 +371,14 @@ class ImpedanceLoop:
         dt = 1.0 / c["rate_hz"]
         return cls(stiffness=(imp["stiffness_dp"], imp["stiffness_ie"]), damping=(imp["damping_dp"], imp["damping_ie"]),
                    kp=pair(tl, "kp"), ki=pair(tl, "ki"), torque_rate_gain=pair(tl, "torque_rate"),
-                   cutoff_hz=tl["cutoff_hz"], dob_hz=float(tl["dob_hz"]) if closed else 0.0,
+                   cutoff_hz=tl["cutoff_hz"], axis_cutoff_hz=(tl.get("cutoff_hz_dp"), tl.get("cutoff_hz_ie")),
+                   dob_hz=float(tl["dob_hz"]) if closed else 0.0,
                    dob_inertia=(frac[0] * inertia[0], frac[1] * inertia[1]), joint_encoders=uses_joint_encoders(cfg),
                    velocity_cutoff_hz=cfg["estimation"]["velocity_cutoff_hz"],
                    ff_viscous=0.0 if closed else ff_viscous,
-                   shaping=tuple(() if s == IDENTITY_SECTION else (s,) for s in
-                                 Notch.from_config(tl, cfg["transmission"]["cable_stiffness"]).sections(dt))
+                   shaping=tuple(tuple(s for s in axis if s != IDENTITY_SECTION) for axis in
+                                 zip(Lag.from_config(tl).sections(dt),
+                                     Notch.from_config(tl, cfg["transmission"]["cable_stiffness"]).sections(dt)))
                    if closed else ((), ()),
                    dt=dt, delay_cycles=delay_cycles)
 
@@ -490,9 +494,11 @@ def _controller(lm_kin, K_cable: np.ndarray, c: ImpedanceLoop) -> tuple[np.ndarr
     th_prev, v_prev, f_prev, i_prev, d_prev, u_prev = (e[2 * j:2 * j + 2] for j in range(6))
     th, tau, joint, r = e[nw:nw + 2], e[nw + 2:nw + 4], e[nw + 4:nw + 6], e[nw + 6:nw + 8]
     a_v = 1.0 - math.exp(-2.0 * math.pi * c.velocity_cutoff_hz * c.dt)
-    a_f = 1.0 - math.exp(-2.0 * math.pi * c.cutoff_hz * c.dt)
+    a_f = np.diag([1.0 - math.exp(-2.0 * math.pi * f * c.dt) for f in
+                   torque_loop_cutoffs({"cutoff_hz": c.cutoff_hz, "cutoff_hz_dp": c.axis_cutoff_hz[0],
+                                        "cutoff_hz_ie": c.axis_cutoff_hz[1]})])
     v = (1.0 - a_v) * v_prev + (a_v / c.dt) * (th - th_prev)
-    f = (1.0 - a_f) * f_prev + a_f * tau
+    f = f_prev - a_f @ f_prev + a_f @ tau
     Ri = lm_kin.R_inv
     ankle = joint if c.joint_encoders else Ri @ th - np.linalg.inv(K_cable) @ tau
     rate = Ri @ v
@@ -677,6 +683,9 @@ LOAD_FRICTION_RANGE = 0.12       # the load-dependent cable friction coefficient
 # by 10.2): 1.5 dB stepped over it, 0.5 dB does not
 _MARGIN_STEP_DB = 0.5
 _MARGIN_CAP_DB = 12.0            # the margin is reported up to here ("at least 12 dB" beyond)
+# and scanned down to this far below the nominal gain (the clamp's saturation lowers the correction's gain;
+# a free motor makes the loop marginal as the whole output goes to 0, so the scan stops short of it)
+_MARGIN_FLOOR_DB = 20.0
 
 
 @functools.lru_cache(maxsize=16)
@@ -699,29 +708,37 @@ def loop_margin_db(p: PlantParams, c: ImpedanceLoop, *, load_coefficient: float 
     """dB: the least gain margin of the loop over the whole margin sweep (the cases of
     :func:`torque_loop_margins`), -inf when a case is unstable, at most _MARGIN_CAP_DB. Scans the gain
     on a 0.5 dB grid (all cases and gains in one batched eigenvalue call) and refines the limiting case
-    by bisection."""
+    by bisection. Downwards too, to -_MARGIN_FLOOR_DB: a loop that is stable at its gain but not at a
+    smaller one (conditionally stable, as a lag makes it) has as its margin how far the gain may fall,
+    because the correction's clamp lowers the loop's gain at large amplitudes (a limit cycle there)."""
     T0, Tu = _loop_matrices(p, c, load_coefficient)
-    grid = 10.0 ** (np.arange(0.0, _MARGIN_CAP_DB + 1e-9, _MARGIN_STEP_DB) / 20.0)
+    grid = 10.0 ** (np.arange(-_MARGIN_FLOOR_DB, _MARGIN_CAP_DB + 1e-9, _MARGIN_STEP_DB) / 20.0)
     rho = np.abs(np.linalg.eigvals(T0[None] + grid[:, None, None, None] * Tu[None])).max(axis=-1)  # (grid, cases)
     unstable = rho >= 1.0
-    if unstable[0].any():
+    one = int(np.argmin(np.abs(grid - 1.0)))                       # the nominal gain's grid point
+    if unstable[one].any():
         return -math.inf
-    first = np.where(unstable.any(axis=0), unstable.argmax(axis=0), len(grid))   # first unstable grid point per case
-    point = int(first.min())
-    if point == len(grid):
-        return _MARGIN_CAP_DB
-    # every case that turns unstable within that grid step: the first of them need not cross first
-    return min(_bisect_margin_db(T0[case], Tu[case], float(grid[point - 1]), float(grid[point]))
-               for case in np.flatnonzero(first == point))
+    up, down = unstable[one:], unstable[one::-1]                   # from the nominal gain outwards
+    margins = []
+    for side, sign in ((up, 1), (down, -1)):
+        first = np.where(side.any(axis=0), side.argmax(axis=0), len(side))   # first unstable point per case
+        point = int(first.min())
+        if point == len(side):
+            continue
+        # every case that turns unstable within that grid step: the first of them need not cross first
+        g = grid[one + sign * (point - 1)], grid[one + sign * point]
+        margins += [_bisect_margin_db(T0[case], Tu[case], float(g[0]), float(g[1]))
+                    for case in np.flatnonzero(first == point)]
+    return min(margins, default=_MARGIN_CAP_DB)
 
 
-def _bisect_margin_db(T0: np.ndarray, Tu: np.ndarray, lo: float, hi: float) -> float:
-    """dB: the gain between ``lo`` (stable) and ``hi`` (unstable) where the loop ``T0 + g Tu`` turns
-    unstable, bisected to 1/256 of the step (the stable side)."""
+def _bisect_margin_db(T0: np.ndarray, Tu: np.ndarray, stable: float, unstable: float) -> float:
+    """dB: how far the gain may move from 1 towards ``unstable`` (past ``stable``, stable) before the
+    loop ``T0 + g Tu`` turns unstable, bisected to 1/256 of the step (the stable side)."""
     for _ in range(8):
-        mid = math.sqrt(lo * hi)
-        lo, hi = (mid, hi) if spectral_radius(T0 + mid * Tu) < 1.0 else (lo, mid)
-    return 20.0 * math.log10(lo)
+        mid = math.sqrt(stable * unstable)
+        stable, unstable = (mid, unstable) if spectral_radius(T0 + mid * Tu) < 1.0 else (stable, mid)
+    return abs(20.0 * math.log10(stable))
 
 
 def _with_gains(cfg_like: Mapping[str, Any], gains: Mapping[str, float]) -> dict:
