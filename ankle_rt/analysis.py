@@ -355,6 +355,9 @@ class ImpedanceLoop:
     shaping: tuple[tuple[tuple[float, ...], ...], tuple[tuple[float, ...], ...]] = ((), ())
     dt: float = 1e-3
     delay_cycles: int = 1
+    # the torque loop's correction (kp e + ki int e - kd rate, shaped) scaled by this: the describing function
+    # of its clamp (max_correction), which lowers the correction's gain at large amplitudes (loop_margin_db)
+    correction_gain: float = 1.0
 
     @classmethod
     def from_config(cls, cfg: dict, *, closed: bool, delay_cycles: int = 1, ff_viscous: float = 0.0) -> "ImpedanceLoop":
@@ -515,7 +518,7 @@ def _controller(lm_kin, K_cable: np.ndarray, c: ImpedanceLoop) -> tuple[np.ndarr
         out = b0 @ pd + s1
         shaped += [b1 @ pd - a1 @ out + s2, b2 @ pd - a2 @ out]
         pd = out
-    u_ankle = tau_des + pd + integ
+    u_ankle = tau_des + c.correction_gain * (pd + integ)
     if c.dob_hz > 0.0:
         a_d = 1.0 - math.exp(-2.0 * math.pi * c.dob_hz * c.dt)
         accel = np.diag(c.dob_inertia) @ (rate - Ri @ v_prev) / c.dt
@@ -683,8 +686,7 @@ LOAD_FRICTION_RANGE = 0.12       # the load-dependent cable friction coefficient
 # by 10.2): 1.5 dB stepped over it, 0.5 dB does not
 _MARGIN_STEP_DB = 0.5
 _MARGIN_CAP_DB = 12.0            # the margin is reported up to here ("at least 12 dB" beyond)
-# and scanned down to this far below the nominal gain (the clamp's saturation lowers the correction's gain;
-# a free motor makes the loop marginal as the whole output goes to 0, so the scan stops short of it)
+# and the torque loop's correction's gain down to this far below nominal (its clamp's describing function)
 _MARGIN_FLOOR_DB = 20.0
 
 
@@ -708,27 +710,30 @@ def loop_margin_db(p: PlantParams, c: ImpedanceLoop, *, load_coefficient: float 
     """dB: the least gain margin of the loop over the whole margin sweep (the cases of
     :func:`torque_loop_margins`), -inf when a case is unstable, at most _MARGIN_CAP_DB. Scans the gain
     on a 0.5 dB grid (all cases and gains in one batched eigenvalue call) and refines the limiting case
-    by bisection. Downwards too, to -_MARGIN_FLOOR_DB: a loop that is stable at its gain but not at a
-    smaller one (conditionally stable, as a lag makes it) has as its margin how far the gain may fall,
-    because the correction's clamp lowers the loop's gain at large amplitudes (a limit cycle there)."""
+    by bisection. With a joint-torque loop, also its correction's gain alone downwards (to
+    -_MARGIN_FLOOR_DB): the correction's clamp lowers that gain at large amplitudes, and a loop stable
+    at its gain but not at a smaller one (conditionally stable, as a large lag makes it) limit-cycles
+    there; its margin is then how far that gain may fall."""
     T0, Tu = _loop_matrices(p, c, load_coefficient)
-    grid = 10.0 ** (np.arange(-_MARGIN_FLOOR_DB, _MARGIN_CAP_DB + 1e-9, _MARGIN_STEP_DB) / 20.0)
-    rho = np.abs(np.linalg.eigvals(T0[None] + grid[:, None, None, None] * Tu[None])).max(axis=-1)  # (grid, cases)
-    unstable = rho >= 1.0
-    one = int(np.argmin(np.abs(grid - 1.0)))                       # the nominal gain's grid point
-    if unstable[one].any():
-        return -math.inf
-    up, down = unstable[one:], unstable[one::-1]                   # from the nominal gain outwards
+    steps = np.arange(0.0, _MARGIN_CAP_DB + 1e-9, _MARGIN_STEP_DB)
+    loops = [(T0, Tu, 10.0 ** (steps / 20.0))]                    # the whole output's gain, upwards
+    if isinstance(c, ImpedanceLoop) and any(c.kp + c.ki + c.torque_rate_gain):
+        # the correction's gain g_c, downwards: T0z + Tuz is the loop without it, T0 + Tu with all of it
+        T0z, Tuz = _loop_matrices(p, dataclasses.replace(c, correction_gain=0.0), load_coefficient)
+        down = np.arange(0.0, _MARGIN_FLOOR_DB + 1e-9, _MARGIN_STEP_DB)
+        loops.append((T0z + Tuz, T0 + Tu - T0z - Tuz, 10.0 ** (-down / 20.0)))
     margins = []
-    for side, sign in ((up, 1), (down, -1)):
-        first = np.where(side.any(axis=0), side.argmax(axis=0), len(side))   # first unstable point per case
+    for A, B, grid in loops:
+        rho = np.abs(np.linalg.eigvals(A[None] + grid[:, None, None, None] * B[None])).max(axis=-1)  # (grid, cases)
+        unstable = rho >= 1.0
+        if unstable[0].any():
+            return -math.inf
+        first = np.where(unstable.any(axis=0), unstable.argmax(axis=0), len(grid))   # first unstable point per case
         point = int(first.min())
-        if point == len(side):
-            continue
-        # every case that turns unstable within that grid step: the first of them need not cross first
-        g = grid[one + sign * (point - 1)], grid[one + sign * point]
-        margins += [_bisect_margin_db(T0[case], Tu[case], float(g[0]), float(g[1]))
-                    for case in np.flatnonzero(first == point)]
+        if point < len(grid):
+            # every case that turns unstable within that grid step: the first of them need not cross first
+            margins += [_bisect_margin_db(A[case], B[case], float(grid[point - 1]), float(grid[point]))
+                        for case in np.flatnonzero(first == point)]
     return min(margins, default=_MARGIN_CAP_DB)
 
 
