@@ -159,3 +159,21 @@ def test_lag_from_config_reads_both_axes(base):
     lag = Lag.from_config(tl)
     assert lag.hz == (2.0, 0.0) and lag.boost == (1.5, 1.0)
     assert lag.sections(DT) == (lag_section(2.0, 1.5, DT), IDENTITY_SECTION)
+
+
+@pytest.mark.parametrize("base_file", ["sim.yaml", "walk.yaml"])
+def test_the_opt_in_lag_notch_loop_is_accepted_where_shipped_and_runs_its_lag(tmp_path, base_file):
+    """config/torque-loop-lag-notch.yaml after sim.yaml and walk.yaml: loaded and its controller built (the
+    gait phases' margins checked too), the DP lag and the own DP cutoff in the daemon's loop."""
+    from ankle_rt.control import build_controller
+    from ankle_rt.kinematics import Kinematics
+    from ankle_rt.params import TransmissionParams
+    from ankle_rt.paths import CONFIG_DIR
+
+    path = tmp_path / "opt.yaml"
+    path.write_text(f"include: [{CONFIG_DIR / base_file}, {CONFIG_DIR / 'torque-loop-lag-notch.yaml'}]\n")
+    cfg = load_config(path, {"controller": {"type": "impedance"}} if base_file == "sim.yaml" else None)
+    ctl = build_controller(cfg, Kinematics.from_params(TransmissionParams(**cfg["transmission"])), np.zeros(2))
+    loop = ctl.torque_loop
+    assert loop.lag0 == lag_section(2.9, 1.8, DT) and loop.lag1 == IDENTITY_SECTION
+    assert loop.gains.cutoff_hz == (290.0, 80.0)
