@@ -177,3 +177,30 @@ def test_the_opt_in_lag_notch_loop_is_accepted_where_shipped_and_runs_its_lag(tm
     loop = ctl.torque_loop
     assert loop.lag0 == lag_section(2.9, 1.8, DT) and loop.lag1 == IDENTITY_SECTION
     assert loop.gains.cutoff_hz == (290.0, 80.0)
+
+
+def test_the_daemon_loop_and_the_model_controller_give_the_same_torques(base):
+    """The daemon's JointTorqueLoop and the linear model's controller rows (ImpedanceLoop: the rows the margin
+    check closes the loop with) driven by the same measured torques and desired torques (the law at K = B = 0,
+    so the desired torque is the model's r), with a DP lag and notch, an IE notch and per-axis cutoffs: the
+    same ankle-side torque every cycle (the correction inside its clamp)."""
+    tl = dict(base["controller"]["torque_loop"], **LAG_NOTCH, lag_boost_dp=1.8, cutoff_hz_ie=120.0, notch_hz_ie=72.3,
+              notch_zeta_ie=0.5, notch_depth_ie=0.58, max_correction_dp=100.0, max_correction_ie=100.0)
+    cfg = load_config(default_config_path(), {"controller": {"type": "impedance"}})
+    cfg["controller"]["torque_loop"].update(tl)
+    model = dataclasses.replace(an.ImpedanceLoop.from_config(cfg, closed=True), stiffness=(0.0, 0.0), damping=(0.0, 0.0))
+    assert len(model.shaping[0]) == 2 and len(model.shaping[1]) == 1
+    kin = an._sampled_plant(an.PlantParams.from_config(cfg), DT, foot="free", load_slope=0.0)[3]
+    W, _ = model.rows(kin, kin.K)
+    loop = JointTorqueLoop(TorqueLoopGains.from_config(tl, cfg["transmission"]["cable_stiffness"]), DT)
+    rng = np.random.default_rng(19)
+    freqs, phases = rng.uniform(0.5, 30.0, (4, 2)), rng.uniform(0.0, 2.0 * math.pi, (4, 2))
+    w, largest = np.zeros(W.shape[0]), 0.0
+    for k in range(1500):
+        tau, r = 0.2 * np.sin(2.0 * math.pi * freqs[:2] * k * DT + phases[:2]).sum(axis=0), \
+            np.sin(2.0 * math.pi * freqs[2:] * k * DT + phases[2:]).sum(axis=0)
+        w = W @ np.concatenate([w, np.zeros(2), tau, np.zeros(2), r])
+        got = loop.update(r[0], r[1], tau[0], tau[1], 0.0, 0.0, True)
+        assert np.allclose(got, w[10:12], rtol=0.0, atol=1e-9)
+        largest = max(largest, *(abs(g - x) for g, x in zip(got, r)))
+    assert 1.0 < largest < 100.0          # the correction did work, inside its clamp
