@@ -27,7 +27,8 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from ankle_rt.config_schema import IMPEDANCE_GAINS, LOOP_GAINS, SHIPPED_GAINS, SHIPPED_PD_GAINS, torque_loop_cutoffs
+from ankle_rt.config_schema import (IMPEDANCE_GAINS, LOOP_GAINS, SHIPPED_GAINS, SHIPPED_PD_GAINS, TORQUE_LOOP,
+                                    torque_loop_cutoffs)
 from ankle_rt.linear_model import N_X, LinearModel
 from ankle_rt.lag import Lag
 from ankle_rt.notch import IDENTITY_SECTION, Notch
@@ -769,6 +770,11 @@ def _load_coefficient(cfg: Mapping[str, Any]) -> float:
     return max([LOAD_FRICTION_RANGE, *found])
 
 
+# the torque loop's keys beyond a gain set's that a margin may be limited by and is then named for: the lag and
+# the per-axis cutoffs (their defaults: off)
+SHAPING_KEYS = ("lag_boost_dp", "lag_boost_ie", "lag_hz_dp", "lag_hz_ie", "cutoff_hz_dp", "cutoff_hz_ie")
+
+
 def gain_set_margin_db(cfg_like: Mapping[str, Any], gains: Mapping[str, float], *,
                        ff_viscous: float = 0.0) -> tuple[float, str | None]:
     """The smallest gain margin (dB, at most 12; -inf: unstable) of the impedance controller's closed
@@ -777,8 +783,9 @@ def gain_set_margin_db(cfg_like: Mapping[str, Any], gains: Mapping[str, float], 
     / ``controller.torque_loop``) in place of the config's, over cable stiffness x0.7/1/1.3, viscous
     friction x0.5-x2, load-dependent friction sliding with or against the load (the config's
     coefficient, at least 0.12) and foot free and held; and, when it is below
-    REQUIRED_GAIN_MARGIN_DB, the gain that limits it: of the gains away from the shipped values, the
-    one whose shipped value restores the most margin (None when the margin is met). Without the
+    REQUIRED_GAIN_MARGIN_DB, the gain that limits it: of the gains away from the shipped values (and the
+    lag and per-axis cutoff keys that are on, SHAPING_KEYS), the one whose shipped value (off) restores
+    the most margin (None when the margin is met). Without the
     joint-torque loop, the impedance law alone; for ``controller.type`` pd, the motor-side PD with
     ``gains`` (kp, kd) in place of the active set's (``controller.pd_gains``). ``ff_viscous``: the
     friction feed-forward's viscous slope (N m s/rad per motor, FrictionFeedForward.viscous_slope), a
@@ -801,7 +808,21 @@ def gain_set_margin_db(cfg_like: Mapping[str, Any], gains: Mapping[str, float], 
     # open loop: only the impedance gains can limit it (the torque loop's stay at their zeros)
     shipped = tuple(SHIPPED_GAINS[k] if closed or k in IMPEDANCE_GAINS else v
                     for k, v in zip(loop.GAINS, loop.gain_values()))
-    return _margin_and_limit(PlantParams.from_config(cfg), loop, _load_coefficient(cfg), shipped)
+    p, coefficient = PlantParams.from_config(cfg), _load_coefficient(cfg)
+    margin, limit = _margin_and_limit(p, loop, coefficient, shipped)
+    tl = cfg["controller"]["torque_loop"]
+    shaped = [k for k in SHAPING_KEYS if closed and tl.get(k) != TORQUE_LOOP.fields[k].default]
+    if limit is None or not shaped:
+        return margin, limit
+    # a lag or an axis's own cutoff may be what limits it: of those and the gain found, the one whose
+    # default (off) restores the most margin
+    restored = {limit: loop_margin_db(p, loop.with_gain(limit, shipped[loop.GAINS.index(limit)]),
+                                      load_coefficient=coefficient)}
+    for key in shaped:
+        off = {**cfg, "controller": {**cfg["controller"], "torque_loop": {**tl, key: TORQUE_LOOP.fields[key].default}}}
+        restored[key] = loop_margin_db(p, ImpedanceLoop.from_config(off, closed=True, ff_viscous=ff_viscous),
+                                       load_coefficient=coefficient)
+    return margin, max(restored, key=restored.get)
 
 
 @functools.lru_cache(maxsize=64)

@@ -127,13 +127,13 @@ def test_a_lag_or_cutoff_out_of_bounds_is_refused_naming_its_key(key, value):
 def test_a_large_boost_is_conditionally_stable_and_refused(base, k_dp):
     """The study's boost 2.56 keeps ~10 dB upwards but the loop is unstable with its correction at half its
     gain (what the clamp does to a large error: in lockstep the clamped correction limit-cycled the +-12 N m
-    pulses); the check now scans the correction's gain down and refuses it naming a gain; boost 1.6 keeps
-    >= 6 dB both ways."""
+    pulses); the check now scans the correction's gain down and refuses it naming the boost; boost 1.6
+    keeps >= 6 dB both ways."""
     cfg = bench_config(base, stiffness=(k_dp, k_dp / 2.0), damping=(0.5, 0.25), torque_feedback="auto",
                        friction_ff=None, effects=[])
     refused = dict(LAG_NOTCH, lag_boost_dp=2.56)
     margin, limit = an.gain_set_margin_db(cfg, refused)
-    assert margin < 6.0 and limit is not None
+    assert margin < 6.0 and limit == "lag_boost_dp"
     loop = an.ImpedanceLoop.from_config(an._with_gains(cfg, refused), closed=True)
     p = an.PlantParams.from_config(cfg)
 
@@ -198,3 +198,16 @@ def test_the_daemon_loop_and_the_model_controller_give_the_same_torques(base):
         assert np.allclose(got, w[10:12], rtol=0.0, atol=1e-9)
         largest = max(largest, *(abs(g - x) for g, x in zip(got, r)))
     assert 1.0 < largest < 100.0          # the correction did work, inside its clamp
+
+
+def test_a_config_with_a_conditionally_stable_lag_is_refused_naming_the_lag():
+    """At K_dp 50 the loader refuses the study's boost 2.56 naming controller.torque_loop.lag_boost_dp (not
+    the stiffness, which restores less margin), and an own cutoff that breaks the margin naming it."""
+    imp = {"stiffness_dp": 50.0, "stiffness_ie": 25.0}
+    with pytest.raises(ConfigError) as err:
+        load_config(default_config_path(), {"controller": {"type": "impedance", "impedance": imp,
+                                                           "torque_loop": dict(LAG_NOTCH, lag_boost_dp=2.56)}})
+    assert err.value.key == "controller.torque_loop.lag_boost_dp" and "dB" in err.value.message
+    with pytest.raises(ConfigError) as err:
+        load_config(default_config_path(), {"controller": {"type": "impedance", "torque_loop": {"cutoff_hz_dp": 20.0}}})
+    assert err.value.key == "controller.torque_loop.cutoff_hz_dp"
