@@ -211,3 +211,13 @@ def test_a_config_with_a_conditionally_stable_lag_is_refused_naming_the_lag():
     with pytest.raises(ConfigError) as err:
         load_config(default_config_path(), {"controller": {"type": "impedance", "torque_loop": {"cutoff_hz_dp": 20.0}}})
     assert err.value.key == "controller.torque_loop.cutoff_hz_dp"
+
+
+def test_config_check_prints_the_torque_filters_and_lags_only_when_configured(tmp_path):
+    from ankle_rt.commands.config import describe
+    from ankle_rt.paths import CONFIG_DIR
+
+    path = tmp_path / "opt.yaml"
+    path.write_text(f"include: [{CONFIG_DIR / 'walk.yaml'}, {CONFIG_DIR / 'torque-loop-lag-notch.yaml'}]\n")
+    assert any("torque filter DP 290 / IE 80 Hz; lag DP 2.9 Hz x1.8, IE none" in line for line in describe(load_config(path)))
+    assert not any("torque filter" in line for line in describe(load_config(CONFIG_DIR / "walk.yaml")))
