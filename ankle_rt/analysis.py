@@ -27,8 +27,10 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from ankle_rt.config_schema import IMPEDANCE_GAINS, LOOP_GAINS, SHIPPED_GAINS, SHIPPED_PD_GAINS
+from ankle_rt.config_schema import (IMPEDANCE_GAINS, LOOP_GAINS, SHIPPED_GAINS, SHIPPED_PD_GAINS, TORQUE_LOOP,
+                                    torque_loop_cutoffs)
 from ankle_rt.linear_model import N_X, LinearModel
+from ankle_rt.lag import Lag
 from ankle_rt.notch import IDENTITY_SECTION, Notch
 from ankle_rt.params import PlantParams
 
@@ -340,19 +342,23 @@ class ImpedanceLoop:
     kp: tuple[float, float] = (0.0, 0.0)    # torque loop (all zero: open loop)
     ki: tuple[float, float] = (0.0, 0.0)    # 1/s
     torque_rate_gain: tuple[float, float] = (0.0, 0.0)   # s, on the filtered measured torque's rate
-    cutoff_hz: float = 30.0
+    cutoff_hz: float = 30.0                 # the shared key (a gain of GAINS) ...
+    axis_cutoff_hz: tuple[float | None, float | None] = (None, None)   # ... unless an axis has its own
     dob_hz: float = 0.0                     # disturbance observer's low-pass (0: no observer)
     dob_inertia: tuple[float, float] = (0.0, 0.0)   # kg m^2, the observer's nominal (ankle-side) inertia
     joint_encoders: bool = False            # the impedance law's angle: joint encoders (else through the cables)
     velocity_cutoff_hz: float = 100.0       # estimation.velocity_cutoff_hz
     ff_viscous: float = 0.0                 # N m s/rad per motor: the friction feed-forward's viscous slope
     # per axis [DP, IE], discrete second-order sections (b0, b1, b2, a1, a2) in cascade on the loop's
-    # proportional and rate terms (kp e - kd d/dt LP(tau_sg)), not on the integral: the daemon's notch
-    # (ankle_rt.notch.Notch, on the configured cable) and the shapes studied in
-    # benchmarks/study_torque_loop_shaping.py
+    # proportional and rate terms (kp e - kd d/dt LP(tau_sg)), not on the integral: the daemon's lag
+    # (ankle_rt.lag.Lag) then notch (ankle_rt.notch.Notch, on the configured cable), and the shapes
+    # studied in benchmarks/study_torque_loop_shaping.py
     shaping: tuple[tuple[tuple[float, ...], ...], tuple[tuple[float, ...], ...]] = ((), ())
     dt: float = 1e-3
     delay_cycles: int = 1
+    # the torque loop's correction (kp e + ki int e - kd rate, shaped) scaled by this: the describing function
+    # of its clamp (max_correction), which lowers the correction's gain at large amplitudes (loop_margin_db)
+    correction_gain: float = 1.0
 
     @classmethod
     def from_config(cls, cfg: dict, *, closed: bool, delay_cycles: int = 1, ff_viscous: float = 0.0) -> "ImpedanceLoop":
@@ -369,12 +375,14 @@ class ImpedanceLoop:
         dt = 1.0 / c["rate_hz"]
         return cls(stiffness=(imp["stiffness_dp"], imp["stiffness_ie"]), damping=(imp["damping_dp"], imp["damping_ie"]),
                    kp=pair(tl, "kp"), ki=pair(tl, "ki"), torque_rate_gain=pair(tl, "torque_rate"),
-                   cutoff_hz=tl["cutoff_hz"], dob_hz=float(tl["dob_hz"]) if closed else 0.0,
+                   cutoff_hz=tl["cutoff_hz"], axis_cutoff_hz=(tl.get("cutoff_hz_dp"), tl.get("cutoff_hz_ie")),
+                   dob_hz=float(tl["dob_hz"]) if closed else 0.0,
                    dob_inertia=(frac[0] * inertia[0], frac[1] * inertia[1]), joint_encoders=uses_joint_encoders(cfg),
                    velocity_cutoff_hz=cfg["estimation"]["velocity_cutoff_hz"],
                    ff_viscous=0.0 if closed else ff_viscous,
-                   shaping=tuple(() if s == IDENTITY_SECTION else (s,) for s in
-                                 Notch.from_config(tl, cfg["transmission"]["cable_stiffness"]).sections(dt))
+                   shaping=tuple(tuple(s for s in axis if s != IDENTITY_SECTION) for axis in
+                                 zip(Lag.from_config(tl).sections(dt),
+                                     Notch.from_config(tl, cfg["transmission"]["cable_stiffness"]).sections(dt)))
                    if closed else ((), ()),
                    dt=dt, delay_cycles=delay_cycles)
 
@@ -490,9 +498,11 @@ def _controller(lm_kin, K_cable: np.ndarray, c: ImpedanceLoop) -> tuple[np.ndarr
     th_prev, v_prev, f_prev, i_prev, d_prev, u_prev = (e[2 * j:2 * j + 2] for j in range(6))
     th, tau, joint, r = e[nw:nw + 2], e[nw + 2:nw + 4], e[nw + 4:nw + 6], e[nw + 6:nw + 8]
     a_v = 1.0 - math.exp(-2.0 * math.pi * c.velocity_cutoff_hz * c.dt)
-    a_f = 1.0 - math.exp(-2.0 * math.pi * c.cutoff_hz * c.dt)
+    a_f = np.diag([1.0 - math.exp(-2.0 * math.pi * f * c.dt) for f in
+                   torque_loop_cutoffs({"cutoff_hz": c.cutoff_hz, "cutoff_hz_dp": c.axis_cutoff_hz[0],
+                                        "cutoff_hz_ie": c.axis_cutoff_hz[1]})])
     v = (1.0 - a_v) * v_prev + (a_v / c.dt) * (th - th_prev)
-    f = (1.0 - a_f) * f_prev + a_f * tau
+    f = f_prev - a_f @ f_prev + a_f @ tau
     Ri = lm_kin.R_inv
     ankle = joint if c.joint_encoders else Ri @ th - np.linalg.inv(K_cable) @ tau
     rate = Ri @ v
@@ -509,7 +519,7 @@ def _controller(lm_kin, K_cable: np.ndarray, c: ImpedanceLoop) -> tuple[np.ndarr
         out = b0 @ pd + s1
         shaped += [b1 @ pd - a1 @ out + s2, b2 @ pd - a2 @ out]
         pd = out
-    u_ankle = tau_des + pd + integ
+    u_ankle = tau_des + c.correction_gain * (pd + integ)
     if c.dob_hz > 0.0:
         a_d = 1.0 - math.exp(-2.0 * math.pi * c.dob_hz * c.dt)
         accel = np.diag(c.dob_inertia) @ (rate - Ri @ v_prev) / c.dt
@@ -677,6 +687,8 @@ LOAD_FRICTION_RANGE = 0.12       # the load-dependent cable friction coefficient
 # by 10.2): 1.5 dB stepped over it, 0.5 dB does not
 _MARGIN_STEP_DB = 0.5
 _MARGIN_CAP_DB = 12.0            # the margin is reported up to here ("at least 12 dB" beyond)
+# and the torque loop's correction's gain down to this far below nominal (its clamp's describing function)
+_MARGIN_FLOOR_DB = 20.0
 
 
 @functools.lru_cache(maxsize=16)
@@ -699,29 +711,40 @@ def loop_margin_db(p: PlantParams, c: ImpedanceLoop, *, load_coefficient: float 
     """dB: the least gain margin of the loop over the whole margin sweep (the cases of
     :func:`torque_loop_margins`), -inf when a case is unstable, at most _MARGIN_CAP_DB. Scans the gain
     on a 0.5 dB grid (all cases and gains in one batched eigenvalue call) and refines the limiting case
-    by bisection."""
+    by bisection. With a joint-torque loop, also its correction's gain alone downwards (to
+    -_MARGIN_FLOOR_DB): the correction's clamp lowers that gain at large amplitudes, and a loop stable
+    at its gain but not at a smaller one (conditionally stable, as a large lag makes it) limit-cycles
+    there; its margin is then how far that gain may fall."""
     T0, Tu = _loop_matrices(p, c, load_coefficient)
-    grid = 10.0 ** (np.arange(0.0, _MARGIN_CAP_DB + 1e-9, _MARGIN_STEP_DB) / 20.0)
-    rho = np.abs(np.linalg.eigvals(T0[None] + grid[:, None, None, None] * Tu[None])).max(axis=-1)  # (grid, cases)
-    unstable = rho >= 1.0
-    if unstable[0].any():
-        return -math.inf
-    first = np.where(unstable.any(axis=0), unstable.argmax(axis=0), len(grid))   # first unstable grid point per case
-    point = int(first.min())
-    if point == len(grid):
-        return _MARGIN_CAP_DB
-    # every case that turns unstable within that grid step: the first of them need not cross first
-    return min(_bisect_margin_db(T0[case], Tu[case], float(grid[point - 1]), float(grid[point]))
-               for case in np.flatnonzero(first == point))
+    steps = np.arange(0.0, _MARGIN_CAP_DB + 1e-9, _MARGIN_STEP_DB)
+    loops = [(T0, Tu, 10.0 ** (steps / 20.0))]                    # the whole output's gain, upwards
+    if isinstance(c, ImpedanceLoop) and any(c.kp + c.ki + c.torque_rate_gain):
+        # the correction's gain g_c, downwards: T0z + Tuz is the loop without it, T0 + Tu with all of it
+        T0z, Tuz = _loop_matrices(p, dataclasses.replace(c, correction_gain=0.0), load_coefficient)
+        down = np.arange(0.0, _MARGIN_FLOOR_DB + 1e-9, _MARGIN_STEP_DB)
+        loops.append((T0z + Tuz, T0 + Tu - T0z - Tuz, 10.0 ** (-down / 20.0)))
+    margins = []
+    for A, B, grid in loops:
+        rho = np.abs(np.linalg.eigvals(A[None] + grid[:, None, None, None] * B[None])).max(axis=-1)  # (grid, cases)
+        unstable = rho >= 1.0
+        if unstable[0].any():
+            return -math.inf
+        first = np.where(unstable.any(axis=0), unstable.argmax(axis=0), len(grid))   # first unstable point per case
+        point = int(first.min())
+        if point < len(grid):
+            # every case that turns unstable within that grid step: the first of them need not cross first
+            margins += [_bisect_margin_db(A[case], B[case], float(grid[point - 1]), float(grid[point]))
+                        for case in np.flatnonzero(first == point)]
+    return min(margins, default=_MARGIN_CAP_DB)
 
 
-def _bisect_margin_db(T0: np.ndarray, Tu: np.ndarray, lo: float, hi: float) -> float:
-    """dB: the gain between ``lo`` (stable) and ``hi`` (unstable) where the loop ``T0 + g Tu`` turns
-    unstable, bisected to 1/256 of the step (the stable side)."""
+def _bisect_margin_db(T0: np.ndarray, Tu: np.ndarray, stable: float, unstable: float) -> float:
+    """dB: how far the gain may move from 1 towards ``unstable`` (past ``stable``, stable) before the
+    loop ``T0 + g Tu`` turns unstable, bisected to 1/256 of the step (the stable side)."""
     for _ in range(8):
-        mid = math.sqrt(lo * hi)
-        lo, hi = (mid, hi) if spectral_radius(T0 + mid * Tu) < 1.0 else (lo, mid)
-    return 20.0 * math.log10(lo)
+        mid = math.sqrt(stable * unstable)
+        stable, unstable = (mid, unstable) if spectral_radius(T0 + mid * Tu) < 1.0 else (stable, mid)
+    return abs(20.0 * math.log10(stable))
 
 
 def _with_gains(cfg_like: Mapping[str, Any], gains: Mapping[str, float]) -> dict:
@@ -747,6 +770,11 @@ def _load_coefficient(cfg: Mapping[str, Any]) -> float:
     return max([LOAD_FRICTION_RANGE, *found])
 
 
+# the torque loop's keys beyond a gain set's that a margin may be limited by and is then named for: the lag and
+# the per-axis cutoffs (their defaults: off)
+SHAPING_KEYS = ("lag_boost_dp", "lag_boost_ie", "lag_hz_dp", "lag_hz_ie", "cutoff_hz_dp", "cutoff_hz_ie")
+
+
 def gain_set_margin_db(cfg_like: Mapping[str, Any], gains: Mapping[str, float], *,
                        ff_viscous: float = 0.0) -> tuple[float, str | None]:
     """The smallest gain margin (dB, at most 12; -inf: unstable) of the impedance controller's closed
@@ -755,8 +783,9 @@ def gain_set_margin_db(cfg_like: Mapping[str, Any], gains: Mapping[str, float], 
     / ``controller.torque_loop``) in place of the config's, over cable stiffness x0.7/1/1.3, viscous
     friction x0.5-x2, load-dependent friction sliding with or against the load (the config's
     coefficient, at least 0.12) and foot free and held; and, when it is below
-    REQUIRED_GAIN_MARGIN_DB, the gain that limits it: of the gains away from the shipped values, the
-    one whose shipped value restores the most margin (None when the margin is met). Without the
+    REQUIRED_GAIN_MARGIN_DB, the gain that limits it: of the gains away from the shipped values (and the
+    lag and per-axis cutoff keys that are on, SHAPING_KEYS), the one whose shipped value (off) restores
+    the most margin (None when the margin is met). Without the
     joint-torque loop, the impedance law alone; for ``controller.type`` pd, the motor-side PD with
     ``gains`` (kp, kd) in place of the active set's (``controller.pd_gains``). ``ff_viscous``: the
     friction feed-forward's viscous slope (N m s/rad per motor, FrictionFeedForward.viscous_slope), a
@@ -779,7 +808,21 @@ def gain_set_margin_db(cfg_like: Mapping[str, Any], gains: Mapping[str, float], 
     # open loop: only the impedance gains can limit it (the torque loop's stay at their zeros)
     shipped = tuple(SHIPPED_GAINS[k] if closed or k in IMPEDANCE_GAINS else v
                     for k, v in zip(loop.GAINS, loop.gain_values()))
-    return _margin_and_limit(PlantParams.from_config(cfg), loop, _load_coefficient(cfg), shipped)
+    p, coefficient = PlantParams.from_config(cfg), _load_coefficient(cfg)
+    margin, limit = _margin_and_limit(p, loop, coefficient, shipped)
+    tl = cfg["controller"]["torque_loop"]
+    shaped = [k for k in SHAPING_KEYS if closed and tl.get(k) != TORQUE_LOOP.fields[k].default]
+    if limit is None or not shaped:
+        return margin, limit
+    # a lag or an axis's own cutoff may be what limits it: of those and the gain found, the one whose
+    # default (off) restores the most margin
+    restored = {limit: loop_margin_db(p, loop.with_gain(limit, shipped[loop.GAINS.index(limit)]),
+                                      load_coefficient=coefficient)}
+    for key in shaped:
+        off = {**cfg, "controller": {**cfg["controller"], "torque_loop": {**tl, key: TORQUE_LOOP.fields[key].default}}}
+        restored[key] = loop_margin_db(p, ImpedanceLoop.from_config(off, closed=True, ff_viscous=ff_viscous),
+                                       load_coefficient=coefficient)
+    return margin, max(restored, key=restored.get)
 
 
 @functools.lru_cache(maxsize=64)

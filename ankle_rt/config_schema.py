@@ -110,6 +110,10 @@ NOTCH_HZ_DEFAULT, NOTCH_ZETA_DEFAULT, NOTCH_DEPTH_DEFAULT = (87.5, 0.0), (0.34, 
 # to the configured cable as sqrt(transmission.cable_stiffness / this) (ankle_rt.notch)
 NOTCH_CABLE_STIFFNESS_DEFAULT = 218800.0
 MAX_NOTCH_HZ = 400.0   # below the 1 kHz loop's Nyquist frequency
+MAX_CUTOFF_HZ = 400.0  # the torque filter's, shared or per axis
+# The lag [DP, IE] on the P and rate terms (ankle_rt.lag; docs/daemon.md "Fifth pass"): off by default. Its zero
+# stays far below the cable modes (the study searched 0.2-15 Hz), its boost is an integral's gain by another name.
+MAX_LAG_HZ, MAX_LAG_BOOST = 50.0, 10.0
 
 IMPEDANCE_DEFAULTS = {"stiffness_dp": 20.0, "stiffness_ie": 10.0, "damping_dp": 0.5, "damping_ie": 0.25}
 # The gains of a set (what ankle_rt.analysis.gain_set_margin_db checks and set_gains names) and the
@@ -155,8 +159,9 @@ TORQUE_LOOP = Section({
                                    default=LOOP_DEFAULTS["torque_rate_dp"], high=MAX_TORQUE_RATE),
     "torque_rate_ie": non_negative("s, gain on the rate of the measured IE torque",
                                    default=LOOP_DEFAULTS["torque_rate_ie"], high=MAX_TORQUE_RATE),
-    "cutoff_hz": Field(float, "Hz, first-order low-pass of the measured joint torque (below the 77-98 Hz cable modes)",
-                       default=LOOP_DEFAULTS["cutoff_hz"], low=1.0, high=400.0),
+    "cutoff_hz": Field(float, "Hz, first-order low-pass of the measured joint torque (below the 77-98 Hz cable modes); "
+                              "per axis: cutoff_hz_dp / cutoff_hz_ie", default=LOOP_DEFAULTS["cutoff_hz"], low=1.0,
+                       high=MAX_CUTOFF_HZ),
     "max_correction_dp": positive("N m at the ankle the DP feedback may add (anti-windup; bounds a wrong reading)",
                                   default=MAX_CORRECTION_DP_DEFAULT, high=MAX_CORRECTION),
     "max_correction_ie": positive("N m at the ankle the IE feedback may add", default=MAX_CORRECTION_IE_DEFAULT,
@@ -193,7 +198,23 @@ TORQUE_LOOP = Section({
     **{f"notch_depth_{axis}": Field(float, f"the {axis.upper()} notch's gain at its centre (1 = none)",
                                     default=NOTCH_DEPTH_DEFAULT[i], low=0.0, high=1.0)
        for i, axis in enumerate(("dp", "ie"))},
+    **{f"cutoff_hz_{axis}": Field(float, f"Hz, the {axis.upper()} axis's own low-pass of the measured torque; "
+                                         f"unset: cutoff_hz", default=None, low=1.0, high=MAX_CUTOFF_HZ)
+       for axis in ("dp", "ie")},
+    **{f"lag_hz_{axis}": non_negative(f"Hz, the zero of the {axis.upper()} lag (s + wz) / (s + wz / lag_boost) on "
+                                      f"the P and rate terms: gain lag_boost below it, 1 above; 0 = no lag",
+                                      default=0.0, high=MAX_LAG_HZ)
+       for axis in ("dp", "ie")},
+    **{f"lag_boost_{axis}": Field(float, f"the {axis.upper()} lag's gain at DC (1 = none)", default=1.0,
+                                  low=1.0, high=MAX_LAG_BOOST)
+       for axis in ("dp", "ie")},
 }, optional=True, doc="joint-torque feedback of the impedance controller (docs/daemon.md)")
+
+
+def torque_loop_cutoffs(torque_loop: Mapping[str, Any]) -> tuple[float, float]:
+    """Hz [DP, IE]: each axis's low-pass of the measured torque (``cutoff_hz_dp`` / ``_ie``, unset:
+    ``cutoff_hz``); the daemon's loop and the linear model read them here."""
+    return tuple(float(torque_loop.get(f"cutoff_hz_{a}") or torque_loop["cutoff_hz"]) for a in ("dp", "ie"))
 
 # The gait-phase controller's shipped parameters, for a 75 kg wearer at normal cadence (tuned on the
 # walking scenario with `ankle-rt bench walk`; sources and tuning rule in docs/daemon.md). Per phase:

@@ -41,7 +41,9 @@ from ankle_rt.bench.impedance import bench_config
 from ankle_rt.config import load_config
 from ankle_rt.config_schema import GAIT_PHASE_DEFAULTS
 from ankle_rt.discretize import zoh
+from ankle_rt.lag import lag_section
 from ankle_rt.linear_model import LinearModel
+from ankle_rt.notch import notch_section
 from ankle_rt.params import PlantParams
 from ankle_rt.paths import default_config_path
 
@@ -75,16 +77,8 @@ def tustin(num: tuple[float, float, float], den: tuple[float, float, float], f_w
     return (b[0] / a[0], b[1] / a[0], b[2] / a[0], a[1] / a[0], a[2] / a[0])
 
 
-def notch(f0: float, zeta: float, depth: float, dt: float) -> Section:
-    """Band-stop at f0 Hz, width zeta (denominator damping), gain ``depth`` at f0, 1 elsewhere."""
-    w = 2.0 * math.pi * f0
-    return tustin((1.0, 2.0 * depth * zeta * w, w * w), (1.0, 2.0 * zeta * w, w * w), f0, dt)
-
-
-def lag(f_zero: float, boost: float, dt: float) -> Section:
-    """(s + wz) / (s + wz / boost): gain 1 well above f_zero, ``boost`` at DC."""
-    wz = 2.0 * math.pi * f_zero
-    return tustin((0.0, 1.0, wz), (0.0, 1.0, wz / boost), f_zero, dt)
+# the band-stop and the lag as the daemon runs them (controller.torque_loop notch_* and lag_*)
+notch, lag = notch_section, lag_section
 
 
 def lead(f_center: float, ratio: float, dt: float) -> Section:
@@ -234,7 +228,9 @@ def shortfall(setup: Setup, loops: list[an.ImpedanceLoop], margin_db: float) -> 
     """0 when stable at every gain up to ``margin_db`` on every case at every impedance (checked on a
     1 dB grid, then a 0.25 dB one: a lightly damped held-foot mode can cross the unit circle for a
     window of gains only); else the number of failing grid points plus the nominal gain's
-    spectral-radius excess (a graded penalty)."""
+    spectral-radius excess (a graded penalty). Then the daemon's own check (:func:`margin`), which
+    also scans the correction's gain down (a large lag is conditionally stable: docs/daemon.md, "Fifth
+    pass"; not searched for before): its shortfall in dB."""
     matrices = [an._loop_matrices(p, l, 0.12) for p, l in zip(setup.plants, loops)]
     for step in (1.0, 0.25):
         grid = 10.0 ** (np.arange(0.0, margin_db + 1e-9, step) / 20.0)
@@ -244,7 +240,7 @@ def shortfall(setup: Setup, loops: list[an.ImpedanceLoop], margin_db: float) -> 
             worst = max(worst, float((rho >= 1.0).sum()) + max(0.0, float(rho[0]) - 1.0))
         if worst > 0.0:
             return worst
-    return 0.0
+    return max(0.0, margin_db - margin(setup, loops))
 
 
 def cost(x: np.ndarray, setup: Setup, cls: str, axis: int, cutoff: bool) -> float:

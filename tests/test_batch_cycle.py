@@ -100,7 +100,7 @@ def test_batched_identified_friction_feed_forward_matches_the_daemon(sim_cfg, fe
     cfgs = [sim_cfg.deep_copy() for _ in range(3)]
     loop = cfgs[1]["controller"]["torque_loop"]
     loop.update(ki_ie=0.5 * loop["ki_ie"], torque_rate_dp=1.2 * loop["torque_rate_dp"], cutoff_hz=100.0,
-                max_correction_dp=0.7 * loop["max_correction_dp"])
+                max_correction_dp=0.7 * loop["max_correction_dp"], lag_hz_dp=3.0, lag_boost_dp=1.5, cutoff_hz_ie=120.0)
     cfgs[1]["sim"]["effects"][2]["coefficient"] = 0.2
     cfgs[1]["reference"]["profile"] = "hold"
     cfgs[1]["reference"]["hold"] = {"dp": 0.05, "ie": -0.03}

@@ -148,7 +148,7 @@ def test_the_daemon_runs_the_moved_notch_the_model_counts():
 
     cfg = _on_cable(1.1)
     loop = actuation_from_config(cfg, None)[0]
-    daemon = (loop.nb00, loop.nb01, loop.nb02, loop.na01, loop.na02)
+    daemon = loop.notch0
     model = ImpedanceLoop.from_config(cfg, closed=True).shaping[0]
     assert model == (daemon,)
     assert loop.gains.notch.hz[0] == pytest.approx(87.5 * math.sqrt(1.1), rel=1e-12)

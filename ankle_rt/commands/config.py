@@ -96,9 +96,12 @@ def describe(cfg) -> list[str]:
 
 def _torque_loop_lines(cfg) -> list[str]:
     """The joint-torque loop under the impedance or gait-phase controller, its notches where the loop runs
-    them: moved from the cable they are placed for (``notch_cable_stiffness``) to the configured one."""
+    them: moved from the cable they are placed for (``notch_cable_stiffness``) to the configured one; its
+    per-axis torque filter and lag when configured."""
+    from ankle_rt.config_schema import torque_loop_cutoffs
+    from ankle_rt.lag import Lag
     from ankle_rt.loop_setup import torque_feedback
-    from ankle_rt.notch import AXES, Notch, cable_scale
+    from ankle_rt.notch import AXES, IDENTITY_SECTION, Notch, cable_scale
 
     c = cfg["controller"]
     if c["type"] not in ("impedance", "gait_phase") or not torque_feedback(cfg):
@@ -107,8 +110,14 @@ def _torque_loop_lines(cfg) -> list[str]:
     notch = Notch.from_config(tl, k)
     notches = ", ".join(f"{a.upper()} {hz:.4g} Hz (notch_hz_{a} {tl[f'notch_hz_{a}']:g})" if hz > 0.0
                         else f"{a.upper()} none" for a, hz in zip(AXES, notch.hz))
-    return [f"torque loop: kp {tl['kp_dp']:g} / {tl['kp_ie']:g}; notch {notches}: placed for notch_cable_stiffness "
-            f"{tl['notch_cable_stiffness']:g} N/m, x{cable_scale(tl, k):.4g} for transmission.cable_stiffness {k:g}"]
+    lines = [f"torque loop: kp {tl['kp_dp']:g} / {tl['kp_ie']:g}; notch {notches}: placed for notch_cable_stiffness "
+             f"{tl['notch_cable_stiffness']:g} N/m, x{cable_scale(tl, k):.4g} for transmission.cable_stiffness {k:g}"]
+    lag, cutoffs = Lag.from_config(tl), torque_loop_cutoffs(tl)
+    if any(tl[f"cutoff_hz_{a}"] is not None for a in AXES) or lag.sections(1.0 / c["rate_hz"]) != (IDENTITY_SECTION,) * 2:
+        lags = ", ".join(f"{a.upper()} {hz:g} Hz x{b:g}" if hz > 0.0 and b != 1.0 else f"{a.upper()} none"
+                         for a, hz, b in zip(AXES, lag.hz, lag.boost))
+        lines.append(f"             torque filter DP {cutoffs[0]:g} / IE {cutoffs[1]:g} Hz; lag {lags}")
+    return lines
 
 
 def _lsl_line(cfg) -> str:

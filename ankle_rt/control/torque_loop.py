@@ -19,8 +19,13 @@ deliver, so per ankle axis this loop drives the measured torque to the desired o
   the cable's stretch rate, not the motor velocity, so it adds no damping to the free motion the
   wearer feels. The integral is kept slow (``ki``): a fast one turns the reflected motor inertia into
   negative damping (the loop would not be passive).
-- The measured torque is low-passed (first order at ``cutoff_hz``) so the loop rolls off well below
-  the 77-98 Hz cable modes, whose damping ratio (~0.02) it must not eat.
+- The measured torque is low-passed (first order at ``cutoff_hz``, or per axis ``cutoff_hz_dp`` /
+  ``cutoff_hz_ie``) so the loop rolls off well below the 77-98 Hz cable modes, whose damping ratio
+  (~0.02) it must not eat.
+- A **lag** (``lag_hz`` > 0, ``lag_boost`` > 1: (s + wz) / (s + wz / lag_boost), :class:`ankle_rt.lag.Lag`)
+  before the notch raises the P and rate terms' gain below ``lag_hz`` only. A large boost makes the
+  loop conditionally stable (stable at its gain, not at a smaller one, which the correction's clamp
+  gives it at large amplitudes): the margin check scans smaller gains too and refuses it.
 - A **notch** (``notch_hz`` > 0, a second-order band-stop of width ``notch_zeta`` and gain
   ``notch_depth`` at ``notch_hz``) on ``kp e - kd d/dt LP(tau_sg)`` (not the integral) takes gain out
   of the loop at the free foot's cable mode only, so kp and kd may be larger below it (a smaller
@@ -57,7 +62,9 @@ import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
+from ankle_rt.config_schema import torque_loop_cutoffs
 from ankle_rt.elementwise import Value, clip, select, stack
+from ankle_rt.lag import Lag
 from ankle_rt.loop_setup import ReflectedActuator
 from ankle_rt.notch import Notch
 
@@ -81,7 +88,7 @@ class TorqueLoopGains:
     kp: tuple[float, float]                  # N m per N m of torque error
     ki: tuple[float, float]                  # 1/s, integral of the torque error
     torque_rate: tuple[float, float]         # s, kd on the rate of the filtered measured torque
-    cutoff_hz: float                         # first-order low-pass of the measured joint torque
+    cutoff_hz: tuple[float, float]           # first-order low-pass of the measured joint torque
     max_correction_nm: tuple[float, float]   # |kp e + ki int e - kd rate| at most this (anti-windup, fault bound)
     dob_hz: float                            # disturbance observer's low-pass; 0: no observer
     dob_inertia: tuple[float, float]         # J_n as a fraction of the reflected motor inertia
@@ -89,6 +96,7 @@ class TorqueLoopGains:
     tank_j: float                            # J, the energy tank's capacity
     tank_friction_credit: float              # share of the identified friction's dissipation the tank gets
     notch: Notch                             # band-stops on the P and rate terms, on the configured cable
+    lag: Lag                                 # low-frequency boosts on the P and rate terms, before the notch
 
     @classmethod
     def from_config(cls, c: Mapping[str, Any], cable_stiffness: float) -> "TorqueLoopGains":
@@ -96,10 +104,10 @@ class TorqueLoopGains:
         (``transmission.cable_stiffness``; :meth:`ankle_rt.notch.Notch.from_config`)."""
         pair = lambda key: (float(c[key + "_dp"]), float(c[key + "_ie"]))  # noqa: E731
         return cls(kp=pair("kp"), ki=pair("ki"), torque_rate=pair("torque_rate"),
-                   cutoff_hz=float(c["cutoff_hz"]), max_correction_nm=pair("max_correction"),
+                   cutoff_hz=torque_loop_cutoffs(c), max_correction_nm=pair("max_correction"),
                    dob_hz=float(c["dob_hz"]), dob_inertia=pair("dob_inertia"), max_observer_nm=pair("max_observer"),
                    tank_j=float(c["tank_j"]), tank_friction_credit=float(c["tank_friction_credit"]),
-                   notch=Notch.from_config(c, cable_stiffness))
+                   notch=Notch.from_config(c, cable_stiffness), lag=Lag.from_config(c))
 
 
 class JointTorqueLoop:
@@ -115,9 +123,9 @@ class JointTorqueLoop:
         self.dt = dt
         self.set_gains(*gains.kp, *gains.ki, *gains.torque_rate)
         self.lim0, self.lim1 = gains.max_correction_nm
-        self.alpha = 1.0 - math.exp(-2.0 * math.pi * gains.cutoff_hz * dt)
-        (self.nb00, self.nb01, self.nb02, self.na01, self.na02), (self.nb10, self.nb11, self.nb12, self.na11, self.na12) \
-            = gains.notch.sections(dt)
+        self.alpha0, self.alpha1 = (1.0 - math.exp(-2.0 * math.pi * f * dt) for f in gains.cutoff_hz)
+        self.lag0, self.lag1 = gains.lag.sections(dt)            # (b0, b1, b2, a1, a2) per axis
+        self.notch0, self.notch1 = gains.notch.sections(dt)
         on = gains.dob_hz > 0.0
         if on and actuator is None:
             raise ValueError("JointTorqueLoop: the disturbance observer needs the reflected actuator")
@@ -134,6 +142,7 @@ class JointTorqueLoop:
         self.d0 = self.d1 = self.u0 = self.u1 = self.w0 = self.w1 = 0.0
         self.e0 = self.e1 = 0.0
         self.n01 = self.n02 = self.n11 = self.n12 = 0.0
+        self.g01 = self.g11 = 0.0
         self.reset_state(0.0, 0.0)
 
     def set_gains(self, kp0: Value, kp1: Value, ki0: Value, ki1: Value, rate0: Value, rate1: Value) -> None:
@@ -156,7 +165,7 @@ class JointTorqueLoop:
     def stack(cls, loops: Sequence["JointTorqueLoop"]) -> "JointTorqueLoop":
         """One loop standing for ``loops`` (one per device of a batch): gains and state become arrays
         over the batch (``gains``, descriptive only, is the first device's)."""
-        return stack(loops, shared=("gains",))
+        return stack(loops, shared=("gains",), columns=("lag0", "lag1", "notch0", "notch1"))
 
     def reset_state(self, tau_dp: Value, tau_ie: Value, w_dp: Value = 0.0, w_ie: Value = 0.0,
                     where: bool | np.ndarray = True) -> None:
@@ -180,23 +189,25 @@ class JointTorqueLoop:
         self.n02 = select(where, 0.0, self.n02)
         self.n11 = select(where, 0.0, self.n11)
         self.n12 = select(where, 0.0, self.n12)
+        self.g01 = select(where, 0.0, self.g01)
+        self.g11 = select(where, 0.0, self.g11)
 
     def update(self, tau_dp: Value, tau_ie: Value, sg_dp: Value, sg_ie: Value, w_dp: Value, w_ie: Value,
                integrate: bool | np.ndarray) -> tuple[Value, Value]:
         """Desired joint torques and tared strain-gauge torques (N m, [DP, IE]) and the ankle-side
         motor rates R^-1 motor_vel (rad/s) in, the ankle-side motor torques (N m, [DP, IE]) out.
         ``integrate`` False holds the integrator and keeps the observer out (soft start)."""
-        a = self.alpha
         p0, p1 = self.f0, self.f1
-        f0 = p0 + a * (sg_dp - p0)
-        f1 = p1 + a * (sg_ie - p1)
+        f0 = p0 + self.alpha0 * (sg_dp - p0)
+        f1 = p1 + self.alpha1 * (sg_ie - p1)
         self.f0, self.f1 = f0, f1
         e0, e1 = tau_dp - f0, tau_ie - f1
-        # the notch on the P and rate terms (direct form II transposed; the identity without one)
+        # the lag, then the notch on the P and rate terms (the identity without one)
         x0, x1 = self.kp0 * e0 - self.kdr0 * (f0 - p0), self.kp1 * e1 - self.kdr1 * (f1 - p1)
-        pd0, pd1 = self.nb00 * x0 + self.n01, self.nb10 * x1 + self.n11
-        self.n01, self.n02 = self.nb01 * x0 - self.na01 * pd0 + self.n02, self.nb02 * x0 - self.na02 * pd0
-        self.n11, self.n12 = self.nb11 * x1 - self.na11 * pd1 + self.n12, self.nb12 * x1 - self.na12 * pd1
+        x0, self.g01, _ = _section(self.lag0, x0, self.g01, 0.0)
+        x1, self.g11, _ = _section(self.lag1, x1, self.g11, 0.0)
+        pd0, self.n01, self.n02 = _section(self.notch0, x0, self.n01, self.n02)
+        pd1, self.n11, self.n12 = _section(self.notch1, x1, self.n11, self.n12)
         c0, i0 = self._correction(e0, pd0, self.i0 + self.kidt0 * e0, self.i0, self.lim0, integrate)
         c1, i1 = self._correction(e1, pd1, self.i1 + self.kidt1 * e1, self.i1, self.lim1, integrate)
         self.i0, self.i1 = i0, i1
@@ -235,6 +246,14 @@ class JointTorqueLoop:
         else:
             self.d1, self.w1, self.e1 = d, w, tank
         return out
+
+
+def _section(c: tuple[float, ...], x: Value, s1: Value, s2: Value) -> tuple[Value, Value, Value]:
+    """One second-order section ``c`` = (b0, b1, b2, a1, a2) in direct form II transposed: its output
+    for the input ``x`` and its next states from ``s1``, ``s2`` (a first-order one keeps s2 at 0)."""
+    b0, b1, b2, a1, a2 = c
+    y = b0 * x + s1
+    return y, b1 * x - a1 * y + s2, b2 * x - a2 * y
 
 
 @dataclass(frozen=True)
