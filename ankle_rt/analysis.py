@@ -712,39 +712,42 @@ def loop_margin_db(p: PlantParams, c: ImpedanceLoop, *, load_coefficient: float 
     :func:`torque_loop_margins`), -inf when a case is unstable, at most _MARGIN_CAP_DB. Scans the gain
     on a 0.5 dB grid (all cases and gains in one batched eigenvalue call) and refines the limiting case
     by bisection. With a joint-torque loop, also its correction's gain alone downwards (to
-    -_MARGIN_FLOOR_DB): the correction's clamp lowers that gain at large amplitudes, and a loop stable
-    at its gain but not at a smaller one (conditionally stable, as a large lag makes it) limit-cycles
-    there; its margin is then how far that gain may fall."""
+    -_MARGIN_FLOOR_DB): the correction's clamp (max_correction) lowers that gain at large amplitudes,
+    and by as much as the amplitude asks, so a loop stable at its gain but not at some smaller one
+    (conditionally stable, as a large lag makes it) limit-cycles once the clamp bites hard enough: the
+    loop must be stable all the way down, else -inf (no margin in that direction is enough)."""
     T0, Tu = _loop_matrices(p, c, load_coefficient)
-    steps = np.arange(0.0, _MARGIN_CAP_DB + 1e-9, _MARGIN_STEP_DB)
-    loops = [(T0, Tu, 10.0 ** (steps / 20.0))]                    # the whole output's gain, upwards
     if isinstance(c, ImpedanceLoop) and any(c.kp + c.ki + c.torque_rate_gain):
         # the correction's gain g_c, downwards: T0z + Tuz is the loop without it, T0 + Tu with all of it
         T0z, Tuz = _loop_matrices(p, dataclasses.replace(c, correction_gain=0.0), load_coefficient)
-        down = np.arange(0.0, _MARGIN_FLOOR_DB + 1e-9, _MARGIN_STEP_DB)
-        loops.append((T0z + Tuz, T0 + Tu - T0z - Tuz, 10.0 ** (-down / 20.0)))
-    margins = []
-    for A, B, grid in loops:
-        rho = np.abs(np.linalg.eigvals(A[None] + grid[:, None, None, None] * B[None])).max(axis=-1)  # (grid, cases)
-        unstable = rho >= 1.0
-        if unstable[0].any():
+        down = 10.0 ** (-np.arange(0.0, _MARGIN_FLOOR_DB + 1e-9, _MARGIN_STEP_DB) / 20.0)
+        if _spectral_radii(T0z + Tuz, T0 + Tu - T0z - Tuz, down).max() >= 1.0:
             return -math.inf
-        first = np.where(unstable.any(axis=0), unstable.argmax(axis=0), len(grid))   # first unstable point per case
-        point = int(first.min())
-        if point < len(grid):
-            # every case that turns unstable within that grid step: the first of them need not cross first
-            margins += [_bisect_margin_db(A[case], B[case], float(grid[point - 1]), float(grid[point]))
-                        for case in np.flatnonzero(first == point)]
-    return min(margins, default=_MARGIN_CAP_DB)
+    grid = 10.0 ** (np.arange(0.0, _MARGIN_CAP_DB + 1e-9, _MARGIN_STEP_DB) / 20.0)   # the whole output's gain
+    unstable = _spectral_radii(T0, Tu, grid) >= 1.0
+    if unstable[0].any():
+        return -math.inf
+    first = np.where(unstable.any(axis=0), unstable.argmax(axis=0), len(grid))   # first unstable grid point per case
+    point = int(first.min())
+    if point == len(grid):
+        return _MARGIN_CAP_DB
+    # every case that turns unstable within that grid step: the first of them need not cross first
+    return min(_bisect_margin_db(T0[case], Tu[case], float(grid[point - 1]), float(grid[point]))
+               for case in np.flatnonzero(first == point))
 
 
-def _bisect_margin_db(T0: np.ndarray, Tu: np.ndarray, stable: float, unstable: float) -> float:
-    """dB: how far the gain may move from 1 towards ``unstable`` (past ``stable``, stable) before the
-    loop ``T0 + g Tu`` turns unstable, bisected to 1/256 of the step (the stable side)."""
+def _spectral_radii(T0: np.ndarray, Tu: np.ndarray, gains: np.ndarray) -> np.ndarray:
+    """(gains, cases): the spectral radius of ``T0 + g Tu`` for every gain and case, in one batched call."""
+    return np.abs(np.linalg.eigvals(T0[None] + gains[:, None, None, None] * Tu[None])).max(axis=-1)
+
+
+def _bisect_margin_db(T0: np.ndarray, Tu: np.ndarray, lo: float, hi: float) -> float:
+    """dB: the gain between ``lo`` (stable) and ``hi`` (unstable) where the loop ``T0 + g Tu`` turns
+    unstable, bisected to 1/256 of the step (the stable side)."""
     for _ in range(8):
-        mid = math.sqrt(stable * unstable)
-        stable, unstable = (mid, unstable) if spectral_radius(T0 + mid * Tu) < 1.0 else (stable, mid)
-    return abs(20.0 * math.log10(stable))
+        mid = math.sqrt(lo * hi)
+        lo, hi = (mid, hi) if spectral_radius(T0 + mid * Tu) < 1.0 else (lo, mid)
+    return 20.0 * math.log10(lo)
 
 
 def _with_gains(cfg_like: Mapping[str, Any], gains: Mapping[str, float]) -> dict:

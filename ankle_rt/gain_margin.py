@@ -35,7 +35,8 @@ def gain_set_refusal(cfg: Mapping[str, Any], gains: Mapping[str, float], ff_visc
         return None
     c = cfg["controller"]
     value = gains.get(name, c["torque_loop"].get(name, c["impedance"].get(name)))
-    how = "is unstable in some case" if margin == -math.inf else f"keeps only {margin:.1f} dB of gain margin"
+    how = ("is unstable in some case (at its gains, or with its correction clamped by max_correction)"
+           if margin == -math.inf else f"keeps only {margin:.1f} dB of gain margin")
     ff = f" with the friction feed-forward's viscous {ff_viscous:g} N m s/rad" if ff_viscous > 0.0 else ""
     return name, (f"{name} {value:g}: the closed loop{ff} {how} over cable stiffness +/-30 %, the friction range "
                   f"and foot free and held (at least {REQUIRED_GAIN_MARGIN_DB:g} dB required; docs/daemon.md)")
