@@ -687,7 +687,8 @@ LOAD_FRICTION_RANGE = 0.12       # the load-dependent cable friction coefficient
 # by 10.2): 1.5 dB stepped over it, 0.5 dB does not
 _MARGIN_STEP_DB = 0.5
 _MARGIN_CAP_DB = 12.0            # the margin is reported up to here ("at least 12 dB" beyond)
-# and the torque loop's correction's gain down to this far below nominal (its clamp's describing function)
+# the torque loop's correction's gain must keep the loop stable down to this far below nominal (its clamp's
+# describing function: x0.1 is a correction asked for ten times its max_correction)
 _MARGIN_FLOOR_DB = 20.0
 
 
