@@ -4,7 +4,7 @@ so the loop does not have to build up an error to overcome it.
 Per motor, with the filtered motor velocity ``v`` (rad/s) and the cable torque the motor feels ``tc``
 (N m, ``R^-T`` of the measured joint torque):
 
-    tau_ff = s(v) (kc + a exp(-(v / vs)^2) + mu |tc|) + dc |s(v)| + D v + dv |v|
+    tau_ff = (s(v) (kc + a exp(-(v / vs)^2) + mu |tc|) + dc |s(v)|) g(v) + D v + dv |v|
 
 - ``kc``, ``D``: Coulomb and viscous friction (``actuator.coulomb`` / ``actuator.damping``, or given);
 - ``a``, ``vs``: Stribeck excess and velocity; ``dc``, ``dv``: direction asymmetry (kc+- = kc +- dc,
@@ -15,6 +15,12 @@ Per motor, with the filtered motor velocity ``v`` (rad/s) and the cable torque t
   terms fade linearly to zero, so velocity noise at standstill (one encoder count per cycle is
   0.054 rad/s) does not make the command chatter between +kc and -kc. At standstill the static
   friction is the torque loop's job (its integrator), not the feed-forward's guess of a direction.
+- ``g(v) = exp(-(v / v_fade)^2)`` (``fade_velocity`` v_fade > 0; 1 when 0): the direction-dependent
+  terms fade out with speed. Friction's equivalent damping 4 F / (pi v_amp) is what a slow, small
+  motion of the wearer feels; a fast one (the held foot's mode after a torque step, walking) needs
+  friction's damping more than the wearer needs it gone (docs/daemon.md, "Friction compensation").
+- ``fraction`` (config) scales every term: below 1 the feed-forward stays below the friction of a
+  device with that much less friction than the model states (passive there too).
 """
 
 from __future__ import annotations
@@ -39,9 +45,10 @@ CHECK_CABLE_TORQUES = (0.0, 500.0)
 class FrictionFeedForward:
     def __init__(self, coulomb: float, viscous: float, velocity_band: float, enabled: bool = True, *,
                  stribeck_excess: float = 0.0, stribeck_velocity: float = 1.0, coulomb_asymmetry: float = 0.0,
-                 viscous_asymmetry: float = 0.0, load_coefficient: float = 0.0):
+                 viscous_asymmetry: float = 0.0, load_coefficient: float = 0.0, fade_velocity: float = 0.0):
         """``coulomb``, ``stribeck_excess``, ``coulomb_asymmetry`` N m; ``viscous``, ``viscous_asymmetry``
-        N m s/rad; ``velocity_band``, ``stribeck_velocity`` rad/s (> 0); ``load_coefficient`` 1."""
+        N m s/rad; ``velocity_band``, ``stribeck_velocity`` rad/s (> 0); ``load_coefficient`` 1;
+        ``fade_velocity`` rad/s (0: no fade)."""
         self.kc = coulomb
         self.d = viscous
         self.inv_band = 1.0 / velocity_band
@@ -51,6 +58,7 @@ class FrictionFeedForward:
         self.dc = coulomb_asymmetry
         self.dv = viscous_asymmetry
         self.mu = load_coefficient
+        self.inv_fade = 1.0 / fade_velocity if fade_velocity > 0.0 else 0.0
 
     @classmethod
     def from_config(cls, cfg: "Config") -> "FrictionFeedForward":
@@ -64,7 +72,8 @@ class FrictionFeedForward:
             a, effects, source = identified_model(cfg, f["model_file"])
         kc = a["coulomb"] if f["coulomb"] is None else f["coulomb"]
         d = a["damping"] if f["viscous"] is None else f["viscous"]
-        out = cls(kc, d, f["velocity_band"], f["enabled"], **effect_terms(effects, source))
+        out = cls(kc, d, f["velocity_band"], f["enabled"], fade_velocity=f["fade_velocity"],
+                  **effect_terms(effects, source)).scaled(f["fraction"])
         if out.enabled:
             out.check_not_beyond(cfg, "model_file" if f["model"] == "identified" and f["model_file"] else None)
         return out
@@ -98,6 +107,14 @@ class FrictionFeedForward:
         the motor that the gain-margin model counts (ankle_rt.analysis.gain_set_margin_db)."""
         return self.d + abs(self.dv) if self.enabled else 0.0
 
+    def scaled(self, fraction: float) -> "FrictionFeedForward":
+        """A copy cancelling ``fraction`` of every friction term (the Stribeck velocity and the band kept):
+        below 1 the feed-forward stays below a device's friction down to ``fraction`` of the model's."""
+        out = copy.copy(self)
+        for name in ("kc", "d", "a", "dc", "dv", "mu"):
+            setattr(out, name, fraction * getattr(self, name))
+        return out
+
     def without_viscous(self) -> "FrictionFeedForward":
         """A copy without the viscous terms (D, dv): under the joint-torque loop the motors' viscous
         friction is the damping the loop's integral relies on (ankle_rt.control.torque_loop)."""
@@ -127,9 +144,9 @@ class FrictionFeedForward:
         if not self.enabled:
             return 0.0
         s = clip(v * self.inv_band, -1.0, 1.0)
-        u = v * self.inv_vs
+        u, h = v * self.inv_vs, v * self.inv_fade
         sliding = self.kc + self.a * exp(-u * u) + self.mu * abs(tc)
-        return s * sliding + self.dc * abs(s) + self.d * v + self.dv * abs(v)
+        return (s * sliding + self.dc * abs(s)) * exp(-h * h) + self.d * v + self.dv * abs(v)
 
 
 # the friction effects' parameters the feed-forward reads: name -> (keyword, must be > 0)
