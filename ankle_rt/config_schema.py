@@ -92,6 +92,9 @@ FRICTION_FF = Section({
     "fade_velocity": non_negative("rad/s; the direction-dependent terms fade out with motor speed as "
                                   "exp(-(v / this)^2), leaving friction's damping to fast motion; 0: no fade",
                                   default=0.0, high=100.0),
+    "error_band": non_negative("N m at the motor; under the joint-torque loop the direction also follows the "
+                               "loop's torque error, saturating at this (breaks stiction before the motor "
+                               "moves); 0: from the velocity only", default=0.0, high=100.0),
 }, optional=True)
 
 # The joint-torque loop's shipped gains, DP with the notch below (issue 19, docs/daemon.md "Shipped: the notched

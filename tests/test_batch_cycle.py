@@ -106,7 +106,7 @@ def test_batched_identified_friction_feed_forward_matches_the_daemon(sim_cfg, fe
     cfgs[1]["reference"]["profile"] = "hold"
     cfgs[1]["reference"]["hold"] = {"dp": 0.05, "ie": -0.03}
     cfgs[2]["controller"]["friction_ff"]["enabled"] = False
-    cfgs[0]["controller"]["friction_ff"].update(fraction=0.7, fade_velocity=0.5)
+    cfgs[0]["controller"]["friction_ff"].update(fraction=0.7, fade_velocity=0.5, error_band=0.02)
     assert _compare(cfgs) == [0, 0, 0]
 
 

@@ -1,7 +1,7 @@
-"""Friction compensation for the rendered damping (issue 19): the feed-forward's ``fraction`` and
-``fade_velocity`` (config/friction-compensation.yaml; docs/daemon.md "Friction compensation
-(damping)"): bounded keys, one element-wise formula for the daemon and the batch, and passive on a
-device with less friction than stated down to ``fraction`` of it."""
+"""Friction compensation for the rendered damping (issue 19): the feed-forward's ``fraction``,
+``fade_velocity`` and ``error_band`` (config/friction-compensation.yaml; docs/daemon.md "Friction
+compensation (damping)"): bounded keys, one element-wise formula for the daemon and the batch, and
+passive on a device with less friction than stated."""
 
 from __future__ import annotations
 
@@ -34,7 +34,8 @@ def _cfg(tmp_path, friction_ff: dict | None = None, includes=(default_config_pat
 
 
 @pytest.mark.parametrize("key, value", [("fraction", 1.2), ("fraction", -0.1), ("fraction", math.nan),
-                                        ("fade_velocity", -0.5), ("fade_velocity", 1e6), ("fade_velocity", math.inf)])
+                                        ("fade_velocity", -0.5), ("fade_velocity", 1e6), ("fade_velocity", math.inf),
+                                        ("error_band", -0.01), ("error_band", 1e3), ("error_band", math.nan)])
 def test_bad_fraction_or_fade_is_refused_naming_the_key(tmp_path, key, value):
     with pytest.raises(ConfigError, match=rf"controller\.friction_ff\.{key}"):
         _cfg(tmp_path, {key: value})
@@ -50,7 +51,7 @@ def _plant_friction(cfg, v: float, tc: float) -> float:
 def test_fraction_scales_the_model_and_fade_leaves_fast_motion(tmp_path):
     """fraction x the identified friction, times exp(-(v / fade)^2): the whole model at a slow
     motion (less the fraction), almost nothing at 4x the fade velocity (walking, the held foot's mode)."""
-    full = FrictionFeedForward.from_config(_cfg(tmp_path, {"fraction": 1.0, "fade_velocity": 0.0}))
+    full = FrictionFeedForward.from_config(_cfg(tmp_path, {"fraction": 1.0, "fade_velocity": 0.0, "error_band": 0.0}))
     ours = FrictionFeedForward.from_config(cfg := _cfg(tmp_path))
     f, fade = cfg["controller"]["friction_ff"]["fraction"], cfg["controller"]["friction_ff"]["fade_velocity"]
     assert 0.0 < f < 1.0 and fade > 0.0
@@ -61,19 +62,43 @@ def test_fraction_scales_the_model_and_fade_leaves_fast_motion(tmp_path):
     assert abs(ours.torque(4 * fade, 3.0)) < 1e-6
 
 
+def test_the_loop_error_turns_the_direction_never_the_magnitude(tmp_path):
+    """error_band: at standstill the torque loop's error (as the motor feels it) gives the direction
+    (stiction is broken before the motor moves), at a reversal it turns the compensation before the
+    velocity does; the magnitude stays the model's at the measured speed. error_band 0: the velocity's."""
+    cfg = _cfg(tmp_path)
+    ff_cfg = cfg["controller"]["friction_ff"]
+    band, fade = ff_cfg["error_band"], ff_cfg["fade_velocity"]
+    ours = FrictionFeedForward.from_config(cfg)
+    by_velocity = FrictionFeedForward.from_config(_cfg(tmp_path, {"error_band": 0.0}))
+    assert band > 0.0 and ours.dc == 0.0 and ours.d == 0.0     # the bench's plant: no asymmetry; viscous 0
+
+    def magnitude(v: float, tc: float) -> float:
+        return (ours.kc + ours.a * math.exp(-(v * ours.inv_vs) ** 2) + ours.mu * abs(tc)) * math.exp(-(v / fade) ** 2)
+
+    assert ours.torque(0.0, 3.0, 0.0) == 0.0
+    assert ours.torque(0.0, 3.0, 10 * band) == pytest.approx(magnitude(0.0, 3.0), rel=1e-12)
+    assert ours.torque(0.0, 3.0, -band / 2) == pytest.approx(-magnitude(0.0, 3.0) / 2, rel=1e-12)
+    assert ours.torque(0.2, 3.0, -10 * band) == 0.0                   # the error turned it over already
+    for v in (-0.3, -0.02, 0.0, 0.01, 0.2, 1.0):
+        for e in (-1.0, -band / 2, 0.0, band / 3, 1.0):
+            assert abs(ours.torque(v, 3.0, e)) <= magnitude(v, 3.0) * (1 + 1e-12)
+            assert by_velocity.torque(v, 3.0, e) == by_velocity.torque(v, 3.0)
+
+
 def test_daemon_floats_equal_the_batch_arrays(tmp_path):
     """One formula: a stack of feed-forwards (with and without fraction and fade, and one off) on
     arrays gives each device's float result (to numpy's exp against math.exp: an ulp)."""
     ffs = [FrictionFeedForward.from_config(_cfg(tmp_path)),
-           FrictionFeedForward.from_config(_cfg(tmp_path, {"fraction": 1.0, "fade_velocity": 0.0})),
+           FrictionFeedForward.from_config(_cfg(tmp_path, {"fraction": 1.0, "fade_velocity": 0.0, "error_band": 0.0})),
            FrictionFeedForward.from_config(_cfg(tmp_path, {"enabled": False}))]
     batch = FrictionFeedForward.stack(ffs)
     rng = np.random.default_rng(3)
     for _ in range(20):
-        v, tc = rng.normal(0.0, 0.6, 3), rng.normal(0.0, 5.0, 3)
-        out = batch.torque(v, tc)
-        assert out.tolist() == pytest.approx([ff.torque(float(a), float(b)) for ff, a, b in zip(ffs, v, tc)],
-                                             rel=1e-14, abs=1e-15)
+        v, tc, e = rng.normal(0.0, 0.6, 3), rng.normal(0.0, 5.0, 3), rng.normal(0.0, 0.03, 3)
+        out = batch.torque(v, tc, e)
+        assert out.tolist() == pytest.approx([ff.torque(float(a), float(b), float(c))
+                                              for ff, a, b, c in zip(ffs, v, tc, e)], rel=1e-14, abs=1e-15)
 
 
 @pytest.mark.parametrize("scale", [0.85, 0.7])
@@ -104,11 +129,12 @@ def _ie_sine_run(cfg_path, plant_scale: float, k: float = 200.0):
     return res
 
 
-def test_passive_on_a_plant_with_fraction_of_the_stated_friction(tmp_path):
+def test_passive_on_a_plant_with_less_friction_than_stated(tmp_path):
     """Lockstep, the worst damping case of the shipped loop (IE K 100, 3 N m, 0.5-1 Hz): with the opt-in
     compensation on a device with exactly ``fraction`` of the stated friction the ankle stays passive
-    and renders less damping than without compensation on the same device; on a device with half the
-    stated friction (compensation 1.7x too large) it gives energy back."""
+    and renders less damping than without compensation on the same device. On a device with half the
+    stated friction (the compensation 1.4x its friction) it stays passive with the direction from the
+    loop's error, and gives energy back with the direction from the velocity alone (error_band 0)."""
     path = tmp_path / "f.yaml"
     path.write_text(f"include: [{default_config_path()}, {OPT_IN}]\n")
     f = load_config(path)["controller"]["friction_ff"]["fraction"]
@@ -118,7 +144,10 @@ def test_passive_on_a_plant_with_fraction_of_the_stated_friction(tmp_path):
     off.write_text(f"include: [{path}]\ncontroller: {{friction_ff: {{fraction: 0.0}}}}\n")
     without = _ie_sine_run(off, f)
     assert max(s["damping"] for s in ours.sines) < 0.7 * min(s["damping"] for s in without.sines)
-    assert not _ie_sine_run(path, 0.5).passive()
+    assert _ie_sine_run(path, 0.5).passive()
+    by_velocity = tmp_path / "v.yaml"
+    by_velocity.write_text(f"include: [{path}]\ncontroller: {{friction_ff: {{error_band: 0.0}}}}\n")
+    assert not _ie_sine_run(by_velocity, 0.5).passive()
 
 
 def test_with_plant_friction_scales_the_static_friction_only(tmp_path):
