@@ -86,6 +86,15 @@ FRICTION_FF = Section({
                    choices=("coulomb_viscous", "identified")),
     "model_file": Field(str, "identified model: a config such as `diagnose --write-model` writes (relative to "
                              "this file); empty: this config's actuator and sim.effects", default=""),
+    "fraction": Field(float, "share of the model's friction the feed-forward cancels (every term scaled): below 1 "
+                             "it stays passive on a device with that much less friction than stated",
+                      default=1.0, low=0.0, high=1.0),
+    "fade_velocity": non_negative("rad/s; the direction-dependent terms fade out with motor speed as "
+                                  "exp(-(v / this)^2), leaving friction's damping to fast motion; 0: no fade",
+                                  default=0.0, high=100.0),
+    "error_band": non_negative("N m at the motor; under the joint-torque loop the direction also follows the "
+                               "loop's torque error, saturating at this (breaks stiction before the motor "
+                               "moves); 0: from the velocity only", default=0.0, high=100.0),
 }, optional=True)
 
 # The joint-torque loop's shipped gains, DP with the notch below (issue 19, docs/daemon.md "Shipped: the notched

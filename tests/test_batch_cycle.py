@@ -90,7 +90,8 @@ def test_batched_impedance_cycle_matches_the_daemon(sim_cfg, feedback):
 @pytest.mark.parametrize("feedback", ["on", "off"])
 def test_batched_identified_friction_feed_forward_matches_the_daemon(sim_cfg, feedback):
     """Stribeck, asymmetric and load-dependent (on the measured cable torque) terms; loop gains that
-    differ between plants; a plant with the feed-forward off in the same batch."""
+    differ between plants; a plant with the feed-forward off in the same batch; one compensating a
+    fraction of the model, faded with speed (config/friction-compensation.yaml)."""
     sim_cfg["controller"]["type"] = "impedance"
     sim_cfg["controller"]["impedance"]["torque_feedback"] = feedback
     if feedback == "off":   # the law's damping outweighs the feed-forward's viscous terms (the margin counts them)
@@ -105,6 +106,7 @@ def test_batched_identified_friction_feed_forward_matches_the_daemon(sim_cfg, fe
     cfgs[1]["reference"]["profile"] = "hold"
     cfgs[1]["reference"]["hold"] = {"dp": 0.05, "ie": -0.03}
     cfgs[2]["controller"]["friction_ff"]["enabled"] = False
+    cfgs[0]["controller"]["friction_ff"].update(fraction=0.7, fade_velocity=0.5, error_band=0.02)
     assert _compare(cfgs) == [0, 0, 0]
 
 

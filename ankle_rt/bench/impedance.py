@@ -223,6 +223,23 @@ def bench_config(cfg: Config, *, stiffness: tuple[float, float], damping: tuple[
     return c
 
 
+# the Coulomb-like friction parameters of the simulator's friction effects (the viscous ones the gain
+# margin already spans x0.5-x2)
+COULOMB_LIKE = {"stribeck": ("static_excess",), "asymmetric_friction": ("coulomb_asymmetry", "coulomb_asymmetry_2"),
+                "load_dependent_friction": ("coefficient",)}
+
+
+def with_plant_friction(cfg: Config, scale: float) -> Config:
+    """``cfg`` with its plant's Coulomb-like friction (``actuator.coulomb`` and the friction effects'
+    static terms) times ``scale``: a device with less (or more) friction than its config states, for
+    ``run_impedance(..., plant_cfg=...)`` while the controller keeps the stated model."""
+    c = cfg.deep_copy()
+    c["actuator"]["coulomb"] = scale * c["actuator"]["coulomb"]
+    c["sim"]["effects"] = [{**e, **{k: scale * e[k] for k in COULOMB_LIKE.get(e.get("type"), ()) if k in e}}
+                           for e in c["sim"]["effects"]]
+    return c
+
+
 def run_impedance(cfg: Config, exp: Experiment, *, plant_cfg: Config | None = None,
                   keep_loops: bool = False) -> ImpedanceResult:
     """Run the programme on the simulator in lockstep with the config's impedance controller;

@@ -270,6 +270,10 @@ def register_impedance(sub: argparse._SubParsersAction) -> None:
                    help="Stribeck excess N m and velocity rad/s in the plant (A 0: off; default 0.15 0.1)")
     p.add_argument("--friction-ff", choices=("off", "coulomb_viscous", "identified"), default="off",
                    help="friction feed-forward of both controllers (identified: the plant's own friction model)")
+    p.add_argument("--plant-friction", type=_number(0.0, True), default=1.0, metavar="S",
+                   help="the simulated plant's Coulomb, Stribeck, asymmetric and load-dependent friction x S, the "
+                        "controllers' friction model (the feed-forward's) kept: does compensation go active on a "
+                        "device with less friction than stated (default 1)")
     p.add_argument("--friction-study", action="store_true",
                    help="also run both controllers with each friction feed-forward (what the identified model buys)")
     p.add_argument("--quick", action="store_true", help="fewer pulses and sines (a smoke run)")
@@ -292,11 +296,12 @@ def plant_effects(load_friction: float, stribeck: tuple[float, float]) -> list[d
 
 def impedance_variant(cfg, stiffness: list[float], stiffness_ie: float | None, damping: tuple[float, float],
                       effects: list[dict], *, feedback: str, friction_ff: str | None, experiment,
-                      keep_loops: bool = False) -> dict:
-    """Run the bench for one controller variant over the commanded stiffnesses; its summary and runs."""
+                      keep_loops: bool = False, plant_friction: float = 1.0) -> dict:
+    """Run the bench for one controller variant over the commanded stiffnesses; its summary and runs.
+    ``plant_friction``: the simulated plant's Coulomb-like friction x this (the controller's model kept)."""
     from ankle_rt.analysis import ImpedanceLoop, torque_loop_margins
     from ankle_rt.loop_setup import torque_feedback
-    from ankle_rt.bench.impedance import bench_config, run_impedance
+    from ankle_rt.bench.impedance import bench_config, run_impedance, with_plant_friction
     from ankle_rt.params import PlantParams
 
     runs, margins = [], []
@@ -304,7 +309,8 @@ def impedance_variant(cfg, stiffness: list[float], stiffness_ie: float | None, d
         c = bench_config(cfg, stiffness=(k, k / 2.0 if stiffness_ie is None else stiffness_ie), damping=damping,
                          torque_feedback=feedback, friction_ff=friction_ff, effects=effects)
         closed = torque_feedback(c)
-        res = run_impedance(c, experiment, keep_loops=keep_loops)
+        plant = None if plant_friction == 1.0 else with_plant_friction(c, plant_friction)
+        res = run_impedance(c, experiment, keep_loops=keep_loops, plant_cfg=plant)
         mu = max([e["coefficient"] for e in c["sim"]["effects"] if e["type"] == "load_dependent_friction"] or [0.0])
         cases = torque_loop_margins(PlantParams.from_config(c), ImpedanceLoop.from_config(c, closed=closed),
                                     load_coefficient=mu)
@@ -390,11 +396,15 @@ def bench_impedance(args: argparse.Namespace) -> int:
             try:
                 variants[name] = impedance_variant(cfg, args.stiffness, args.stiffness_ie, tuple(args.damping),
                                                    effects, feedback=feedback, friction_ff=f, experiment=exp,
-                                                   keep_loops=True)
+                                                   keep_loops=True, plant_friction=args.plant_friction)
             except ConfigError as exc:   # a study variant the controller refuses (e.g. an unstable feed-forward)
-                if name in ("closed loop", "open loop"):
+                if name == "closed loop" or (name == "open loop" and f is None):
                     raise
                 refused[name] = str(exc)
+                if name == "open loop":   # --friction-ff: the open-loop reference runs without it
+                    variants[name] = impedance_variant(cfg, args.stiffness, args.stiffness_ie, tuple(args.damping),
+                                                       effects, feedback=feedback, friction_ff=None, experiment=exp,
+                                                       keep_loops=True, plant_friction=args.plant_friction)
     # wall time per simulated cycle, the lockstep runs with their analysis (and the margin checks)
     cycle_s = (time.perf_counter() - t0) / (len(plan) * len(args.stiffness) * round(simulated_s(exp) * cfg["controller"]["rate_hz"]))
     ref_s = 0.5 * (ref_s + reference_step_s())
@@ -407,6 +417,7 @@ def bench_impedance(args: argparse.Namespace) -> int:
         for o, c in zip(variants["open loop"]["runs"], variants["closed loop"]["runs"]))
     result.update(torque_feedback=main["torque_feedback"], faults=main["faults"],
                   commanded_stiffness_dp=args.stiffness, damping=args.damping, plant_effects=effects,
+                  plant_friction_scale=args.plant_friction,
                   variants={name: {**v["summary"], "runs": [{k: r[k] for k in r if k != "_result"} for r in v["runs"]]}
                             for name, v in variants.items()},
                   refused_variants=refused, plot=note, cycle_us=cycle_s * 1e6, reference_step_us=ref_s * 1e6, cycle_ref_steps=cycle_s / ref_s)

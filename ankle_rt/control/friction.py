@@ -4,17 +4,30 @@ so the loop does not have to build up an error to overcome it.
 Per motor, with the filtered motor velocity ``v`` (rad/s) and the cable torque the motor feels ``tc``
 (N m, ``R^-T`` of the measured joint torque):
 
-    tau_ff = s(v) (kc + a exp(-(v / vs)^2) + mu |tc|) + dc |s(v)| + D v + dv |v|
+    tau_ff = (s (kc + a exp(-(v / vs)^2) + mu |tc|) + dc |s|) g(v) + D v + dv |v|
+    s = sat(sat(v / v_band) + sat(e / e_band))
 
 - ``kc``, ``D``: Coulomb and viscous friction (``actuator.coulomb`` / ``actuator.damping``, or given);
 - ``a``, ``vs``: Stribeck excess and velocity; ``dc``, ``dv``: direction asymmetry (kc+- = kc +- dc,
   D+- = D +- dv); ``mu``: load-dependent (Bowden-cable) friction per unit cable torque. These come from
   the friction effects (``stribeck``, ``asymmetric_friction``, ``load_dependent_friction``) of an
   identified model: what ``ankle-rt identify`` and ``ankle-rt diagnose --write-model`` write.
-- ``s(v) = sat(v / v_band)``: inside the standstill band ``|v| < v_band`` the direction-dependent
+- ``sat(v / v_band)``: inside the standstill band ``|v| < v_band`` the direction-dependent
   terms fade linearly to zero, so velocity noise at standstill (one encoder count per cycle is
   0.054 rad/s) does not make the command chatter between +kc and -kc. At standstill the static
-  friction is the torque loop's job (its integrator), not the feed-forward's guess of a direction.
+  friction is the torque loop's job (its integrator), not the feed-forward's guess of a direction,
+- unless ``error_band`` e_band > 0 (0: the term is off): ``e`` is the joint-torque loop's error as
+  the motor feels it (``R^-T`` (desired - filtered measured torque), N m), the direction the motor
+  is about to move in; it breaks stiction before the motor moves and turns the compensation over
+  at a reversal before the velocity does. Whatever the direction, ``|s| <= 1``: the magnitude is
+  the model's at the measured speed, so the feed-forward never pushes with the motion by more than
+  the friction the model states there.
+- ``g(v) = exp(-(v / v_fade)^2)`` (``fade_velocity`` v_fade > 0; 1 when 0): the direction-dependent
+  terms fade out with speed. Friction's equivalent damping 4 F / (pi v_amp) is what a slow, small
+  motion of the wearer feels; a fast one (the held foot's mode after a torque step, walking) needs
+  friction's damping more than the wearer needs it gone (docs/daemon.md, "Friction compensation").
+- ``fraction`` (config) scales every term: below 1 the feed-forward stays below the friction of a
+  device with that much less friction than the model states (passive there too).
 """
 
 from __future__ import annotations
@@ -39,9 +52,11 @@ CHECK_CABLE_TORQUES = (0.0, 500.0)
 class FrictionFeedForward:
     def __init__(self, coulomb: float, viscous: float, velocity_band: float, enabled: bool = True, *,
                  stribeck_excess: float = 0.0, stribeck_velocity: float = 1.0, coulomb_asymmetry: float = 0.0,
-                 viscous_asymmetry: float = 0.0, load_coefficient: float = 0.0):
+                 viscous_asymmetry: float = 0.0, load_coefficient: float = 0.0, fade_velocity: float = 0.0,
+                 error_band: float = 0.0):
         """``coulomb``, ``stribeck_excess``, ``coulomb_asymmetry`` N m; ``viscous``, ``viscous_asymmetry``
-        N m s/rad; ``velocity_band``, ``stribeck_velocity`` rad/s (> 0); ``load_coefficient`` 1."""
+        N m s/rad; ``velocity_band``, ``stribeck_velocity`` rad/s (> 0); ``load_coefficient`` 1;
+        ``fade_velocity`` rad/s (0: no fade); ``error_band`` N m (0: the direction from the velocity only)."""
         self.kc = coulomb
         self.d = viscous
         self.inv_band = 1.0 / velocity_band
@@ -51,6 +66,8 @@ class FrictionFeedForward:
         self.dc = coulomb_asymmetry
         self.dv = viscous_asymmetry
         self.mu = load_coefficient
+        self.inv_fade = 1.0 / fade_velocity if fade_velocity > 0.0 else 0.0
+        self.inv_error_band = 1.0 / error_band if error_band > 0.0 else 0.0
 
     @classmethod
     def from_config(cls, cfg: "Config") -> "FrictionFeedForward":
@@ -64,7 +81,8 @@ class FrictionFeedForward:
             a, effects, source = identified_model(cfg, f["model_file"])
         kc = a["coulomb"] if f["coulomb"] is None else f["coulomb"]
         d = a["damping"] if f["viscous"] is None else f["viscous"]
-        out = cls(kc, d, f["velocity_band"], f["enabled"], **effect_terms(effects, source))
+        out = cls(kc, d, f["velocity_band"], f["enabled"], fade_velocity=f["fade_velocity"],
+                  error_band=f["error_band"], **effect_terms(effects, source)).scaled(f["fraction"])
         if out.enabled:
             out.check_not_beyond(cfg, "model_file" if f["model"] == "identified" and f["model_file"] else None)
         return out
@@ -98,6 +116,14 @@ class FrictionFeedForward:
         the motor that the gain-margin model counts (ankle_rt.analysis.gain_set_margin_db)."""
         return self.d + abs(self.dv) if self.enabled else 0.0
 
+    def scaled(self, fraction: float) -> "FrictionFeedForward":
+        """A copy cancelling ``fraction`` of every friction term (the Stribeck velocity and the band kept):
+        below 1 the feed-forward stays below a device's friction down to ``fraction`` of the model's."""
+        out = copy.copy(self)
+        for name in ("kc", "d", "a", "dc", "dv", "mu"):
+            setattr(out, name, fraction * getattr(self, name))
+        return out
+
     def without_viscous(self) -> "FrictionFeedForward":
         """A copy without the viscous terms (D, dv): under the joint-torque loop the motors' viscous
         friction is the damping the loop's integral relies on (ankle_rt.control.torque_loop)."""
@@ -121,15 +147,16 @@ class FrictionFeedForward:
         off = cls(0.0, 0.0, 1.0)
         return stack([f if f.enabled else off for f in feed_forwards])
 
-    def torque(self, v: Value, tc: Value = 0.0) -> Value:
-        """N m for motor velocity ``v`` rad/s and felt cable torque ``tc`` N m (0 when switched off).
-        Element-wise (:mod:`ankle_rt.elementwise`): floats for one device, arrays for a :meth:`stack`."""
+    def torque(self, v: Value, tc: Value = 0.0, e: Value = 0.0) -> Value:
+        """N m for motor velocity ``v`` rad/s, felt cable torque ``tc`` N m and the torque loop's error as
+        this motor feels it ``e`` N m (0 without the loop); 0 when switched off. Element-wise
+        (:mod:`ankle_rt.elementwise`): floats for one device, arrays for a :meth:`stack`."""
         if not self.enabled:
             return 0.0
-        s = clip(v * self.inv_band, -1.0, 1.0)
-        u = v * self.inv_vs
+        s = clip(clip(v * self.inv_band, -1.0, 1.0) + clip(e * self.inv_error_band, -1.0, 1.0), -1.0, 1.0)
+        u, h = v * self.inv_vs, v * self.inv_fade
         sliding = self.kc + self.a * exp(-u * u) + self.mu * abs(tc)
-        return s * sliding + self.dc * abs(s) + self.d * v + self.dv * abs(v)
+        return (s * sliding + self.dc * abs(s)) * exp(-h * h) + self.d * v + self.dv * abs(v)
 
 
 # the friction effects' parameters the feed-forward reads: name -> (keyword, must be > 0)

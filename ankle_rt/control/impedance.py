@@ -112,19 +112,23 @@ class ImpedanceController(RampedGainController):
         """Motor torques (N m) rendering the desired joint torques ``t0``, ``t1`` (N m [DP, IE]) of a
         law with stiffness ``k0``, ``k1`` (N m/rad): the loop's lag on the spring torque (lag_s) led by
         K lag_s of damping (JointTorqueLoop.lag_s, counted by ImpedanceLimits), the joint-torque loop
-        if closed, R^-T, the friction feed-forward, times the soft-start scale (advanced by the law).
+        if closed, R^-T, the friction feed-forward (its direction also from the loop's error where
+        ``friction_ff.error_band`` says so), times the soft-start scale (advanced by the law).
         Element-wise; every controller on this actuation (impedance, gait phase) calls it once per cycle."""
         t0 = t0 - k0 * self.lead0 * est.dp_vel
         t1 = t1 - k1 * self.lead1 * est.ie_vel
         s = self.gains.scale
         j0, j1 = est.sg_dp, est.sg_ie
         loop = self.torque_loop
+        e0 = e1 = 0.0
         if loop is not None:
+            d0, d1 = t0, t1
             t0, t1 = loop.update(t0, t1, j0, j1, est.dp_vel, est.ie_vel, s >= 1.0)
+            e0, e1 = d0 - loop.f0, d1 - loop.f1     # the loop's error, for the feed-forward's direction
         RiT = self.RiT
         ff = self.friction
-        return (s * (RiT[0] * t0 + RiT[1] * t1 + ff.torque(est.mv1, RiT[0] * j0 + RiT[1] * j1)),
-                s * (RiT[2] * t0 + RiT[3] * t1 + ff.torque(est.mv2, RiT[2] * j0 + RiT[3] * j1)))
+        return (s * (RiT[0] * t0 + RiT[1] * t1 + ff.torque(est.mv1, RiT[0] * j0 + RiT[1] * j1, RiT[0] * e0 + RiT[1] * e1)),
+                s * (RiT[2] * t0 + RiT[3] * t1 + ff.torque(est.mv2, RiT[2] * j0 + RiT[3] * j1, RiT[2] * e0 + RiT[3] * e1)))
 
 
 def actuation_from_config(cfg: "Config", friction: FrictionFeedForward | None
