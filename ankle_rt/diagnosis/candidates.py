@@ -355,7 +355,6 @@ class TorqueConstantScale(Candidate):
 
     cause = "torque_constant"
     calibration = True
-    what = "torque-constant scale"
 
     def applies(self, ch):
         return bool(np.any(ch.tc))
@@ -363,40 +362,15 @@ class TorqueConstantScale(Candidate):
     def design(self, ch, nl):
         return Design(ch.per_column(ch.L_tc))
 
-    def names(self, ch) -> list[str]:
-        return [f"scale_{i + 1}" for i in range(ch.m)]
-
     def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
-        return {name: (1.0 / (1.0 + float(coef[i])), _sd(cov, i) / (1.0 + float(coef[i])) ** 2)
-                for i, name in enumerate(self.names(ch))}
+        return {f"scale_{i + 1}": (1.0 / (1.0 + float(coef[i])), _sd(cov, i) / (1.0 + float(coef[i])) ** 2)
+                for i in range(len(coef))}
 
     def rejection(self, params, coef, base_coef):
         off = [f"{v:.3g}" for v, _ in params.values() if not SCALE_RANGE[0] < v < SCALE_RANGE[1]]
         if off:
-            return f"{self.what} {', '.join(off)} outside {SCALE_RANGE[0]:g}-{SCALE_RANGE[1]:g}: no calibration error"
+            return f"torque-constant scale {', '.join(off)} outside {SCALE_RANGE[0]:g}-{SCALE_RANGE[1]:g}: no calibration error"
         return super().rejection(params, coef, base_coef)
-
-
-class GaugeGain(TorqueConstantScale):
-    """A strain-gauge gain error per ankle axis (the gauge reads ``scale`` x the true torque), a calibration
-    finding: the cable torque the motors feel, ``R^-T tau_j``, is wrong by ``(1 / scale_a - 1)`` of each
-    axis' share, one column per axis across both motors. Where joint encoders are logged the cable channel's
-    stiffness takes such a gain; without them only the motor side shows it (generator D: a gauge gain read
-    as an unknown remainder correlated with position, beside a per-motor torque-constant term)."""
-
-    cause = "gauge_gain"
-    what = "strain-gauge scale"
-
-    def applies(self, ch):
-        return ch.geometry is not None and ch.m == 2 and bool(np.any(ch.tc))
-
-    def design(self, ch, nl):
-        R_T = ch.geometry.R_inv_T
-        tau_j = ch.tc @ np.linalg.inv(R_T.T)                  # the gauges' axis torques (offsets removed)
-        return Design(np.column_stack([ch.filt(np.outer(tau_j[:, a], R_T[:, a])) for a in range(2)]))
-
-    def names(self, ch):
-        return ["scale_dp", "scale_ie"]
 
 
 class CoulombTransition(Candidate):
@@ -631,7 +605,7 @@ class CableTautHardening(TautHardening):
 
 MOTOR_CANDIDATES: tuple[Candidate, ...] = (Stribeck(), StribeckExponential(), AsymmetricFriction(),
                                            AsymmetricFrictionPerMotor(), LoadDependentFriction(), Cogging(), Delay(),
-                                           TorqueOffset(), TorqueConstantScale(), GaugeGain(), CoulombTransition())
+                                           TorqueOffset(), TorqueConstantScale(), CoulombTransition())
 CABLE_CANDIDATES: tuple[Candidate, ...] = (Backlash(), CableBacklash(), HardeningStiffness(), TautHardening(),
                                            CableTautHardening(), EncoderScale())
 

@@ -51,8 +51,7 @@ PLANTS = ("ankle", "actuator")
 CALIBRATION_TEXT = {"torque_constant": "the torque constant is (true / configured, per motor)",
                     "coulomb_transition": "the Coulomb friction turns sharper than the configured smoothing "
                                           "velocity (per motor, rad/s),",
-                    "encoder_scale": "the motor encoders read, relative to the ankle encoders (per axis),",
-                    "gauge_gain": "the strain gauges read (measured / true, per ankle axis)"}
+                    "encoder_scale": "the motor encoders read, relative to the ankle encoders (per axis),"}
 #: candidates that are calibration findings (fitted and reported, never causes or sim effects)
 CALIBRATIONS = tuple(c.cause for c in MOTOR_CANDIDATES + CABLE_CANDIDATES if c.calibration)
 
