@@ -45,9 +45,8 @@ REST_S = 0.05
 STUCK_REST_S = 0.01
 #: ... while the net torque on it changes by more than this x the nominal Coulomb level: more than a
 #: Coulomb friction of that level can hold at rest (from -kc to +kc), so the motor's static friction
-#: exceeds it (generator D's sticking motors: up to 2-15 kc per record; generator A's tanh friction reaches
-#: 2-6 kc only in short rests of its strong Stribeck cases and keeps its verdicts, while at 1 kc its seeds
-#: 1000-1031 lost three)
+#: exceeds it (generator D's sticking motors: up to 2-15 kc per record; generator A's tanh friction passes
+#: it in a few short rests, 7 of seeds 1000-1031, up to 6 kc, and keeps its verdicts; at 1 kc it lost three)
 STUCK_LEVEL = 2.0
 
 
@@ -228,16 +227,16 @@ class MotorChannel(_StackedChannel):
         #: rests where static friction holds the motor (needs the nominal Coulomb level ``coulomb``, N m):
         #: their samples weigh nothing in any regression of the channel (left in, the holding torques read
         #: as a load offset, friction asymmetry, a delay or an unknown remainder)
+        short_rests = resting(self.pos, max(3, int(round(STUCK_REST_S / self.dt))))
         self.stuck = np.zeros_like(self.resting)
         if coulomb is not None:
             net = sm.smooth(self.tau) - sm.smooth(self.tc)
-            self.stuck = stuck(resting(self.pos, max(3, int(round(STUCK_REST_S / self.dt)))), net,
-                               STUCK_LEVEL * coulomb)
+            self.stuck = stuck(short_rests, net, STUCK_LEVEL * coulomb)
             if self.stuck.any():
                 sm.weight = (~self.stuck).astype(float)
         self._torque: dict[float, np.ndarray] = {}
         #: per stacked row: no rest of its motor (count unchanged STUCK_REST_S) within the filter's reach
-        self.moving_rows = self._far_from(resting(self.pos, max(3, int(round(STUCK_REST_S / self.dt)))))
+        self.moving_rows = self._far_from(short_rests)
         self._acc = sm.fast_derivative(self.pos, 2)
         self.v_eps = v_eps
         self.L_acc = sm.smooth(self.pos, 2)
