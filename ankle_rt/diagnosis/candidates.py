@@ -40,6 +40,8 @@ class Candidate:
     form: dict[str, str] = {}
     #: a richer form of the same effect tried once this one is chosen (e.g. cogging with a harmonic)
     upgrade: "Candidate | None" = None
+    #: the effect must show while the motors move, not only beside their rests (selection._shown_in_motion)
+    in_motion: bool = False
 
     def applies(self, ch: Channel) -> bool:
         return True
@@ -446,6 +448,7 @@ class EncoderScale(Candidate):
 class Delay(Candidate):
     cause = "delay"
     nonlinear = "delay"
+    in_motion = True
 
     def grid(self, ch):
         return list(np.arange(0.25e-3, 25.01e-3, 0.5e-3))

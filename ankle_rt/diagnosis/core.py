@@ -142,6 +142,7 @@ class Inputs:
     cogging_prior: float | None = None      # periods per output revolution, from the config
     current_limit: float | None = None      # A, the amplifier's peak limit, from the config
     counts_per_rev: int | None = None       # motor encoder counts per output revolution (ankle plant)
+    coulomb: float | None = None            # N m, the nominal Coulomb friction (tells a stuck motor's rests)
 
 
 def resolve_inputs(rec: Recording, plant: str, cfg: Config | None) -> Inputs:
@@ -163,8 +164,9 @@ def resolve_inputs(rec: Recording, plant: str, cfg: Config | None) -> Inputs:
     else:
         v_eps = fit_smoothing_velocity(rec, kt, geometry)
         notes.append(f"no config: Coulomb smoothing velocity fitted from the data: {v_eps:.3g} (position unit/s)")
-    prior = limit = counts = None
+    prior = limit = counts = coulomb = None
     if cfg is not None:
+        coulomb = float(cfg["actuator"]["coulomb"]) or None
         if plant == "ankle":
             counts = int(cfg["actuator"]["encoder_counts_per_rev"])
         per_motor_rev = (cfg.get("diagnosis") or {}).get("cogging_periods_per_motor_rev")
@@ -172,7 +174,7 @@ def resolve_inputs(rec: Recording, plant: str, cfg: Config | None) -> Inputs:
             prior = float(per_motor_rev) * cfg["actuator"]["gear_ratio"]
         if rec.input_kind == "current":
             limit = cfg["amplifier"]["current_limit_peak"]
-    return Inputs(kt, v_eps, geometry, notes, prior, limit, counts)
+    return Inputs(kt, v_eps, geometry, notes, prior, limit, counts, coulomb)
 
 
 def fit_smoothing_velocity(rec: Recording, kt: float | None, geometry: Geometry | None) -> float:
@@ -194,7 +196,7 @@ def fit_smoothing_velocity(rec: Recording, kt: float | None, geometry: Geometry 
 
 def build_channels(rec: Recording, inputs: Inputs, good: np.ndarray | None = None) -> dict[str, Channel]:
     chans: dict[str, Channel] = {"motor": MotorChannel(rec, inputs.kt, inputs.geometry, inputs.v_eps, good,
-                                                       inputs.cogging_prior, inputs.counts_per_rev)}
+                                                       inputs.cogging_prior, inputs.counts_per_rev, inputs.coulomb)}
     if inputs.geometry is not None and CableChannel.available(rec):
         chans["cable"] = CableChannel(rec, inputs.geometry, good)
     return chans
