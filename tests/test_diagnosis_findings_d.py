@@ -8,7 +8,7 @@ import pytest
 
 from ankle_rt.diagnosis import diagnose
 from ankle_rt.diagnosis.candidates import COUNTS_PER_PERIOD, Cogging
-from ankle_rt.diagnosis.signals import MotorChannel, resting
+from ankle_rt.diagnosis.signals import MotorChannel, resting, stuck
 from benchmarks.diagnosis_cases_d import COUNTS, draw_case_d, make_case_d
 
 
@@ -130,6 +130,32 @@ def test_a_rest_through_which_the_torque_changes_little_is_not_stuck():
     assert ch.resting[1000:1200, 0].all()
     assert not ch.stuck.any()
     assert ch.sm.weight is None
+
+
+def test_the_holding_level_may_vary_through_a_rest():
+    """A friction of level h(t) (a load-dependent term: mu |tc|) holds a rest when some constant c keeps the
+    net torque within c +- h(t) throughout: a level that rises where the torque peaks holds more."""
+    pos = np.zeros((20, 1))
+    runs = resting(pos, 10)
+    net = np.r_[np.zeros(10), np.ones(10)][:, None]                   # 1 N m change
+    assert stuck(runs, net, 0.4).all()
+    level = np.r_[np.full(10, 0.4), np.full(10, 0.7)][:, None]        # 0.4 + 0.7 > 1
+    assert not stuck(runs, net, level).any()
+
+
+def test_a_rest_the_chosen_friction_holds_is_weighed_again():
+    """The second stuck test (core._select_motor): a rest that more than the nominal Coulomb level holds is
+    stuck at first; weighed against a friction that holds more near zero speed (a Stribeck excess), it is a
+    creeping rest the law explains: its samples count again, as in a channel without stuck rests."""
+    rec = _rest_record(0.6)                                   # 1.0 N m held: > 2 x 0.28, < 2 x (0.28 + 0.3)
+    ch = MotorChannel(rec, 1.66, None, 0.01, coulomb=0.28)
+    assert ch.stuck.any()
+    assert ch.weigh_rests(0.28 + 0.3)
+    assert not ch.stuck.any() and ch.sm.weight is None
+    plain = MotorChannel(rec, 1.66, None, 0.01)
+    np.testing.assert_allclose(ch.target(), plain.target(), atol=1e-12)
+    np.testing.assert_allclose(ch.baseline_design(), plain.baseline_design(), atol=1e-12)
+    assert not ch.weigh_rests(0.28 + 0.3)                    # nothing changes: no second selection
 
 
 @pytest.mark.slow

@@ -427,9 +427,11 @@ def _shown_in_motion(models: ChannelModels, chosen: list[Term], nl_sd: list[floa
     """The chosen terms without those that must show while the motors move (:attr:`Candidate.in_motion`)
     and do not: scored with the others in on the rows where no motor rests within the filter's reach
     (each dropped with a note). A motor that sticks takes its torque before it moves: the breakaway
-    lags the torque, which a short actuation delay fitted from the rests' edges (generator D)."""
+    lags the torque, which a short actuation delay fitted from the rests' edges (generator D). Only
+    where some rest is stuck (signals.stuck): where the friction law holds every rest, the motors creep
+    through them and the rows beside them are as good as any."""
     rows = getattr(models.ch, "moving_rows", None)
-    if rows is None or rows.all():
+    if rows is None or rows.all() or not models.ch.stuck.any():
         return chosen, nl_sd
     share = float(rows.mean())
     for i in reversed(range(len(chosen))):
