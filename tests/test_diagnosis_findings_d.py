@@ -8,7 +8,7 @@ import pytest
 
 from ankle_rt.diagnosis import diagnose
 from ankle_rt.diagnosis.candidates import COUNTS_PER_PERIOD, Cogging
-from ankle_rt.diagnosis.signals import MotorChannel, resting
+from ankle_rt.diagnosis.signals import MotorChannel, resting, stuck
 from benchmarks.diagnosis_cases_d import COUNTS, draw_case_d, make_case_d
 
 
@@ -85,3 +85,105 @@ def test_stale_rows_are_re_interpolated_and_a_motor_at_rest_is_not_stale():
     assert repair_stale_rows(Recording(at_rest, "r"))[1] is None
     no_gauges = {k: v for k, v in stale.items() if not k.startswith("sg_")}   # a slow count repeats by nature
     assert repair_stale_rows(Recording(no_gauges, "a"))[1] is None
+
+
+def _rest_record(held_current: float, rest: slice = slice(1000, 1200)) -> "Recording":
+    """Motor 1 follows a slow sine but stands still through ``rest`` while its current ramps to
+    ``held_current`` (A) and back; motor 2 moves throughout (1 kHz, 5.4e-5 rad counts, no gauges)."""
+    from ankle_rt.interchange import Recording
+    t = np.arange(3000) * 1e-3
+    q = 5.4e-5
+    pos1 = 0.3 * np.sin(2.0 * np.pi * 0.5 * t)
+    pos1[rest] = pos1[rest.start]
+    cur1 = 0.2 * np.cos(2.0 * np.pi * 0.5 * t)
+    n = rest.stop - rest.start
+    cur1[rest] += held_current * np.sin(np.linspace(0.0, np.pi, n))
+    cols = {"t": t, "motor_pos_1": np.round(pos1 / q) * q, "motor_pos_2": np.round(0.2 * np.sin(3.0 * t) / q) * q,
+            "current_cmd_1": cur1, "current_cmd_2": 0.3 * np.cos(3.0 * t),
+            "sg_torque_dp": np.zeros_like(t), "sg_torque_ie": np.zeros_like(t)}
+    return Recording(cols, "rest")
+
+
+def test_a_rest_holding_a_changing_torque_is_stuck_and_weighs_nothing():
+    """Generator D's motors stick: through a rest the net torque changes by several times the Coulomb level
+    (more than -kc..+kc, all a Coulomb friction holds), which no friction law of velocity describes. Those
+    samples weigh nothing on either side of the motor channel's regressions: whatever torque the stuck
+    motor held, the channel's rows are the same. Without the nominal Coulomb level nothing is stuck."""
+    held, other = _rest_record(1.0), _rest_record(0.6)        # 1.66 and 1.0 N m held: both > 2 x 0.28
+    a = MotorChannel(held, 1.66, None, 0.01, coulomb=0.28)
+    b = MotorChannel(other, 1.66, None, 0.01, coulomb=0.28)
+    assert a.stuck[1000:1200, 0].all() and a.stuck[:, 0].sum() == 200
+    assert not a.stuck[:, 1].any()
+    np.testing.assert_allclose(a.target(), b.target(), atol=1e-12)
+    np.testing.assert_allclose(a.baseline_design(), b.baseline_design(), atol=1e-12)
+    plain_a = MotorChannel(held, 1.66, None, 0.01)
+    plain_b = MotorChannel(other, 1.66, None, 0.01)
+    assert not plain_a.stuck.any()
+    assert np.max(np.abs(plain_a.target() - plain_b.target())) > 0.1
+
+
+def test_a_rest_through_which_the_torque_changes_little_is_not_stuck():
+    """A motor whose friction is a smooth function of speed keeps its count through a slow reversal while
+    the torque changes by less than the whole Coulomb range (generator A): not stuck, its samples count."""
+    creep = _rest_record(0.2)                                 # 0.33 N m < 2 x 0.28
+    ch = MotorChannel(creep, 1.66, None, 0.01, coulomb=0.28)
+    assert ch.resting[1000:1200, 0].all()
+    assert not ch.stuck.any()
+    assert ch.sm.weight is None
+
+
+def test_the_holding_level_may_vary_through_a_rest():
+    """A friction of level h(t) (a load-dependent term: mu |tc|) holds a rest when some constant c keeps the
+    net torque within c +- h(t) throughout: a level that rises where the torque peaks holds more."""
+    pos = np.zeros((20, 1))
+    runs = resting(pos, 10)
+    net = np.r_[np.zeros(10), np.ones(10)][:, None]                   # 1 N m change
+    assert stuck(runs, net, 0.4).all()
+    level = np.r_[np.full(10, 0.4), np.full(10, 0.7)][:, None]        # 0.4 + 0.7 > 1
+    assert not stuck(runs, net, level).any()
+
+
+def test_a_rest_the_chosen_friction_holds_is_weighed_again():
+    """The second stuck test (core._select_motor): a rest that more than the nominal Coulomb level holds is
+    stuck at first; weighed against a friction that holds more near zero speed (a Stribeck excess), it is a
+    creeping rest the law explains: its samples count again, as in a channel without stuck rests."""
+    rec = _rest_record(0.6)                                   # 1.0 N m held: > 2 x 0.28, < 2 x (0.28 + 0.3)
+    ch = MotorChannel(rec, 1.66, None, 0.01, coulomb=0.28)
+    assert ch.stuck.any()
+    assert ch.weigh_rests(0.28 + 0.3)
+    assert not ch.stuck.any() and ch.sm.weight is None
+    plain = MotorChannel(rec, 1.66, None, 0.01)
+    np.testing.assert_allclose(ch.target(), plain.target(), atol=1e-12)
+    np.testing.assert_allclose(ch.baseline_design(), plain.baseline_design(), atol=1e-12)
+    assert not ch.weigh_rests(0.28 + 0.3)                    # nothing changes: no second selection
+
+
+@pytest.mark.slow
+def test_a_delay_fitted_from_the_breakaways_is_not_named():
+    """A motor that sticks takes its torque before it moves: the motion lags the torque at every breakaway,
+    which an effect-free record with sticking motors (generator D, impedance law, 12 s) fitted as a 1 ms
+    actuation delay. A delay must also show on the rows where no motor rests within the filter's reach;
+    this one makes them worse: dropped (with a note), `none`. Without that check it is named."""
+    from ankle_rt.diagnosis.candidates import Delay
+    case = make_case_d(101, [], ["stale_rows"], "impedance", "multisine", ident_s=12, valid_s=6, with_ankle=True)
+    diag = diagnose(case.ident, case.valid, plant="ankle", cfg=case.nominal_cfg)
+    assert diag.causes == ["none"], (diag.causes, diag.notes)
+    assert any("delay dropped: where no motor rests" in n for n in diag.notes), diag.notes
+    try:
+        Delay.in_motion = False
+        unchecked = diagnose(case.ident, case.valid, plant="ankle", cfg=case.nominal_cfg)
+    finally:
+        Delay.in_motion = True
+    assert "delay" in unchecked.causes
+
+
+@pytest.mark.slow
+def test_a_true_delay_beside_sticking_motors_is_kept():
+    """A 5.2 ms actuation latency on a device whose motors stick (2 % of the samples stuck): it shows while
+    the motors move, and is named with its value."""
+    case = make_case_d(131, ["delay"], [], "pd", "chirp", ident_s=12, valid_s=6, with_ankle=True)
+    diag = diagnose(case.ident, case.valid, plant="ankle", cfg=case.nominal_cfg)
+    assert diag.detail["results"][0].channel.stuck.any()
+    assert diag.causes == ["delay"], (diag.causes, diag.notes)
+    latency = next(e["latency"] for e in case.effects if e["kind"] == "delay")
+    assert diag.parameters["delay"]["value"] == pytest.approx(latency, rel=0.1)

@@ -40,6 +40,8 @@ class Candidate:
     form: dict[str, str] = {}
     #: a richer form of the same effect tried once this one is chosen (e.g. cogging with a harmonic)
     upgrade: "Candidate | None" = None
+    #: the effect must show while the motors move, not only beside their rests (selection._shown_in_motion)
+    in_motion: bool = False
 
     def applies(self, ch: Channel) -> bool:
         return True
@@ -75,6 +77,14 @@ class Candidate:
         bad = [k for k, (v, _) in params.items() if not math.isfinite(v)]
         return f"non-finite {', '.join(bad)}" if bad else None
 
+    def holding(self, ch: Channel, coef: np.ndarray) -> float | np.ndarray:
+        """The friction this block adds near zero speed with its coefficients ``coef`` (N m, one number or
+        per sample and motor): what it holds a resting motor with beside the nominal Coulomb level
+        (core._holding, signals.stuck). A torque constant through a rest (a load, cogging at that angle, a
+        Coulomb asymmetry, which shifts the band both ways alike) and a sharper Coulomb transition (the
+        same level) hold nothing: 0."""
+        return 0.0
+
     def implausible(self, coef: np.ndarray, nl: float, ch: Channel, base_coef: np.ndarray) -> str | None:
         """Why the fitted shape contradicts the physics the effect stands for (None: it does not): the
         block then fits something outside the vocabulary, and the selection drops it so that the
@@ -102,6 +112,10 @@ class Stribeck(Candidate):
     def design(self, ch, nl):
         e = self.exponent
         return Design(ch.filt(ch.step_mean(lambda v: np.exp(-np.abs(v / nl) ** e) * np.tanh(v / ch.v_eps)))[:, None])
+
+    def holding(self, ch, coef):
+        """The static excess: at speeds above v_eps and far below vs the term is its whole excess."""
+        return float(coef[0])
 
     def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
         return {"static_excess": (float(coef[0]), _sd(cov, 0)), "stribeck_velocity": (nl, nl_sd),
@@ -171,6 +185,10 @@ class LoadDependentFriction(Candidate):
 
     def design(self, ch, nl):
         return Design(ch.filt(np.abs(ch.tc) * ch.sign)[:, None])
+
+    def holding(self, ch, coef):
+        """mu |tc| with the cable torque the motor feels through the rest (filtered, every sample)."""
+        return float(coef[0]) * np.abs(ch.sm.smooth(ch.tc, weigh=False))
 
     def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
         return {"coefficient": (float(coef[0]), _sd(cov, 0))}
@@ -446,6 +464,7 @@ class EncoderScale(Candidate):
 class Delay(Candidate):
     cause = "delay"
     nonlinear = "delay"
+    in_motion = True
 
     def grid(self, ch):
         return list(np.arange(0.25e-3, 25.01e-3, 0.5e-3))

@@ -142,6 +142,7 @@ class Inputs:
     cogging_prior: float | None = None      # periods per output revolution, from the config
     current_limit: float | None = None      # A, the amplifier's peak limit, from the config
     counts_per_rev: int | None = None       # motor encoder counts per output revolution (ankle plant)
+    coulomb: float | None = None            # N m, the nominal Coulomb friction (tells a stuck motor's rests)
 
 
 def resolve_inputs(rec: Recording, plant: str, cfg: Config | None) -> Inputs:
@@ -163,8 +164,9 @@ def resolve_inputs(rec: Recording, plant: str, cfg: Config | None) -> Inputs:
     else:
         v_eps = fit_smoothing_velocity(rec, kt, geometry)
         notes.append(f"no config: Coulomb smoothing velocity fitted from the data: {v_eps:.3g} (position unit/s)")
-    prior = limit = counts = None
+    prior = limit = counts = coulomb = None
     if cfg is not None:
+        coulomb = float(cfg["actuator"]["coulomb"]) or None
         if plant == "ankle":
             counts = int(cfg["actuator"]["encoder_counts_per_rev"])
         per_motor_rev = (cfg.get("diagnosis") or {}).get("cogging_periods_per_motor_rev")
@@ -172,7 +174,7 @@ def resolve_inputs(rec: Recording, plant: str, cfg: Config | None) -> Inputs:
             prior = float(per_motor_rev) * cfg["actuator"]["gear_ratio"]
         if rec.input_kind == "current":
             limit = cfg["amplifier"]["current_limit_peak"]
-    return Inputs(kt, v_eps, geometry, notes, prior, limit, counts)
+    return Inputs(kt, v_eps, geometry, notes, prior, limit, counts, coulomb)
 
 
 def fit_smoothing_velocity(rec: Recording, kt: float | None, geometry: Geometry | None) -> float:
@@ -194,7 +196,7 @@ def fit_smoothing_velocity(rec: Recording, kt: float | None, geometry: Geometry 
 
 def build_channels(rec: Recording, inputs: Inputs, good: np.ndarray | None = None) -> dict[str, Channel]:
     chans: dict[str, Channel] = {"motor": MotorChannel(rec, inputs.kt, inputs.geometry, inputs.v_eps, good,
-                                                       inputs.cogging_prior, inputs.counts_per_rev)}
+                                                       inputs.cogging_prior, inputs.counts_per_rev, inputs.coulomb)}
     if inputs.geometry is not None and CableChannel.available(rec):
         chans["cable"] = CableChannel(rec, inputs.geometry, good)
     return chans
@@ -453,6 +455,43 @@ def _adequacy(results: list[ChannelResult]) -> dict[str, Any]:
                      "adequate": not r.unexplained} for r in results}
 
 
+def _holding(res: ChannelResult, ch: MotorChannel) -> np.ndarray:
+    """What the motor channel's chosen model holds a resting motor with (N m, samples x motors of ``ch``):
+    the nominal Coulomb level the first stuck test used plus what each chosen friction effect adds near
+    zero speed (:meth:`Candidate.holding`: a Stribeck excess, mu |tc|), never below 0."""
+    h = np.zeros((ch.n_samples, ch.m)) + ch.coulomb
+    for ts, sl in zip(res.terms, res.models.slices([ts.term for ts in res.terms])):
+        h = h + ts.term.candidate.holding(ch, res.model.coef[sl])
+    return np.maximum(h, 0.0)
+
+
+def _select_motor(chans: dict[str, Channel], vchans: dict[str, Channel], pool: tuple[Candidate, ...], catch_all,
+                  drift: bool) -> ChannelResult:
+    """The motor channel's selection with the stuck rests judged twice: first against the nominal Coulomb
+    level alone (the channels as built), then against what the chosen model's friction holds near zero
+    speed (:func:`_holding`: a Stribeck excess and a load-dependent term hold more than Coulomb alone, and
+    a rest they hold is one their law explains). Where that changes the stuck rests of the identification
+    or validation data, both are weighed again and the channel selected once more (once: the second
+    model's friction does not judge the rests again)."""
+    res = select_channel("motor", chans["motor"], pool, catch_all)
+    if chans["motor"].coulomb is None:
+        return res
+    levels = [_holding(res, c["motor"]) for c in (chans, vchans)]
+    before = int(chans["motor"].stuck.sum())
+    changed = [c["motor"].weigh_rests(h) for c, h in zip((chans, vchans), levels)]
+    if not any(changed):
+        return res
+    if drift:
+        for c in (chans, vchans):
+            _add_drift_nuisance(c["motor"])
+    again = select_channel("motor", chans["motor"], pool, catch_all)
+    again.notes.insert(0, "stuck rests judged again against what the chosen friction ("
+                       + ", ".join(ts.term.cause for ts in res.terms) + ") holds near zero speed: "
+                       f"{before} -> {int(chans['motor'].stuck.sum())} stuck samples in the identification data; "
+                       "selected again")
+    return again
+
+
 # -- the whole -----------------------------------------------------------------------------------------
 def diagnose(ident: Recording, validation: Recording | None = None, *, plant: str = "ankle",
              cfg: Config | None = None) -> Diagnosis:
@@ -481,9 +520,10 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
     vchans = build_channels(validation, inputs, vscr.good)
     if plant == "ankle" and "cable" not in chans:
         notes.append("no joint angles (ankle_dp, ankle_ie): cable side (backlash, stiffness) not diagnosed")
-    if "cable" in chans and (drift := strain_gauge_drift(chans["cable"])) is not None:
+    drift = "cable" in chans and (drift_pp := strain_gauge_drift(chans["cable"])) is not None
+    if drift:
         warnings.append("the strain-gauge offsets drift over the record (peak to peak "
-                        + ", ".join(f"{d:.3g} N m" for d in drift) + " on DP, IE): fitted as a sensor drift "
+                        + ", ".join(f"{d:.3g} N m" for d in drift_pp) + " on DP, IE): fitted as a sensor drift "
                         "in both channels, not as an effect; a load offset on the motors cannot then be told "
                         "from the gauges' own offset, so torque_offset is not tried")
         for ch in list(chans.values()) + list(vchans.values()):
@@ -495,7 +535,7 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
     skip = scr.skip
     motor_pool = tuple(c for c in MOTOR_CANDIDATES if c.cause not in skip)
     motor_catch_all = without_groups(catch_all_motor, INPUT_GROUPS) if scr.one_way or vscr.one_way else catch_all_motor
-    results = [select_channel("motor", chans["motor"], motor_pool, motor_catch_all)]
+    results = [_select_motor(chans, vchans, motor_pool, motor_catch_all, drift)]
     vmodels = {name: ChannelModels(vch) for name, vch in vchans.items()}
     if "cable" in chans and "cable" in vchans:
         results.append(select_channel("cable", chans["cable"], CABLE_CANDIDATES, catch_all_cable))

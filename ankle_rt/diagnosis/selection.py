@@ -286,6 +286,7 @@ def select_channel(name: str, ch: Channel, candidates: tuple[Candidate, ...], ca
         chosen, out.nl_sd = _refine(models, pruned, n_eff)
     chosen = _with_richer_forms(models, chosen, n_eff)
     chosen, out.nl_sd, dropped = _plausible(models, chosen, out.nl_sd, out)
+    chosen, out.nl_sd = _shown_in_motion(models, chosen, out.nl_sd, n_eff, out)
     dropped_causes = {d.cause for d in dropped}
     rivals = [c for c in pool if c.cause not in dropped_causes]
     out.terms = [_term_stats(models, chosen, i, rivals, n_eff, base.rss) for i in range(len(chosen))]
@@ -419,6 +420,40 @@ def _plausible(models: ChannelModels, chosen: list[Term], nl_sd: list[float],
         out.notes.append(f"{chosen[bad].cause} dropped: {why[bad]}")
         dropped.append(chosen[bad].candidate)
         chosen, nl_sd = chosen[:bad] + chosen[bad + 1:], nl_sd[:bad] + nl_sd[bad + 1:]
+
+
+def _shown_in_motion(models: ChannelModels, chosen: list[Term], nl_sd: list[float], n_eff: float,
+                     out: ChannelResult) -> tuple[list[Term], list[float]]:
+    """The chosen terms without those that must show while the motors move (:attr:`Candidate.in_motion`)
+    and do not: scored with the others in on the rows where no motor rests within the filter's reach
+    (each dropped with a note). A motor that sticks takes its torque before it moves: the breakaway
+    lags the torque, which a short actuation delay fitted from the rests' edges (generator D). Only
+    where some rest is stuck (signals.stuck): where the friction law holds every rest, the motors creep
+    through them and the rows beside them are as good as any."""
+    rows = getattr(models.ch, "moving_rows", None)
+    if rows is None or rows.all() or not models.ch.stuck.any():
+        return chosen, nl_sd
+    share = float(rows.mean())
+    for i in reversed(range(len(chosen))):
+        if not chosen[i].candidate.in_motion:
+            continue
+        rest = chosen[:i] + chosen[i + 1:]
+        (y, X), (_, Xr) = models.system(chosen), models.system(rest)
+        yr = next((t.design.y for t in rest if t.design.y is not None), models.y0)
+        rss_with, rss_without = rss_only(y[rows], X[rows]), rss_only(yr[rows], Xr[rows])
+        s = Score(chosen[i].cause, chosen[i].candidate, chosen[i].nl, rss_with, models.k(chosen))
+        n = int(rows.sum())
+        ic = information_criterion(rss_with, n, s.k, n_eff * share)
+        s.delta_ic = information_criterion(rss_without, n, models.k(rest), n_eff * share) - ic
+        s.reduction = 1.0 - rss_with / rss_without
+        s.size = math.sqrt(max(0.0, rss_without - rss_with) / n) / models.scale
+        if significant(s):
+            continue
+        out.notes.append(f"{chosen[i].cause} dropped: where no motor rests ({100 * share:.0f} % of the rows) it "
+                         f"removes {100 * s.reduction:.1f} % of the residual (criterion gain {s.delta_ic:.1f}): "
+                         "what it fits is the motors' breakaway after a rest")
+        chosen, nl_sd = rest, nl_sd[:i] + nl_sd[i + 1:]
+    return chosen, nl_sd
 
 
 def _refine(models: ChannelModels, chosen: list[Term], n_eff: float) -> tuple[list[Term], list[float]]:

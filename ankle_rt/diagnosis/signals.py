@@ -41,6 +41,8 @@ EDGE_S = 0.06              # s dropped at each end (filter transients, delay shi
 #: 50-300 ms at a time, while a tanh-friction motor reversing slowly keeps its count 10-50 ms as it moves
 #: (generator A's seed 1022 lost its cogging to a 10 ms threshold: the ripple shows best at reversals)
 REST_S = 0.05
+#: s a motor's encoder must stay unchanged for a stuck rest (see :func:`stuck`)
+STUCK_REST_S = 0.01
 
 
 def _odd_window(seconds: float, dt: float, least: int) -> int:
@@ -58,6 +60,10 @@ class Smoother:
     fast_window: int
     step: int          # decimation factor
     margin: int        # rows dropped at each end
+    #: per sample and column group (samples x motors) the weight every raw signal gets before L (None: all
+    #: ones); the motor channel gives a stuck motor's samples weight 0, so its equation reads 0 = 0 there on
+    #: both sides alike. Signals of several column groups (motor after motor, repeated) are weighed alike.
+    weight: np.ndarray | None = None
 
     @classmethod
     def for_period(cls, dt: float) -> "Smoother":
@@ -67,8 +73,9 @@ class Smoother:
         step = max(1, int(round(1.0 / (dt * DECIMATED_RATE_HZ))))
         return cls(dt, cutoff, sos, _odd_window(FAST_WINDOW_S, dt, ORDER + 2), step, int(round(EDGE_S / dt)) + 2)
 
-    def smooth(self, x: np.ndarray, deriv: int = 0) -> np.ndarray:
-        """L[x], or L of the first / second central difference of x (per second, per second^2)."""
+    def smooth(self, x: np.ndarray, deriv: int = 0, weigh: bool = True) -> np.ndarray:
+        """L[x], or L of the first / second central difference of x (per second, per second^2); the
+        samples weighed by :attr:`weight` unless ``weigh`` is False."""
         from scipy.signal import sosfiltfilt
         if deriv == 1:
             x = np.gradient(x, self.dt, axis=0)
@@ -76,6 +83,8 @@ class Smoother:
             d = np.zeros_like(x)
             d[1:-1] = (x[2:] - 2.0 * x[1:-1] + x[:-2]) / self.dt ** 2
             x = d
+        if weigh and self.weight is not None:
+            x = x * np.tile(self.weight, (1, x.shape[1] // self.weight.shape[1]))
         return sosfiltfilt(self.sos, x, axis=0)
 
     def fast_derivative(self, x: np.ndarray, deriv: int = 1) -> np.ndarray:
@@ -105,6 +114,25 @@ def resting(pos: np.ndarray, samples: int) -> np.ndarray:
         for a, b in zip(edges[::2], edges[1::2]):
             if b - a + 1 >= samples:
                 out[a:b + 1, i] = True
+    return out
+
+
+def stuck(resting_: np.ndarray, net: np.ndarray, holding: float | np.ndarray) -> np.ndarray:
+    """Per sample and motor: a rest (a run of ``resting_``, every count in it kept for a while: the motor
+    moves at most at a creep speed) whose filtered net torque (``net``, N m: input minus cable torque) no
+    friction of the level ``holding`` (N m, per sample and motor or one number) can hold: no constant c
+    (a load, cogging at that angle, a Coulomb asymmetry) keeps ``net - c`` within +-holding throughout,
+    i.e. max(net - holding) > min(net + holding) (a constant level: the net torque changes by more than
+    2 x holding). A friction law of velocity holds at most its level near zero speed (a motor whose
+    friction is such a law creeps instead); static friction holds such a rest, and its samples say
+    nothing about the model."""
+    out = np.zeros(resting_.shape, dtype=bool)
+    level = np.broadcast_to(holding, net.shape)
+    for i in range(resting_.shape[1]):
+        edges = np.flatnonzero(np.diff(np.r_[0, resting_[:, i].astype(np.int8), 0]))
+        for a, b in zip(edges[::2], edges[1::2]):
+            if float(np.max(net[a:b, i] - level[a:b, i])) > float(np.min(net[a:b, i] + level[a:b, i])):
+                out[a:b, i] = True
     return out
 
 
@@ -175,7 +203,9 @@ class MotorChannel(_StackedChannel):
 
     def __init__(self, rec: Recording, kt: float | None, geometry: Geometry | None, v_eps: float,
                  good: np.ndarray | None = None, cogging_prior: float | None = None,
-                 counts_per_rev: int | None = None):
+                 counts_per_rev: int | None = None, coulomb: float | None = None):
+        """``coulomb``: the nominal Coulomb level (N m), the holding level of the first stuck test
+        (:meth:`weigh_rests`; None: nothing is stuck)."""
         super().__init__(rec, good)
         self.cogging_prior = cogging_prior      # periods per output revolution from the config, if known
         self.counts_per_rev = counts_per_rev    # motor encoder counts per output revolution, if known
@@ -197,13 +227,42 @@ class MotorChannel(_StackedChannel):
         self.geometry = geometry
         self.vel = sm.fast_derivative(self.pos)
         self.resting = resting(self.pos, max(3, int(round(REST_S / self.dt))))
+        self.short_rests = resting(self.pos, max(3, int(round(STUCK_REST_S / self.dt))))
+        #: per stacked row: no rest of its motor (count unchanged STUCK_REST_S) within the filter's reach
+        self.moving_rows = self._far_from(self.short_rests)
         self._acc = sm.fast_derivative(self.pos, 2)
         self.v_eps = v_eps
+        self.set_smoothing_velocity(v_eps)
+        self.stuck = np.zeros_like(self.resting)
+        self.coulomb = coulomb                  # N m, the nominal Coulomb level (None: no rest is judged)
+        self.weigh_rests(coulomb)
+
+    def weigh_rests(self, holding: float | np.ndarray | None) -> bool:
+        """Give the stuck rests (:func:`stuck`: more than a friction of level ``holding`` holds, N m per
+        sample and motor or one number; None: no rest is stuck) weight 0 in every regression of the
+        channel, and filter the signals again. Left in, the holding torques read as a load offset,
+        friction asymmetry, a delay or an unknown remainder. Returns whether the stuck samples changed."""
+        sm = self.sm
+        new = np.zeros_like(self.resting)
+        if holding is not None:
+            net = sm.smooth(self.tau, weigh=False) - sm.smooth(self.tc, weigh=False)
+            new = stuck(self.short_rests, net, holding)
+        changed = not np.array_equal(new, self.stuck)
+        self.stuck = new
+        sm.weight = (~new).astype(float) if new.any() else None
+        self._torque: dict[float, np.ndarray] = {}
         self.L_acc = sm.smooth(self.pos, 2)
         self.L_vel = sm.smooth(self.pos, 1)
-        self.L_tau = sm.smooth(self.tau)
         self.L_tc = sm.smooth(self.tc)
-        self.set_smoothing_velocity(v_eps)
+        return changed
+
+    def _far_from(self, mask: np.ndarray) -> np.ndarray:
+        """Per stacked row: no sample of ``mask`` (samples x motors) of its motor within the filter's reach."""
+        reach = self.sm.margin
+        kernel = np.ones(2 * reach + 1)
+        near = np.column_stack([np.convolve(mask[:, i].astype(float), kernel, mode="same") > 0.5
+                                for i in range(mask.shape[1])])
+        return ~near[self.rows].T.ravel()
 
     def remove_gauge_offset(self, offset: np.ndarray) -> None:
         """Correct the cable torque for strain-gauge zero offsets (N m per ankle axis [DP, IE])."""
@@ -227,8 +286,11 @@ class MotorChannel(_StackedChannel):
         return out
 
     def torque(self, delay_s: float = 0.0) -> np.ndarray:
-        """L[tau] at the kept rows for an actuation delay (s), ZOH half sample included (stacked)."""
-        return self.pick(shift_rows(self.L_tau, 0.5 + delay_s / self.dt))
+        """L[tau] at the kept rows for an actuation delay (s), ZOH half sample included (stacked); the
+        torque is shifted before L, which weighs the stuck samples (cached per delay)."""
+        if delay_s not in self._torque:
+            self._torque[delay_s] = self.pick(self.sm.smooth(shift_rows(self.tau, 0.5 + delay_s / self.dt)))
+        return self._torque[delay_s]
 
     def measured(self) -> np.ndarray:
         """What an NRMSE is relative to: the filtered motor torque (stacked)."""
