@@ -180,3 +180,14 @@ def test_bench_friction_ff_runs_when_the_open_loop_refuses_it(capsys):
     assert out["variants"]["open loop"]["friction_ff"] == "off"
     assert out["variants"]["closed loop"]["friction_ff"] == "identified"
     assert out["plant_friction_scale"] == 0.9
+
+
+def test_config_check_names_the_compensation_it_runs(tmp_path):
+    """`config check` says which friction model runs and how it is shaped, only the keys that are on."""
+    from ankle_rt.commands.config import describe
+
+    lines = describe(_cfg(tmp_path))
+    assert any("friction feed-forward on (identified, x0.7, fade 0.5 rad/s, error band 0.02 N m)" in line
+               for line in lines)
+    plain = describe(_cfg(tmp_path, {"fraction": 1.0, "fade_velocity": 0.0, "error_band": 0.0}))
+    assert any(line.endswith("friction feed-forward on (identified)") for line in plain)

@@ -68,8 +68,12 @@ def describe(cfg) -> list[str]:
             f"{math.degrees(g[p]['equilibrium_dp']):.3g} deg" for p in GAIT_PHASES) + " (DP)"
     else:
         controller = f"{c['type']} (plugin), params {dict(c['params'])}"
-    if c["friction_ff"]["enabled"]:
-        controller += "; friction feed-forward on"
+    ff = c["friction_ff"]
+    if ff["enabled"]:
+        shaping = [f"x{ff['fraction']:g}" if ff["fraction"] < 1.0 else "",
+                   f"fade {ff['fade_velocity']:g} rad/s" if ff["fade_velocity"] > 0.0 else "",
+                   f"error band {ff['error_band']:g} N m" if ff["error_band"] > 0.0 else ""]
+        controller += f"; friction feed-forward on ({', '.join([ff['model'], *filter(None, shaping)])})"
     profile = ref["profile"]
     angles = angle_params(profile)
     params = ", ".join(f"{k} {math.degrees(v):.3g} deg" if k in angles else f"{k} {v}"
