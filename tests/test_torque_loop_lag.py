@@ -243,3 +243,20 @@ def test_the_lag_does_not_wind_up_behind_the_clamp(base, axis):
     assert held[-1] == pytest.approx(lim)                      # the clamp held the correction
     after = [correction(-2.0) for _ in range(100)]
     assert after[0] < lim - 1.0 and max(after) < lim           # off the clamp at once and stays off
+
+
+def test_a_batch_holds_each_lag_at_its_clamp_as_alone(base):
+    """The held lag state is element-wise: a batch of a slow lag, a fast one and none, driven into the clamp
+    and back out, gives each device's correction as it runs alone."""
+    tl = dict(base["controller"]["torque_loop"], dob_hz=0.0)
+    extras = ({"lag_hz_dp": 0.05, "lag_boost_dp": 10.0}, {"lag_hz_ie": 2.9, "lag_boost_ie": 1.5}, {})
+    gains = [TorqueLoopGains.from_config(dict(tl, **extra), K_NOMINAL) for extra in extras]
+    alone = [JointTorqueLoop(g, DT) for g in gains]
+    batch = JointTorqueLoop.stack([JointTorqueLoop(g, DT) for g in gains])
+    n = len(gains)
+    for k in range(3000):
+        des = 5.0 if k < 2000 else -2.0 + math.sin(0.01 * k)
+        got = batch.update(np.full(n, des), np.full(n, -des), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n), True)
+        for i, loop in enumerate(alone):
+            want = loop.update(des, -des, 0.0, 0.0, 0.0, 0.0, True)
+            assert got[0][i] == pytest.approx(want[0], abs=1e-12) and got[1][i] == pytest.approx(want[1], abs=1e-12)
