@@ -221,3 +221,42 @@ def test_config_check_prints_the_torque_filters_and_lags_only_when_configured(tm
     path.write_text(f"include: [{CONFIG_DIR / 'walk.yaml'}, {CONFIG_DIR / 'torque-loop-lag-notch.yaml'}]\n")
     assert any("torque filter DP 290 / IE 80 Hz; lag DP 2.9 Hz x1.5, IE none" in line for line in describe(load_config(path)))
     assert not any("torque filter" in line for line in describe(load_config(CONFIG_DIR / "walk.yaml")))
+
+
+@pytest.mark.parametrize("axis", [0, 1])
+def test_the_lag_does_not_wind_up_behind_the_clamp(base, axis):
+    """Below its zero the lag integrates: a slow one (0.05 Hz, boost 10: a config the loader accepts) fed
+    a one-sided error the clamped correction cannot remove must not hold the correction at the clamp
+    once the error reverses (unheld, its state reached 412 N m in 30 s and held the +30 N m clamp 20 s
+    more); the correction leaves the clamp as the integral's alone would."""
+    name = ("dp", "ie")[axis]
+    tl = dict(base["controller"]["torque_loop"], dob_hz=0.0, **{f"lag_hz_{name}": 0.05, f"lag_boost_{name}": 10.0})
+    loop = JointTorqueLoop(TorqueLoopGains.from_config(tl, K_NOMINAL), DT)
+    lim = tl[f"max_correction_{name}"]
+
+    def correction(error: float) -> float:
+        des = [0.0, 0.0]
+        des[axis] = error
+        return loop.update(des[0], des[1], 0.0, 0.0, 0.0, 0.0, True)[axis] - error
+
+    held = [correction(5.0) for _ in range(30000)]
+    assert held[-1] == pytest.approx(lim)                      # the clamp held the correction
+    after = [correction(-2.0) for _ in range(100)]
+    assert after[0] < lim - 1.0 and max(after) < lim           # off the clamp at once and stays off
+
+
+def test_a_batch_holds_each_lag_at_its_clamp_as_alone(base):
+    """The held lag state is element-wise: a batch of a slow lag, a fast one and none, driven into the clamp
+    and back out, gives each device's correction as it runs alone."""
+    tl = dict(base["controller"]["torque_loop"], dob_hz=0.0)
+    extras = ({"lag_hz_dp": 0.05, "lag_boost_dp": 10.0}, {"lag_hz_ie": 2.9, "lag_boost_ie": 1.5}, {})
+    gains = [TorqueLoopGains.from_config(dict(tl, **extra), K_NOMINAL) for extra in extras]
+    alone = [JointTorqueLoop(g, DT) for g in gains]
+    batch = JointTorqueLoop.stack([JointTorqueLoop(g, DT) for g in gains])
+    n = len(gains)
+    for k in range(3000):
+        des = 5.0 if k < 2000 else -2.0 + math.sin(0.01 * k)
+        got = batch.update(np.full(n, des), np.full(n, -des), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n), True)
+        for i, loop in enumerate(alone):
+            want = loop.update(des, -des, 0.0, 0.0, 0.0, 0.0, True)
+            assert got[0][i] == pytest.approx(want[0], abs=1e-12) and got[1][i] == pytest.approx(want[1], abs=1e-12)

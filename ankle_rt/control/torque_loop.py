@@ -25,7 +25,9 @@ deliver, so per ankle axis this loop drives the measured torque to the desired o
 - A **lag** (``lag_hz`` > 0, ``lag_boost`` > 1: (s + wz) / (s + wz / lag_boost), :class:`ankle_rt.lag.Lag`)
   before the notch raises the P and rate terms' gain below ``lag_hz`` only. A large boost makes the
   loop conditionally stable (stable at its gain, not at a smaller one, which the correction's clamp
-  gives it at large amplitudes): the margin check scans smaller gains too and refuses it.
+  gives it at large amplitudes): the margin check scans smaller gains too and refuses it. Below its
+  zero the lag integrates, so its state is held as the integral is while the correction is clamped
+  (else it winds up behind the clamp and holds the correction there long after the error is gone).
 - A **notch** (``notch_hz`` > 0, a second-order band-stop of width ``notch_zeta`` and gain
   ``notch_depth`` at ``notch_hz``) on ``kp e - kd d/dt LP(tau_sg)`` (not the integral) takes gain out
   of the loop at the free foot's cable mode only, so kp and kd may be larger below it (a smaller
@@ -204,13 +206,15 @@ class JointTorqueLoop:
         e0, e1 = tau_dp - f0, tau_ie - f1
         # the lag, then the notch on the P and rate terms (the identity without one)
         x0, x1 = self.kp0 * e0 - self.kdr0 * (f0 - p0), self.kp1 * e1 - self.kdr1 * (f1 - p1)
-        x0, self.g01, _ = _section(self.lag0, x0, self.g01, 0.0)
-        x1, self.g11, _ = _section(self.lag1, x1, self.g11, 0.0)
+        x0, g01, _ = _section(self.lag0, x0, self.g01, 0.0)
+        x1, g11, _ = _section(self.lag1, x1, self.g11, 0.0)
         pd0, self.n01, self.n02 = _section(self.notch0, x0, self.n01, self.n02)
         pd1, self.n11, self.n12 = _section(self.notch1, x1, self.n11, self.n12)
         c0, i0 = self._correction(e0, pd0, self.i0 + self.kidt0 * e0, self.i0, self.lim0, integrate)
         c1, i1 = self._correction(e1, pd1, self.i1 + self.kidt1 * e1, self.i1, self.lim1, integrate)
         self.i0, self.i1 = i0, i1
+        self.g01 = self._lag_state(self.g01, g01, c0, self.lim0)
+        self.g11 = self._lag_state(self.g11, g11, c1, self.lim1)
         u0 = tau_dp + c0 + self._observe(0, sg_dp, w_dp, integrate)
         u1 = tau_ie + c1 + self._observe(1, sg_ie, w_ie, integrate)
         self.u0, self.u1 = u0, u1
@@ -226,6 +230,16 @@ class JointTorqueLoop:
         wind = ((raw > lim) & (e > 0.0)) | ((raw < -lim) & (e < 0.0))
         i = select(integrate, select(wind, i_old, i_new), i_old)
         return clip(pd + i, -lim, lim), i
+
+    @staticmethod
+    def _lag_state(s_old: Value, s_new: Value, c: Value, lim: Value) -> Value:
+        """The lag's next state, held where the correction is at its clamp and the state would push it
+        further: below its zero the lag integrates (its boost is an integral's gain), and unheld it winds
+        up to lag_boost x kp x the error behind a clamp it cannot pass, then holds the correction there
+        until it has leaked away (lag_hz 0.05, lag_boost 10: 20 s after a 30 s one-sided error;
+        conditional integration, as the integral's)."""
+        wind = ((c >= lim) & (s_new > s_old)) | ((c <= -lim) & (s_new < s_old))
+        return select(wind, s_old, s_new)
 
     def _observe(self, axis: int, sg: Value, w: Value, integrate: bool | np.ndarray) -> Value:
         """The observer's torque on ``axis`` (0 DP, 1 IE), tank-guarded; 0 without an observer."""
