@@ -68,7 +68,7 @@ from ankle_rt.config_schema import torque_loop_cutoffs
 from ankle_rt.elementwise import Value, clip, select, stack
 from ankle_rt.lag import Lag
 from ankle_rt.loop_setup import ReflectedActuator
-from ankle_rt.notch import Notch
+from ankle_rt.notch import IDENTITY_SECTION, Notch
 
 if TYPE_CHECKING:
     import numpy as np
@@ -127,6 +127,8 @@ class JointTorqueLoop:
         self.lim0, self.lim1 = gains.max_correction_nm
         self.alpha0, self.alpha1 = (1.0 - math.exp(-2.0 * math.pi * f * dt) for f in gains.cutoff_hz)
         self.lag0, self.lag1 = gains.lag.sections(dt)            # (b0, b1, b2, a1, a2) per axis
+        # a bool (a bool array over a batch that mixes lags): the cycle runs the lag only where one is on
+        self.lagged = self.lag0 != IDENTITY_SECTION or self.lag1 != IDENTITY_SECTION
         self.notch0, self.notch1 = gains.notch.sections(dt)
         on = gains.dob_hz > 0.0
         if on and actuator is None:
@@ -206,15 +208,18 @@ class JointTorqueLoop:
         e0, e1 = tau_dp - f0, tau_ie - f1
         # the lag, then the notch on the P and rate terms (the identity without one)
         x0, x1 = self.kp0 * e0 - self.kdr0 * (f0 - p0), self.kp1 * e1 - self.kdr1 * (f1 - p1)
-        x0, g01, _ = _section(self.lag0, x0, self.g01, 0.0)
-        x1, g11, _ = _section(self.lag1, x1, self.g11, 0.0)
+        lagged = self.lagged is not False
+        if lagged:
+            x0, g01, _ = _section(self.lag0, x0, self.g01, 0.0)
+            x1, g11, _ = _section(self.lag1, x1, self.g11, 0.0)
         pd0, self.n01, self.n02 = _section(self.notch0, x0, self.n01, self.n02)
         pd1, self.n11, self.n12 = _section(self.notch1, x1, self.n11, self.n12)
         c0, i0 = self._correction(e0, pd0, self.i0 + self.kidt0 * e0, self.i0, self.lim0, integrate)
         c1, i1 = self._correction(e1, pd1, self.i1 + self.kidt1 * e1, self.i1, self.lim1, integrate)
         self.i0, self.i1 = i0, i1
-        self.g01 = self._lag_state(self.g01, g01, c0, self.lim0)
-        self.g11 = self._lag_state(self.g11, g11, c1, self.lim1)
+        if lagged:
+            self.g01 = self._lag_state(self.g01, g01, c0, self.lim0)
+            self.g11 = self._lag_state(self.g11, g11, c1, self.lim1)
         u0 = tau_dp + c0 + self._observe(0, sg_dp, w_dp, integrate)
         u1 = tau_ie + c1 + self._observe(1, sg_ie, w_ie, integrate)
         self.u0, self.u1 = u0, u1
