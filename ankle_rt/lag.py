@@ -15,11 +15,16 @@ from typing import Any, Mapping
 from ankle_rt.notch import AXES, IDENTITY_SECTION
 
 
+def lag_on(f_zero: float, boost: float) -> bool:
+    """Whether a lag of zero ``f_zero`` (Hz) and DC gain ``boost`` does anything (0 Hz or boost 1: off)."""
+    return f_zero > 0.0 and boost != 1.0
+
+
 def lag_section(f_zero: float, boost: float, dt: float) -> tuple[float, float, float, float, float]:
     """(b0, b1, b2, a1, a2) of (s + wz) / (s + wz / boost), wz = 2 pi ``f_zero``: gain ``boost`` at DC, 1
     far above f_zero; sampled over ``dt`` by Tustin prewarped at f_zero. ``f_zero`` 0 or ``boost`` 1:
     the identity (no lag)."""
-    if f_zero <= 0.0 or boost == 1.0:
+    if not lag_on(f_zero, boost):
         return IDENTITY_SECTION
     if f_zero >= 0.5 / dt:
         raise ValueError(f"lag_hz {f_zero:g} is not below the loop's Nyquist frequency {0.5 / dt:g} Hz")
@@ -42,6 +47,11 @@ class Lag:
         """From ``controller.torque_loop`` (``lag_hz_dp`` / ``_ie``, ``lag_boost_dp`` / ``_ie``)."""
         pair = lambda key: tuple(float(torque_loop[f"{key}_{a}"]) for a in AXES)  # noqa: E731
         return cls(hz=pair("lag_hz"), boost=pair("lag_boost"))
+
+    @property
+    def on(self) -> tuple[bool, bool]:
+        """Per axis [DP, IE]: whether its lag does anything."""
+        return lag_on(self.hz[0], self.boost[0]), lag_on(self.hz[1], self.boost[1])
 
     def sections(self, dt: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
         """The lag of each axis [DP, IE] as a section over ``dt`` (:func:`lag_section`)."""

@@ -105,7 +105,7 @@ def _torque_loop_lines(cfg) -> list[str]:
     from ankle_rt.config_schema import torque_loop_cutoffs
     from ankle_rt.lag import Lag
     from ankle_rt.loop_setup import torque_feedback
-    from ankle_rt.notch import AXES, IDENTITY_SECTION, Notch, cable_scale
+    from ankle_rt.notch import AXES, Notch, cable_scale
 
     c = cfg["controller"]
     if c["type"] not in ("impedance", "gait_phase") or not torque_feedback(cfg):
@@ -117,9 +117,9 @@ def _torque_loop_lines(cfg) -> list[str]:
     lines = [f"torque loop: kp {tl['kp_dp']:g} / {tl['kp_ie']:g}; notch {notches}: placed for notch_cable_stiffness "
              f"{tl['notch_cable_stiffness']:g} N/m, x{cable_scale(tl, k):.4g} for transmission.cable_stiffness {k:g}"]
     lag, cutoffs = Lag.from_config(tl), torque_loop_cutoffs(tl)
-    if any(tl[f"cutoff_hz_{a}"] is not None for a in AXES) or lag.sections(1.0 / c["rate_hz"]) != (IDENTITY_SECTION,) * 2:
-        lags = ", ".join(f"{a.upper()} {hz:g} Hz x{b:g}" if hz > 0.0 and b != 1.0 else f"{a.upper()} none"
-                         for a, hz, b in zip(AXES, lag.hz, lag.boost))
+    if any(tl[f"cutoff_hz_{a}"] is not None for a in AXES) or any(lag.on):
+        lags = ", ".join(f"{a.upper()} {hz:g} Hz x{b:g}" if on else f"{a.upper()} none"
+                         for a, hz, b, on in zip(AXES, lag.hz, lag.boost, lag.on))
         lines.append(f"             torque filter DP {cutoffs[0]:g} / IE {cutoffs[1]:g} Hz; lag {lags}")
     return lines
 

@@ -68,7 +68,7 @@ from ankle_rt.config_schema import torque_loop_cutoffs
 from ankle_rt.elementwise import Value, clip, select, stack
 from ankle_rt.lag import Lag
 from ankle_rt.loop_setup import ReflectedActuator
-from ankle_rt.notch import IDENTITY_SECTION, Notch
+from ankle_rt.notch import Notch
 
 if TYPE_CHECKING:
     import numpy as np
@@ -128,7 +128,7 @@ class JointTorqueLoop:
         self.alpha0, self.alpha1 = (1.0 - math.exp(-2.0 * math.pi * f * dt) for f in gains.cutoff_hz)
         self.lag0, self.lag1 = gains.lag.sections(dt)            # (b0, b1, b2, a1, a2) per axis
         # a bool (a bool array over a batch that mixes lags): the cycle runs the lag only where one is on
-        self.lagged = self.lag0 != IDENTITY_SECTION or self.lag1 != IDENTITY_SECTION
+        self.lagged = any(gains.lag.on)
         self.notch0, self.notch1 = gains.notch.sections(dt)
         on = gains.dob_hz > 0.0
         if on and actuator is None:
