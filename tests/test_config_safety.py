@@ -353,6 +353,28 @@ def test_the_motors_must_render_the_wearers_walk_with_the_torque_loops_correctio
                                                               "torque_loop": {"max_correction_dp": 100.0}}})
 
 
+def test_the_ie_correction_must_fit_beside_the_walking_moment_on_each_motor(tmp_path):
+    """Adv10: max_correction_ie had no walking bound. With config/torque-loop-lag-notch.yaml and
+    max_correction_ie 100 (accepted) the IE loop's kick at toe-off held a motor at the 15 A clamp in 73
+    cycles of 12 strides (100 kg fast). Each motor's share of the walking moment plus its share of
+    either axis's clamp must fit in its peak torque: 100 is refused naming the key; the largest
+    accepted value walks without touching the clamp."""
+    from ankle_rt.bench.walk import run_walk
+
+    walk, lag = ROOT / "config" / "walk.yaml", ROOT / "config" / "torque-loop-lag-notch.yaml"
+    with pytest.raises(ConfigError) as err:
+        load_config(walk, {"controller": {"torque_loop": {"max_correction_ie": 100.0}}})
+    assert err.value.key == "controller.torque_loop.max_correction_ie" and "wearer.mass_kg" in err.value.message
+    most = float(err.value.message.split("must be <= ")[1].split(" N m")[0])
+    assert 20.0 <= most < 30.0          # the shipped 20 N m fits at 100 kg
+    path = write(tmp_path, {"include": [str(walk), str(lag)],
+                            "controller": {"torque_loop": {"max_correction_ie": most}}})
+    run = run_walk(str(path), 100.0, "fast", strides=3)
+    peak = load_config(path)["amplifier"]["current_limit_peak"]
+    current = np.maximum(np.abs(run.columns["i1"]), np.abs(run.columns["i2"]))
+    assert run.fault == "NONE" and current.max() < peak - 0.1
+
+
 def test_a_gait_phase_dwell_longer_than_a_walking_phase_is_refused(tmp_path):
     """Safety9: controller.gait_phase.min_dwell_s was accepted up to 1 s, though no transition may
     happen before it and walking's shortest phase is 0.157 s (late stance, 100 kg fast, `bench walk`):
