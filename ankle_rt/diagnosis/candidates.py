@@ -215,6 +215,12 @@ class Cogging(Candidate):
     nonlinear = "periods_per_rev"
     integer = True
 
+    def applies(self, ch) -> bool:
+        """Only where the travel holds MIN_COGGING_PERIODS periods of a count it may search (a motor that
+        does not move leaves no count at all)."""
+        n_min, n_max = self.count_range(ch)
+        return n_min <= n_max
+
     def count_range(self, ch) -> tuple[int, int]:
         """(fewest, most) periods per revolution searched: at least MIN_COGGING_PERIODS in the travel
         (fewer cannot be told from a spring or preload); at most where the ripple leaves the pass band at

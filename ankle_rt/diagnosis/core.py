@@ -33,7 +33,7 @@ from ankle_rt.diagnosis.screening import Screening, screen, strain_gauge_drift, 
 from ankle_rt.diagnosis.selection import (IC_THRESHOLD, LARGE_REDUCTION, MIN_REDUCTION, MIN_SIZE, MIN_SIZE_UNKNOWN,
                                           MIN_UNKNOWN_REDUCTION, AMBIGUOUS_IC, ChannelModels, ChannelResult, Score,
                                           replicates, select_channel, significant)
-from ankle_rt.diagnosis.signals import CableChannel, Geometry, MotorChannel
+from ankle_rt.diagnosis.signals import CableChannel, Geometry, MotorChannel, require_length
 from ankle_rt.interchange import InterchangeError, Recording
 
 #: a named set must explain at least this fraction of what the catch-all removes from the baseline
@@ -253,7 +253,8 @@ def baseline_dict(name: str, coef: np.ndarray, cov: np.ndarray, m: int) -> dict[
         idx = [j + PER * i for i in range(m)]
         out[key] = {"value": [float(coef[i]) for i in idx], "sd": [float(sd[i]) for i in idx], "unit": unit}
     if name == "cable":
-        out["beta"] = {"value": [float(coef[1 + PER * i] / coef[PER * i]) for i in range(m)], "unit": "s"}
+        out["beta"] = {"value": [float(coef[1 + PER * i] / coef[PER * i]) if coef[PER * i] != 0.0 else math.nan
+                                 for i in range(m)], "unit": "s"}
     return out
 
 
@@ -506,6 +507,8 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
             raise InterchangeError("validation file has a different number of motors", validation.source,
                                    "motor_pos_2", 0)
         vname = validation.source
+    require_length(ident)
+    require_length(validation)
     ident, note = repair_stale_rows(ident)
     validation, vnote = repair_stale_rows(validation)
     notes += [n for n in (note, vnote) if n]

@@ -169,6 +169,7 @@ def screen(rec: Recording, v_eps: float, current_limit: float | None = None, lab
         if rail.any():
             level = float(np.max(np.abs(x[rail])))
             reason = ("at the amplifier's limit: the applied current need not follow the set value" if col in inputs
+                      else "reads exactly zero: disconnected or dead?" if level == 0.0
                       else "clipped at the end of its range")
             out.warnings.append(f"{label}: {what} {col} flat at +/-{level:.4g} in {_pct(float(np.mean(rail)))} "
                                 f"of the samples ({reason}); those samples are masked")
@@ -233,7 +234,7 @@ def strain_gauge_drift(cable) -> list[float] | None:
     T = time_columns(cable)
     base = fit(y, Xb)
     full = fit(y, np.hstack([Xb, T]))
-    if 1.0 - full.rss / base.rss < DRIFT_REDUCTION:
+    if base.rss <= 0.0 or 1.0 - full.rss / base.rss < DRIFT_REDUCTION:     # 0: nothing left to explain
         return None
     drift = (T @ full.coef[Xb.shape[1]:]).reshape(cable.m, -1)
     span = np.ptp(drift, axis=1)

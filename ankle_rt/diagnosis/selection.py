@@ -246,6 +246,12 @@ def select_channel(name: str, ch: Channel, candidates: tuple[Candidate, ...], ca
     """Forward selection, drop-one pruning, re-gridding of the chosen blocks, and the catch-all on top."""
     models = ChannelModels(ch)
     base = fit(models.y0, models.Xb)
+    if not base.rss > 0.0:
+        # a silent or constant signal (gauges that read exactly zero, motors that never move): every
+        # share and criterion below is relative to this residual, and there is nothing to explain
+        out = ChannelResult(name, ch, base, [], float(len(models.y0)), models)
+        out.notes.append("the baseline fits it exactly (a silent or constant signal): no effect can be tested on it")
+        return out
     pool = [c for c in candidates if c.applies(ch)]
     first = [models.best_of(c, [], base.residual) for c in pool]
     C, groups = catch_all(ch)

@@ -73,6 +73,11 @@ class Smoother:
         step = max(1, int(round(1.0 / (dt * DECIMATED_RATE_HZ))))
         return cls(dt, cutoff, sos, _odd_window(FAST_WINDOW_S, dt, ORDER + 2), step, int(round(EDGE_S / dt)) + 2)
 
+    @property
+    def min_samples(self) -> int:
+        """The shortest record the diagnosis works on: both filter edges dropped and 20 rows left."""
+        return 2 * self.margin + 20 * self.step
+
     def smooth(self, x: np.ndarray, deriv: int = 0, weigh: bool = True) -> np.ndarray:
         """L[x], or L of the first / second central difference of x (per second, per second^2); the
         samples weighed by :attr:`weight` unless ``weigh`` is False."""
@@ -159,6 +164,16 @@ class Geometry:
     levers: np.ndarray       # (2,) m, [R_DP, R_IE]
 
 
+def require_length(rec: Recording, usable: int | None = None) -> None:
+    """Refuse a record too short for the diagnosis' filters (before anything is filtered), or with
+    fewer than 20 ``usable`` rows left after screening, naming the file and its length."""
+    n, least = len(rec), Smoother.for_period(rec.dt).min_samples
+    if n < least or (usable is not None and usable < 20):
+        rows = "" if usable is None else f" ({usable} usable)"
+        raise InterchangeError(f"too short for the diagnosis: {n} rows{rows}, need at least {least}",
+                               rec.source, "t", n)
+
+
 class _StackedChannel:
     """What both channels share: the recording's smoother, the rows kept for the regressions, and
     stacking samples x columns (motors or axes) into one vector, column after column."""
@@ -209,11 +224,8 @@ class MotorChannel(_StackedChannel):
         super().__init__(rec, good)
         self.cogging_prior = cogging_prior      # periods per output revolution from the config, if known
         self.counts_per_rev = counts_per_rev    # motor encoder counts per output revolution, if known
+        require_length(rec, self.n_rows)
         sm = self.sm
-        n = self.n_samples
-        if n < 2 * sm.margin + 20 * sm.step or self.n_rows < 20:
-            raise InterchangeError(f"too short for the diagnosis: {n} rows ({self.n_rows} usable), need at least "
-                                   f"{2 * sm.margin + 20 * sm.step}", rec.source, "t", n)
         self.m = 2 if rec.two_motors else 1
         self.pos = np.column_stack([rec[f"motor_pos_{i}"] for i in range(1, self.m + 1)])
         self.tau = rec.motor_input(kt)
