@@ -838,6 +838,13 @@ def check_walking_limits(cfg: Mapping[str, Any], origin: Callable[[KeyPath], str
                           origin(("safety", "max_sg_step_nm")), "safety.max_sg_step_nm")
 
 
+def dp_torque_at_peak(cfg: Mapping[str, Any]) -> float:
+    """N m of DP ankle torque both motors give at ``amplifier.current_limit_peak`` (224 N m nominal):
+    what a walk may ask of the motors before the current clamp."""
+    R = motor_ratio(TransmissionParams(**cfg["transmission"]))
+    return float((abs(R[0, 0]) + abs(R[1, 0])) * cfg["actuator"]["torque_constant"] * cfg["amplifier"]["current_limit_peak"])
+
+
 def check_walking_current(cfg: Mapping[str, Any], origin: Callable[[KeyPath], str]) -> None:
     """Where someone walks (on the device, or the simulator's walking scenario), the DP torque both
     motors give at the peak current covers the heaviest wearer's rendered walking moment
@@ -846,9 +853,8 @@ def check_walking_current(cfg: Mapping[str, Any], origin: Callable[[KeyPath], st
     cycles at 15 A in 12 strides at 100 kg fast, up to 72 ms in a row; a 12 A peak: 580 in 6)."""
     if cfg["backend"] == "sim" and cfg["sim"]["scenario"] != "walking":
         return
-    R = motor_ratio(TransmissionParams(**cfg["transmission"]))
     peak = cfg["amplifier"]["current_limit_peak"]
-    per_amp = (abs(R[0, 0]) + abs(R[1, 0])) * cfg["actuator"]["torque_constant"]   # N m DP per A on both motors
+    per_amp = dp_torque_at_peak(cfg) / peak   # N m DP per A on both motors
     mass = cfg["wearer"]["mass_kg"]
     need = WALKING_RENDERED_MOMENT_PER_KG * mass
     walking = f"a {mass:g} kg wearer's rendered walking moment ({need:g} N m: wearer.mass_kg x " \

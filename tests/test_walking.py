@@ -365,6 +365,51 @@ def test_walking_strides_run_through_the_phases_without_a_fault():
     assert max(s["current_peak_a"] for s in run.strides) <= 15.0
 
 
+def test_a_push_off_the_motors_cannot_give_is_refused(tmp_path, monkeypatch):
+    """adv11 (lockstep, config/walk.yaml): late stance's stiffness_dp was accepted up to
+    controller.gain_limits (430 N m/rad); at its shipped equilibrium (-0.55 rad) the push-off asks the
+    spring's K x (12 deg + 0.55 rad) of the motors: 300 N m/rad held the 15 A clamp in 60 cycles (32 in
+    a row) of 4 strides at 75 kg and tripped SG_RAIL in the first stride at 100 kg; 428: SG_RAIL at 75
+    kg. That torque, at the walk's most dorsiflexed angle (at least late_stance_angle), must now fit in
+    what both motors give at the peak current less max_correction_dp (194 N m): refused naming the key
+    at load and by set_gains (ctl gains --phase) at run time; 255 N m/rad walks below the clamp."""
+    import yaml
+
+    import ankle_rt.control.gait_phase as gp
+    from ankle_rt.bench.walk import run_walk
+    from ankle_rt.control import build_controller
+    from ankle_rt.control.gains import GainError
+    from ankle_rt.kinematics import Kinematics
+    from ankle_rt.params import TransmissionParams
+
+    def late_stance(k: float) -> str:
+        path = tmp_path / f"late-{k:g}.yaml"
+        path.write_text(yaml.safe_dump({"include": [str(WALK)],
+                                        "controller": {"gait_phase": {"late_stance": {"stiffness_dp": k}}}}))
+        return str(path)
+
+    def build(path):
+        cfg = load_config(path)
+        return build_controller(cfg, Kinematics.from_params(TransmissionParams(**cfg["transmission"])), np.zeros(2))
+
+    def saturated(run) -> int:
+        return int(np.sum(np.maximum(np.abs(run.columns["i1"]), np.abs(run.columns["i2"])) >= 14.9))
+
+    with pytest.raises(ConfigError) as err:
+        build(late_stance(300.0))
+    assert err.value.key == "controller.gait_phase.late_stance.stiffness_dp"
+    assert "current_limit_peak" in err.value.message
+    ctl = build(WALK)
+    for gains in ({"stiffness_dp": 300.0}, {"stiffness_dp": 250.0, "equilibrium_dp": -0.69}):
+        with pytest.raises(GainError) as gerr:
+            ctl.check_gains(phase="late_stance", **gains)
+        assert gerr.value.gain == "late_stance.stiffness_dp"
+    ctl.check_gains(phase="late_stance", stiffness_dp=250.0)
+    assert saturated(run_walk(late_stance(255.0), 75.0, "normal", 3)) == 0
+    monkeypatch.setattr(gp, "push_off_budget", lambda cfg: math.inf)      # as before the check
+    assert saturated(run_walk(late_stance(300.0), 75.0, "normal", 3)) > 20
+
+
 def test_the_batch_plant_walks_as_each_plant_alone():
     from sim_backend.batch import BatchPlant
     from sim_backend.plant import SimulatedPlant

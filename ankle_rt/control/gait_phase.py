@@ -38,14 +38,16 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 import numpy as np
 
-from ankle_rt.config_schema import IMPEDANCE_GAINS
+from ankle_rt.config_schema import IMPEDANCE_GAINS, dp_torque_at_peak
 from ankle_rt.control.gains import GainError, GainRamp
 from ankle_rt.control.impedance import ImpedanceController, actuation_from_config
 from ankle_rt.control.torque_loop import ImpedanceLimits, JointTorqueLoop
 from ankle_rt.elementwise import Value, pick, select, stack
 from ankle_rt.estimation import Estimate
 from ankle_rt.gain_margin import gain_set_refusal
+from ankle_rt.gait_data import CADENCES, able_bodied
 from ankle_rt.kinematics import Kinematics
+from ankle_rt.loop_setup import torque_feedback
 from ankle_rt.params import TransmissionParams
 
 if TYPE_CHECKING:
@@ -57,6 +59,9 @@ EARLY_STANCE, LATE_STANCE, EARLY_SWING, LATE_SWING, SAFE = range(len(PHASES))
 PHASE_NAMES = ("none", *PHASES)    # by the log record's gait_phase code (1 + phase; 0: another controller)
 PARAMS = ("stiffness_dp", "damping_dp", "equilibrium_dp", "stiffness_ie", "damping_ie", "equilibrium_ie")
 CABLE_STIFFNESS_LOW = 0.7    # the identified cable stiffness's lower bound (-30 %, as the gain margins)
+# rad: the able-bodied ankle's most dorsiflexed angle in stance over the cadences (12 deg at fast cadence,
+# Winter 1991): where late stance's spring meets the push-off's peak load
+WALKING_PEAK_DORSIFLEXION = max(float(np.max(able_bodied(c)["angle_dp"])) for c in CADENCES)
 TRANSITIONS = ("load_on_nm", "load_off_nm", "late_stance_angle", "late_stance_load_nm", "late_swing_angle",
                "late_swing_velocity", "min_dwell_s", "timeout_s", "blend_s")
 
@@ -156,17 +161,21 @@ class GaitPhaseController(ImpedanceController):
     estimated ankle and the strain-gauge load, then the impedance controller's actuation (with the
     law's blended stiffness for the lead on the loop's lag)."""
 
-    shared = ("ref", "limits", "gain_maxima", "margin_cfg")
+    shared = ("ref", "limits", "gain_maxima", "margin_cfg", "push_off_budget")
 
     def __init__(self, kin: Kinematics, law: GaitPhaseLaw, *, dt: float, soft_start_s: float,
                  ankle_limit: float, gain_maxima: Mapping[str, float],
                  friction: "FrictionFeedForward | None" = None, torque_loop: JointTorqueLoop | None = None,
-                 limits: ImpedanceLimits | None = None, margin_cfg: Mapping | None = None):
+                 limits: ImpedanceLimits | None = None, margin_cfg: Mapping | None = None,
+                 push_off_budget: float = math.inf):
         """``ankle_limit`` rad bounds the equilibria; ``gain_maxima``: ``stiffness`` and ``damping``
         (controller.gain_limits); ``limits``: the torque loop's stable set, checked per phase;
         ``margin_cfg``: the config whose plant and loop every phase's (K, B) must keep the required gain
-        margin on (:func:`ankle_rt.gain_margin.gain_set_refusal`), as the impedance controller's gains."""
+        margin on (:func:`ankle_rt.gain_margin.gain_set_refusal`), as the impedance controller's gains;
+        ``push_off_budget``: N m of DP joint torque late stance's spring may ask for at the walk's
+        most dorsiflexed angle (:meth:`stance_torque`)."""
         self.gait = law
+        self.push_off_budget = push_off_budget
         self.ankle_limit = ankle_limit
         self.gain_maxima = dict(gain_maxima)
         super().__init__(kin, np.zeros(2), {"stiffness_dp": 0.0, "stiffness_ie": 0.0, "damping_dp": 0.0,
@@ -194,7 +203,7 @@ class GaitPhaseController(ImpedanceController):
             return cls(kin, law, dt=dt, soft_start_s=c["soft_start_s"],
                        ankle_limit=math.radians(cfg["limits"]["ankle_range_deg"]),
                        gain_maxima=c["gain_limits"], friction=friction, torque_loop=loop, limits=limits,
-                       margin_cfg=_estimated_angle(cfg))
+                       margin_cfg=_estimated_angle(cfg), push_off_budget=push_off_budget(cfg))
         except GainError as exc:   # a phase's parameter, or the torque-loop gain that limits its margin
             gain = exc.gain.split(".")[-1]
             key = f"torque_loop.{gain}" if gain in c["torque_loop"] else f"gait_phase.{exc.gain}"
@@ -219,11 +228,30 @@ class GaitPhaseController(ImpedanceController):
             elif not 0.0 <= value <= self.gain_maxima[kind]:
                 raise GainError(where, f"{where} must be in [0, {self.gain_maxima[kind]:g}] "
                                        f"(controller.gain_limits.{kind}), got {value:g}")
+        torque, angle = self.push_off_torque(phase, params)
+        if torque > self.push_off_budget:
+            raise GainError(f"{name}.stiffness_dp",
+                            f"{name}: its spring asks {torque:.0f} N m DP at {math.degrees(angle):.1f} deg (stiffness_dp "
+                            f"x (angle - equilibrium_dp)), beyond the {self.push_off_budget:.0f} N m the motors give "
+                            f"at amplifier.current_limit_peak less controller.torque_loop.max_correction_dp: the "
+                            f"push-off would run at the current clamp (docs/daemon.md \"Limits a walker does not trip\")")
         bad = self.limits.check(params) if self.limits is not None else None
         if bad is None and self.margin_cfg is not None:      # the slow check only when the quick one passes
             bad = gain_set_refusal(self.margin_cfg, {k: params[k] for k in IMPEDANCE_GAINS}, self.friction.viscous_slope)
         if bad is not None:
             raise GainError(f"{name}.{bad[0]}", f"{name}: {bad[1]}")
+
+    def push_off_torque(self, phase: int, params: Mapping[str, float]) -> tuple[float, float]:
+        """N m of DP joint torque late stance's spring asks for where the push-off loads it, and that
+        angle (rad): the able-bodied stance's most dorsiflexed angle (WALKING_PEAK_DORSIFLEXION), at
+        least the phase's entry angle ``late_stance_angle`` (it only begins beyond it); (0, 0) for the
+        other phases (early stance hands the load over at ``late_stance_angle``: its equilibrium at
+        -0.3 rad under 400 N m/rad walks at up to 13.7 A). The torque loop renders it on the wearer, so
+        the motors must give it."""
+        if phase != LATE_STANCE:
+            return 0.0, 0.0
+        angle = max(WALKING_PEAK_DORSIFLEXION, self.gait.ls_angle)
+        return abs(params["stiffness_dp"] * (angle - params["equilibrium_dp"])), angle
 
     def check_gains(self, phase: str | None = None, **gains: float) -> None:
         """Raise GainError naming the parameter unless one phase's new parameters (PARAMS names) keep
@@ -259,6 +287,24 @@ class GaitPhaseController(ImpedanceController):
         gait = self.gait
         t0, t1 = gait.update(-est.sg_dp, est.dp, est.dp_vel, est.ie, est.ie_vel)
         return self.actuate(est, t0, t1, gait.k0, gait.k1)
+
+
+def push_off_budget(cfg: Mapping[str, Any]) -> float:
+    """N m of DP joint torque late stance's spring may ask for: what both motors give at the peak current
+    (:func:`ankle_rt.config_schema.dp_torque_at_peak`, 224 N m nominal) less, with the joint-torque loop,
+    the correction it may add on top (``max_correction_dp``, 30 N m): 194 N m shipped. Beyond it the
+    push-off holds the current clamp (late stance at 300 N m/rad, equilibrium -0.55 rad: 15 A for up to
+    47 ms per stride, ``SG_RAIL`` at 100 kg in the first stride)."""
+    correction = cfg["controller"]["torque_loop"]["max_correction_dp"] if torque_feedback(cfg) else 0.0
+    return dp_torque_at_peak(cfg) - correction
+
+
+def push_off_stiffness_cap(cfg: Mapping[str, Any]) -> float:
+    """N m/rad: the stiffest late stance :func:`push_off_budget` allows with ``cfg``'s late-stance
+    equilibrium and entry angle (``bench walk`` caps a heavier wearer's scaled stiffness here)."""
+    g = cfg["controller"]["gait_phase"]
+    lever = abs(max(WALKING_PEAK_DORSIFLEXION, g["late_stance_angle"]) - g["late_stance"]["equilibrium_dp"])
+    return push_off_budget(cfg) / lever if lever > 0.0 else math.inf
 
 
 def heel_strike_hold_s(cfg: Mapping[str, Any]) -> float:
