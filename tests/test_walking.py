@@ -406,8 +406,38 @@ def test_a_push_off_the_motors_cannot_give_is_refused(tmp_path, monkeypatch):
         assert gerr.value.gain == "late_stance.stiffness_dp"
     ctl.check_gains(phase="late_stance", stiffness_dp=250.0)
     assert saturated(run_walk(late_stance(255.0), 75.0, "normal", 3)) == 0
-    monkeypatch.setattr(gp, "push_off_budget", lambda cfg: math.inf)      # as before the check
+    no_limits = dict.fromkeys(gp.STANCE_PHASES, (math.inf, ""))
+    monkeypatch.setattr(gp, "stance_torque_limits", lambda cfg: no_limits)      # as before the check
     assert saturated(run_walk(late_stance(300.0), 75.0, "normal", 3)) > 20
+
+
+def test_a_stance_spring_the_gauge_rail_would_read_is_refused(tmp_path, monkeypatch):
+    """adv11 (lockstep): the rail is sized from the wearer (2 N m/kg x wearer.mass_kg), the stance
+    springs were not: a config for a 30 kg wearer (rail 60 N m, jump 4.5 N m, as the checks allow) with
+    the shipped 75 kg tuning rendered 66 N m in early stance and tripped SG_RAIL in the first stride at
+    fast cadence (50 kg, rail 100 N m: 101 N m, SG_RAIL in the fourth stride). Each stance phase's
+    spring at the walk's most dorsiflexed angle must now stay below safety.sg_rail_nm, refused naming
+    the phase's stiffness_dp; the tuning scaled to the wearer (`bench walk`'s rule) walks."""
+    import yaml
+
+    import ankle_rt.bench.walk as bw
+    import ankle_rt.control.gait_phase as gp
+    from ankle_rt.control import build_controller
+    from ankle_rt.kinematics import Kinematics
+    from ankle_rt.params import TransmissionParams
+
+    path = tmp_path / "light.yaml"
+    path.write_text(yaml.safe_dump({"include": [str(WALK)], "wearer": {"mass_kg": 30.0},
+                                    "safety": {"sg_rail_nm": 60.0, "max_sg_step_nm": 4.5}}))
+    cfg = load_config(path)
+    with pytest.raises(ConfigError) as err:
+        build_controller(cfg, Kinematics.from_params(TransmissionParams(**cfg["transmission"])), np.zeros(2))
+    assert err.value.key == "controller.gait_phase.early_stance.stiffness_dp" and "sg_rail_nm" in err.value.message
+    assert bw.run_walk(str(path), 30.0, "fast", 2).fault == "NONE"           # scaled by 30 / 75 kg: accepted
+    no_limits = dict.fromkeys(gp.STANCE_PHASES, (math.inf, ""))
+    monkeypatch.setattr(gp, "stance_torque_limits", lambda cfg: no_limits)   # as before the check,
+    monkeypatch.setattr(bw, "REFERENCE_MASS_KG", 30.0)                       # with the config's own gains
+    assert bw.run_walk(str(path), 30.0, "fast", 2).fault == "SG_RAIL"
 
 
 def test_the_batch_plant_walks_as_each_plant_alone():

@@ -59,8 +59,9 @@ EARLY_STANCE, LATE_STANCE, EARLY_SWING, LATE_SWING, SAFE = range(len(PHASES))
 PHASE_NAMES = ("none", *PHASES)    # by the log record's gait_phase code (1 + phase; 0: another controller)
 PARAMS = ("stiffness_dp", "damping_dp", "equilibrium_dp", "stiffness_ie", "damping_ie", "equilibrium_ie")
 CABLE_STIFFNESS_LOW = 0.7    # the identified cable stiffness's lower bound (-30 %, as the gain margins)
+STANCE_PHASES = (EARLY_STANCE, LATE_STANCE)
 # rad: the able-bodied ankle's most dorsiflexed angle in stance over the cadences (12 deg at fast cadence,
-# Winter 1991): where late stance's spring meets the push-off's peak load
+# Winter 1991): where a stance phase's spring meets the push-off's peak load
 WALKING_PEAK_DORSIFLEXION = max(float(np.max(able_bodied(c)["angle_dp"])) for c in CADENCES)
 TRANSITIONS = ("load_on_nm", "load_off_nm", "late_stance_angle", "late_stance_load_nm", "late_swing_angle",
                "late_swing_velocity", "min_dwell_s", "timeout_s", "blend_s")
@@ -161,21 +162,21 @@ class GaitPhaseController(ImpedanceController):
     estimated ankle and the strain-gauge load, then the impedance controller's actuation (with the
     law's blended stiffness for the lead on the loop's lag)."""
 
-    shared = ("ref", "limits", "gain_maxima", "margin_cfg", "push_off_budget")
+    shared = ("ref", "limits", "gain_maxima", "margin_cfg", "stance_limits")
 
     def __init__(self, kin: Kinematics, law: GaitPhaseLaw, *, dt: float, soft_start_s: float,
                  ankle_limit: float, gain_maxima: Mapping[str, float],
                  friction: "FrictionFeedForward | None" = None, torque_loop: JointTorqueLoop | None = None,
                  limits: ImpedanceLimits | None = None, margin_cfg: Mapping | None = None,
-                 push_off_budget: float = math.inf):
+                 stance_limits: Mapping[int, tuple[float, str]] | None = None):
         """``ankle_limit`` rad bounds the equilibria; ``gain_maxima``: ``stiffness`` and ``damping``
         (controller.gain_limits); ``limits``: the torque loop's stable set, checked per phase;
         ``margin_cfg``: the config whose plant and loop every phase's (K, B) must keep the required gain
         margin on (:func:`ankle_rt.gain_margin.gain_set_refusal`), as the impedance controller's gains;
-        ``push_off_budget``: N m of DP joint torque late stance's spring may ask for at the walk's
-        most dorsiflexed angle (:meth:`stance_torque`)."""
+        ``stance_limits``: stance phase -> the N m of DP joint torque its spring may ask for where the
+        push-off loads it and what sets that (:func:`stance_torque_limits`, :func:`stance_torque`)."""
         self.gait = law
-        self.push_off_budget = push_off_budget
+        self.stance_limits = dict(stance_limits or {})
         self.ankle_limit = ankle_limit
         self.gain_maxima = dict(gain_maxima)
         super().__init__(kin, np.zeros(2), {"stiffness_dp": 0.0, "stiffness_ie": 0.0, "damping_dp": 0.0,
@@ -203,7 +204,7 @@ class GaitPhaseController(ImpedanceController):
             return cls(kin, law, dt=dt, soft_start_s=c["soft_start_s"],
                        ankle_limit=math.radians(cfg["limits"]["ankle_range_deg"]),
                        gain_maxima=c["gain_limits"], friction=friction, torque_loop=loop, limits=limits,
-                       margin_cfg=_estimated_angle(cfg), push_off_budget=push_off_budget(cfg))
+                       margin_cfg=_estimated_angle(cfg), stance_limits=stance_torque_limits(cfg))
         except GainError as exc:   # a phase's parameter, or the torque-loop gain that limits its margin
             gain = exc.gain.split(".")[-1]
             key = f"torque_loop.{gain}" if gain in c["torque_loop"] else f"gait_phase.{exc.gain}"
@@ -228,30 +229,19 @@ class GaitPhaseController(ImpedanceController):
             elif not 0.0 <= value <= self.gain_maxima[kind]:
                 raise GainError(where, f"{where} must be in [0, {self.gain_maxima[kind]:g}] "
                                        f"(controller.gain_limits.{kind}), got {value:g}")
-        torque, angle = self.push_off_torque(phase, params)
-        if torque > self.push_off_budget:
-            raise GainError(f"{name}.stiffness_dp",
-                            f"{name}: its spring asks {torque:.0f} N m DP at {math.degrees(angle):.1f} deg (stiffness_dp "
-                            f"x (angle - equilibrium_dp)), beyond the {self.push_off_budget:.0f} N m the motors give "
-                            f"at amplifier.current_limit_peak less controller.torque_loop.max_correction_dp: the "
-                            f"push-off would run at the current clamp (docs/daemon.md \"Limits a walker does not trip\")")
+        if phase in self.stance_limits:
+            most, what = self.stance_limits[phase]
+            torque, angle = stance_torque(phase, params, self.gait.ls_angle)
+            if torque > most:
+                raise GainError(f"{name}.stiffness_dp",
+                                f"{name}: its spring asks {torque:.0f} N m DP at {math.degrees(angle):.1f} deg (stiffness_dp "
+                                f"x (angle - equilibrium_dp), the walk's most dorsiflexed stance), beyond {what} "
+                                f"({most:.0f} N m; docs/daemon.md \"Limits a walker does not trip\")")
         bad = self.limits.check(params) if self.limits is not None else None
         if bad is None and self.margin_cfg is not None:      # the slow check only when the quick one passes
             bad = gain_set_refusal(self.margin_cfg, {k: params[k] for k in IMPEDANCE_GAINS}, self.friction.viscous_slope)
         if bad is not None:
             raise GainError(f"{name}.{bad[0]}", f"{name}: {bad[1]}")
-
-    def push_off_torque(self, phase: int, params: Mapping[str, float]) -> tuple[float, float]:
-        """N m of DP joint torque late stance's spring asks for where the push-off loads it, and that
-        angle (rad): the able-bodied stance's most dorsiflexed angle (WALKING_PEAK_DORSIFLEXION), at
-        least the phase's entry angle ``late_stance_angle`` (it only begins beyond it); (0, 0) for the
-        other phases (early stance hands the load over at ``late_stance_angle``: its equilibrium at
-        -0.3 rad under 400 N m/rad walks at up to 13.7 A). The torque loop renders it on the wearer, so
-        the motors must give it."""
-        if phase != LATE_STANCE:
-            return 0.0, 0.0
-        angle = max(WALKING_PEAK_DORSIFLEXION, self.gait.ls_angle)
-        return abs(params["stiffness_dp"] * (angle - params["equilibrium_dp"])), angle
 
     def check_gains(self, phase: str | None = None, **gains: float) -> None:
         """Raise GainError naming the parameter unless one phase's new parameters (PARAMS names) keep
@@ -289,22 +279,39 @@ class GaitPhaseController(ImpedanceController):
         return self.actuate(est, t0, t1, gait.k0, gait.k1)
 
 
-def push_off_budget(cfg: Mapping[str, Any]) -> float:
-    """N m of DP joint torque late stance's spring may ask for: what both motors give at the peak current
-    (:func:`ankle_rt.config_schema.dp_torque_at_peak`, 224 N m nominal) less, with the joint-torque loop,
-    the correction it may add on top (``max_correction_dp``, 30 N m): 194 N m shipped. Beyond it the
-    push-off holds the current clamp (late stance at 300 N m/rad, equilibrium -0.55 rad: 15 A for up to
-    47 ms per stride, ``SG_RAIL`` at 100 kg in the first stride)."""
+def stance_torque(phase: int, params: Mapping[str, float], late_stance_angle: float) -> tuple[float, float]:
+    """N m of DP joint torque a stance phase's spring asks for where the push-off loads it, and that
+    angle (rad): the able-bodied stance's most dorsiflexed angle (WALKING_PEAK_DORSIFLEXION; late
+    stance at least its entry angle ``late_stance_angle``, it only begins beyond it). The torque loop
+    renders it on the wearer: the gauges read it and the motors must give it."""
+    angle = WALKING_PEAK_DORSIFLEXION if phase == EARLY_STANCE else max(WALKING_PEAK_DORSIFLEXION, late_stance_angle)
+    return abs(params["stiffness_dp"] * (angle - params["equilibrium_dp"])), angle
+
+
+def stance_torque_limits(cfg: Mapping[str, Any]) -> dict[int, tuple[float, str]]:
+    """Stance phase -> (N m, what): the most DP joint torque its spring may ask for at the push-off
+    (:func:`stance_torque`). Both: below ``safety.sg_rail_nm``, or the gauges trip ``SG_RAIL`` on the
+    wearer's push-off (the shipped 75 kg tuning on a 50 kg wearer's rail of 2 N m/kg, 100 N m: 101 N m
+    rendered, ``SG_RAIL`` in the fourth stride at fast cadence; 30 kg: in the first). Late stance also
+    within what both motors give at the peak current (:func:`ankle_rt.config_schema.dp_torque_at_peak`,
+    224 N m nominal) less, with the joint-torque loop, the correction it may add (``max_correction_dp``):
+    194 N m shipped (at 300 N m/rad, equilibrium -0.55 rad: the 15 A clamp for up to 47 ms per stride,
+    ``SG_RAIL`` at 100 kg in the first stride). Early stance hands the push-off over at
+    ``late_stance_angle`` (its equilibrium at -0.3 rad under 400 N m/rad, 204 N m here, walks at up to
+    13.7 A), so only the rail holds it."""
+    rail = (float(cfg["safety"]["sg_rail_nm"]), "safety.sg_rail_nm: the gauges would trip SG_RAIL")
     correction = cfg["controller"]["torque_loop"]["max_correction_dp"] if torque_feedback(cfg) else 0.0
-    return dp_torque_at_peak(cfg) - correction
+    motors = (dp_torque_at_peak(cfg) - correction, "what both motors give at amplifier.current_limit_peak less "
+              "controller.torque_loop.max_correction_dp: the push-off would hold the current clamp")
+    return {EARLY_STANCE: rail, LATE_STANCE: min(rail, motors)}
 
 
-def push_off_stiffness_cap(cfg: Mapping[str, Any]) -> float:
-    """N m/rad: the stiffest late stance :func:`push_off_budget` allows with ``cfg``'s late-stance
-    equilibrium and entry angle (``bench walk`` caps a heavier wearer's scaled stiffness here)."""
+def stance_stiffness_cap(cfg: Mapping[str, Any], phase: int) -> float:
+    """N m/rad: the stiffest DP spring :func:`stance_torque_limits` allows a stance phase with ``cfg``'s
+    equilibrium and late-stance entry angle (``bench walk`` caps a heavier wearer's scaled stiffness here)."""
     g = cfg["controller"]["gait_phase"]
-    lever = abs(max(WALKING_PEAK_DORSIFLEXION, g["late_stance_angle"]) - g["late_stance"]["equilibrium_dp"])
-    return push_off_budget(cfg) / lever if lever > 0.0 else math.inf
+    torque, _ = stance_torque(phase, {**g[PHASES[phase]], "stiffness_dp": 1.0}, g["late_stance_angle"])
+    return stance_torque_limits(cfg)[phase][0] / torque if torque > 0.0 else math.inf
 
 
 def heel_strike_hold_s(cfg: Mapping[str, Any]) -> float:
