@@ -440,6 +440,39 @@ def test_a_stance_spring_the_gauge_rail_would_read_is_refused(tmp_path, monkeypa
     assert bw.run_walk(str(path), 30.0, "fast", 2).fault == "SG_RAIL"
 
 
+def test_a_live_change_to_the_stance_phase_in_force_waits_for_its_next_beginning():
+    """adv11 (lockstep, config/walk.yaml, 75 kg at normal cadence): `ctl gains --phase late_stance`
+    toggled every 0.3 s between two accepted sets, (250 N m/rad, no damping) and (30, 10), reached the
+    ankle mid-push-off: 250 set at 14.7 deg of dorsiflexion (which the soft set had let the wearer
+    reach) held the 15 A clamp and flung the foot through toe-off to ANKLE_RANGE at 4.08 s. A change
+    to the stance phase in force now applies from that phase's next beginning (the parameters the
+    checks hold it to as it begins); a change checked meanwhile is checked with the one waiting."""
+    from ankle_rt.control.gains import GainError
+    from ankle_rt.service import protocol as proto
+    from tests.daemon_helpers import lockstep_daemon, run_cycles
+
+    daemon = lockstep_daemon(load_config(WALK))
+    sets = ({"stiffness_dp": 250.0, "damping_dp": 0.0}, {"stiffness_dp": 30.0, "damping_dp": 10.0})
+    waited = []
+    try:
+        run_cycles(daemon, 2000)
+        for k in range(9):
+            reply(daemon.handle(proto.SetGains(phase="late_stance", **sets[k % 2])))
+            ctl = daemon.controller
+            waited.append(ctl.deferred is not None)
+            if ctl.deferred is not None:
+                assert daemon.status()["gait_phase"]["waiting"] == {"late_stance": ctl.deferred[1]}
+                assert ctl.gait.phase == LATE_STANCE and ctl.gait.stiffness_dp[LATE_STANCE] != sets[k % 2]["stiffness_dp"]
+                if ctl.deferred[1]["stiffness_dp"] == 250.0:
+                    with pytest.raises(GainError):    # with 250 waiting, -0.69 rad would ask 225 N m
+                        ctl.check_gains(phase="late_stance", equilibrium_dp=-0.69)
+            run_cycles(daemon, 300)
+        assert daemon.safety.fault == Fault.NONE and any(waited)
+        assert ctl.deferred is None or ctl.gait.phase == LATE_STANCE
+    finally:
+        daemon.close()
+
+
 def test_the_batch_plant_walks_as_each_plant_alone():
     from sim_backend.batch import BatchPlant
     from sim_backend.plant import SimulatedPlant

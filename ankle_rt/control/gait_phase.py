@@ -177,6 +177,7 @@ class GaitPhaseController(ImpedanceController):
         push-off loads it and what sets that (:func:`stance_torque_limits`, :func:`stance_torque`)."""
         self.gait = law
         self.stance_limits = dict(stance_limits or {})
+        self.deferred: tuple[int, dict[str, float]] | None = None   # a live change to the stance phase in force
         self.ankle_limit = ankle_limit
         self.gain_maxima = dict(gain_maxima)
         super().__init__(kin, np.zeros(2), {"stiffness_dp": 0.0, "stiffness_ie": 0.0, "damping_dp": 0.0,
@@ -255,12 +256,25 @@ class GaitPhaseController(ImpedanceController):
             if name not in PARAMS:
                 raise GainError(name, f"unknown gait-phase parameter {name!r} (expected one of: {', '.join(PARAMS)})")
         merged = {n: getattr(self.gait, n)[i] for n in PARAMS}
+        merged.update(self._deferred_for(i))
         merged.update(gains)
         self._check_phase(i, merged)
 
     def apply_gains(self, phase: str | None = None, **gains: float) -> None:
-        """Start the blend to parameters :meth:`check_gains` accepted (no torque jump)."""
-        self.gait.set_phase_params(PHASES.index(phase), **gains)
+        """Start the blend to parameters :meth:`check_gains` accepted (no torque jump). A change to the
+        stance phase the ankle is in waits until that phase has ended and applies from its next
+        beginning (adv11): the checks hold a stance phase's parameters as it begins, not a spring
+        stiffened under a load the softer one let the ankle yield to (late stance toggled between 30
+        and 250 N m/rad while walking: 250 at 14.7 deg flung the foot to ANKLE_RANGE at 75 kg; the soft
+        one set mid-push-off let the load fall to a toe-off under the wearer, SG_JUMP at 100 kg)."""
+        i = PHASES.index(phase)
+        if i in STANCE_PHASES and i == self.gait.phase:
+            self.deferred = (i, {**self._deferred_for(i), **gains})
+        else:
+            self.gait.set_phase_params(i, **gains)
+
+    def _deferred_for(self, phase: int) -> dict[str, float]:
+        return self.deferred[1] if self.deferred is not None and self.deferred[0] == phase else {}
 
     def start(self, est: Estimate, where: bool | np.ndarray = True) -> None:
         super().start(est, where)
@@ -275,6 +289,9 @@ class GaitPhaseController(ImpedanceController):
         (each phase has its own equilibrium)."""
         self.gains.advance()
         gait = self.gait
+        if self.deferred is not None and gait.phase != self.deferred[0]:   # the daemon's only (no batch command)
+            gait.set_phase_params(self.deferred[0], **self.deferred[1])
+            self.deferred = None
         t0, t1 = gait.update(-est.sg_dp, est.dp, est.dp_vel, est.ie, est.ie_vel)
         return self.actuate(est, t0, t1, gait.k0, gait.k1)
 
