@@ -369,8 +369,8 @@ def test_a_push_off_the_motors_cannot_give_is_refused(tmp_path, monkeypatch):
     """adv11 (lockstep, config/walk.yaml): late stance's stiffness_dp was accepted up to
     controller.gain_limits (430 N m/rad); at its shipped equilibrium (-0.55 rad) the push-off asks the
     spring's K x (12 deg + 0.55 rad) of the motors: 300 N m/rad held the 15 A clamp in 60 cycles (32 in
-    a row) of 4 strides at 75 kg and tripped SG_RAIL in the first stride at 100 kg; 428: SG_RAIL at 75
-    kg. That torque, at the walk's most dorsiflexed angle (at least late_stance_angle), must now fit in
+    a row) of 4 strides at 75 kg and tripped SG_RAIL in the first stride at 100 kg, fast cadence; 428:
+    SG_RAIL at 75 kg. That torque, at the walk's most dorsiflexed angle (at least late_stance_angle), must now fit in
     what both motors give at the peak current less max_correction_dp (194 N m): refused naming the key
     at load and by set_gains (ctl gains --phase) at run time; 255 N m/rad walks below the clamp."""
     import yaml
@@ -443,7 +443,7 @@ def test_a_stance_spring_the_gauge_rail_would_read_is_refused(tmp_path, monkeypa
 def test_a_live_change_to_the_stance_phase_in_force_waits_for_its_next_beginning():
     """adv11 (lockstep, config/walk.yaml, 75 kg at normal cadence): `ctl gains --phase late_stance`
     toggled every 0.3 s between two accepted sets, (250 N m/rad, no damping) and (30, 10), reached the
-    ankle mid-push-off: 250 set at 14.7 deg of dorsiflexion (which the soft set had let the wearer
+    ankle mid-push-off: 250 set at 12.6 deg of dorsiflexion (which the soft set had let the wearer
     reach) held the 15 A clamp and flung the foot through toe-off to ANKLE_RANGE at 4.08 s. A change
     to the stance phase in force now applies from that phase's next beginning (the parameters the
     checks hold it to as it begins); a change checked meanwhile is checked with the one waiting."""

@@ -265,7 +265,7 @@ class GaitPhaseController(ImpedanceController):
         stance phase the ankle is in waits until that phase has ended and applies from its next
         beginning (adv11): the checks hold a stance phase's parameters as it begins, not a spring
         stiffened under a load the softer one let the ankle yield to (late stance toggled between 30
-        and 250 N m/rad while walking: 250 at 14.7 deg flung the foot to ANKLE_RANGE at 75 kg; the soft
+        and 250 N m/rad while walking: 250 set at 12.6 deg flung the foot to ANKLE_RANGE at 75 kg; the soft
         one set mid-push-off let the load fall to a toe-off under the wearer, SG_JUMP at 100 kg)."""
         i = PHASES.index(phase)
         if i in STANCE_PHASES and i == self.gait.phase:
@@ -313,7 +313,7 @@ def stance_torque_limits(cfg: Mapping[str, Any]) -> dict[int, tuple[float, str]]
     within what both motors give at the peak current (:func:`ankle_rt.config_schema.dp_torque_at_peak`,
     224 N m nominal) less, with the joint-torque loop, the correction it may add (``max_correction_dp``):
     194 N m shipped (at 300 N m/rad, equilibrium -0.55 rad: the 15 A clamp for up to 47 ms per stride,
-    ``SG_RAIL`` at 100 kg in the first stride). Early stance hands the push-off over at
+    ``SG_RAIL`` at 100 kg in the first stride at fast cadence). Early stance hands the push-off over at
     ``late_stance_angle`` (its equilibrium at -0.3 rad under 400 N m/rad, 204 N m here, walks at up to
     13.7 A), so only the rail holds it."""
     rail = (float(cfg["safety"]["sg_rail_nm"]), "safety.sg_rail_nm: the gauges would trip SG_RAIL")
