@@ -440,35 +440,77 @@ def test_a_stance_spring_the_gauge_rail_would_read_is_refused(tmp_path, monkeypa
     assert bw.run_walk(str(path), 30.0, "fast", 2).fault == "SG_RAIL"
 
 
+def test_a_stance_spring_too_soft_for_the_heaviest_wearer_is_refused(monkeypatch):
+    """adv11 (lockstep, config/walk.yaml, wearer.mass_kg 100): a stance stiffness was accepted down to
+    what the loop renders stably (early stance 14 N m/rad with no damping): the 100 kg wearer
+    dorsiflexed the ankle to 25 deg, the load fell below load_off_nm in mid-stance, early swing took
+    over under the wearer and the gauges read the body driving the reflected inertia, SG_RAIL in the
+    first stride at fast cadence (early stance 60 with damping 10, late stance 0: the same). Each stance
+    spring must now hold the heaviest wearer's peak walking moment (1.6 N m/kg x wearer.mass_kg) before
+    the ankle reaches its range, refused naming its stiffness_dp at load and at run time."""
+    import ankle_rt.bench.walk as bw
+    import ankle_rt.control.gait_phase as gp
+    from ankle_rt.control import build_controller
+    from ankle_rt.control.gains import GainError
+    from ankle_rt.kinematics import Kinematics
+    from ankle_rt.params import TransmissionParams
+
+    cfg = load_config(WALK, {"controller": {"gait_phase": {"early_stance": {"stiffness_dp": 14.0, "damping_dp": 0.0}}}})
+    kin = Kinematics.from_params(TransmissionParams(**cfg["transmission"]))
+    with pytest.raises(ConfigError) as err:
+        build_controller(cfg, kin, np.zeros(2))
+    assert err.value.key == "controller.gait_phase.early_stance.stiffness_dp" and "wearer.mass_kg" in err.value.message
+    ctl = build_controller(load_config(WALK), kin, np.zeros(2))
+    for phase, k in (("early_stance", 220.0), ("late_stance", 125.0)):   # 158 and 156 N m held, 160 needed
+        with pytest.raises(GainError) as gerr:
+            ctl.check_gains(phase=phase, stiffness_dp=k)
+        assert gerr.value.gain == f"{phase}.stiffness_dp"
+    ctl.check_gains(phase="early_stance", stiffness_dp=225.0)
+    monkeypatch.setattr(gp, "WALKING_PEAK_MOMENT", 0.0)                      # as before the check
+    monkeypatch.setattr(bw, "wearer_overrides", lambda c, m, cad, seed: {
+        "sim": {"scenario": "walking", "walking": {"mass_kg": m, "cadence": cad, "seed": seed}},
+        "controller": {"gait_phase": {"early_stance": {"stiffness_dp": 14.0, "damping_dp": 0.0}}}})
+    assert bw.run_walk(str(WALK), 100.0, "fast", 2).fault == "SG_RAIL"
+
+
 def test_a_live_change_to_the_stance_phase_in_force_waits_for_its_next_beginning():
     """adv11 (lockstep, config/walk.yaml, 75 kg at normal cadence): `ctl gains --phase late_stance`
-    toggled every 0.3 s between two accepted sets, (250 N m/rad, no damping) and (30, 10), reached the
-    ankle mid-push-off: 250 set at 12.6 deg of dorsiflexion (which the soft set had let the wearer
-    reach) held the 15 A clamp and flung the foot through toe-off to ANKLE_RANGE at 4.08 s. A change
-    to the stance phase in force now applies from that phase's next beginning (the parameters the
-    checks hold it to as it begins); a change checked meanwhile is checked with the one waiting."""
+    toggled every 0.3 s between two accepted sets, 250 N m/rad with no damping at equilibrium -0.55 and
+    0.05 rad, reached the ankle mid-push-off: the push-off's spring set mid-stance held the 15 A clamp
+    and flung the foot through toe-off to ANKLE_RANGE at 4.08 s. A change to the stance phase in force
+    now applies from that phase's next beginning (the parameters the checks hold it to as it begins);
+    a change checked meanwhile is checked merged with the one waiting."""
+    from ankle_rt.control import build_controller
     from ankle_rt.control.gains import GainError
+    from ankle_rt.kinematics import Kinematics
+    from ankle_rt.params import TransmissionParams
     from ankle_rt.service import protocol as proto
     from tests.daemon_helpers import lockstep_daemon, run_cycles
 
-    daemon = lockstep_daemon(load_config(WALK))
-    sets = ({"stiffness_dp": 250.0, "damping_dp": 0.0}, {"stiffness_dp": 30.0, "damping_dp": 10.0})
+    cfg = load_config(WALK)
+    ctl = build_controller(cfg, Kinematics.from_params(TransmissionParams(**cfg["transmission"])), np.zeros(2))
+    ctl.gait.phase = LATE_STANCE
+    ctl.apply_gains(phase="late_stance", equilibrium_dp=0.05)
+    assert ctl.deferred == (LATE_STANCE, {"equilibrium_dp": 0.05}) and ctl.gait.equilibrium_dp[LATE_STANCE] == -0.55
+    ctl.check_gains(phase="early_stance", stiffness_dp=300.0)
+    with pytest.raises(GainError):        # with 0.05 rad waiting, 150 N m/rad holds 97 N m (-0.55: 187)
+        ctl.check_gains(phase="late_stance", stiffness_dp=150.0)
+
+    daemon = lockstep_daemon(cfg)
+    sets = ({"equilibrium_dp": -0.55}, {"equilibrium_dp": 0.05})
     waited = []
     try:
         run_cycles(daemon, 2000)
+        reply(daemon.handle(proto.SetGains(phase="late_stance", stiffness_dp=250.0, damping_dp=0.0)))
         for k in range(9):
             reply(daemon.handle(proto.SetGains(phase="late_stance", **sets[k % 2])))
             ctl = daemon.controller
             waited.append(ctl.deferred is not None)
             if ctl.deferred is not None:
                 assert daemon.status()["gait_phase"]["waiting"] == {"late_stance": ctl.deferred[1]}
-                assert ctl.gait.phase == LATE_STANCE and ctl.gait.stiffness_dp[LATE_STANCE] != sets[k % 2]["stiffness_dp"]
-                if ctl.deferred[1]["stiffness_dp"] == 250.0:
-                    with pytest.raises(GainError):    # with 250 waiting, -0.69 rad would ask 225 N m
-                        ctl.check_gains(phase="late_stance", equilibrium_dp=-0.69)
+                assert ctl.gait.phase == LATE_STANCE
             run_cycles(daemon, 300)
         assert daemon.safety.fault == Fault.NONE and any(waited)
-        assert ctl.deferred is None or ctl.gait.phase == LATE_STANCE
     finally:
         daemon.close()
 

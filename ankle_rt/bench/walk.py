@@ -38,11 +38,11 @@ MASS_SCALED_THRESHOLDS = ("load_on_nm", "load_off_nm", "late_stance_load_nm")
 
 
 def wearer_overrides(cfg: Mapping[str, Any], mass_kg: float, cadence: str, seed: int) -> dict:
-    """Config overrides for a wearer of ``mass_kg`` at ``cadence`` (the tuning rule of the module
-    docstring applied to ``cfg``'s gait-phase parameters; a stiffness is capped at what the
-    joint-torque loop renders stably and at controller.gain_limits, a stance phase's DP stiffness
-    where its push-off would pass the rail or the motors, but never below ``cfg``'s own: a refused
-    one stays refused)."""
+    """Config overrides for a wearer of ``mass_kg`` at ``cadence``, whom the tuning is then for
+    (``wearer.mass_kg``): the tuning rule of the module docstring applied to ``cfg``'s gait-phase
+    parameters (a stiffness is capped at what the joint-torque loop renders stably and at
+    controller.gain_limits, a stance phase's DP stiffness where its push-off would pass the rail or
+    the motors, but never below ``cfg``'s own: a refused one stays refused)."""
     from ankle_rt.control.gait_phase import PHASES, STANCE_PHASES, stance_stiffness_cap
     from ankle_rt.control.torque_loop import ImpedanceLimits
 
@@ -57,7 +57,7 @@ def wearer_overrides(cfg: Mapping[str, Any], mass_kg: float, cadence: str, seed:
         gait[p]["stiffness_dp"] = min(gait[p]["stiffness_dp"], max(g[p]["stiffness_dp"], stance_stiffness_cap(cfg, phase)))
     gait.update({k: g[k] * r for k in MASS_SCALED_THRESHOLDS})
     return {"sim": {"scenario": "walking", "walking": {"mass_kg": mass_kg, "cadence": cadence, "seed": seed}},
-            "controller": {"gait_phase": gait}}
+            "wearer": {"mass_kg": mass_kg}, "controller": {"gait_phase": gait}}
 
 
 @dataclass

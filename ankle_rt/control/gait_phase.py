@@ -63,6 +63,9 @@ STANCE_PHASES = (EARLY_STANCE, LATE_STANCE)
 # rad: the able-bodied ankle's most dorsiflexed angle in stance over the cadences (12 deg at fast cadence,
 # Winter 1991): where a stance phase's spring meets the push-off's peak load
 WALKING_PEAK_DORSIFLEXION = max(float(np.max(able_bodied(c)["angle_dp"])) for c in CADENCES)
+# N m/kg: the able-bodied peak plantarflexor moment over the cadences (1.6 at fast cadence, Winter 1991; Bovi
+# et al. 2011): the wearer's push-off load a stance phase's spring must hold within the ankle range
+WALKING_PEAK_MOMENT = max(peak for _, _, peak, _ in CADENCES.values())
 TRANSITIONS = ("load_on_nm", "load_off_nm", "late_stance_angle", "late_stance_load_nm", "late_swing_angle",
                "late_swing_velocity", "min_dwell_s", "timeout_s", "blend_s")
 
@@ -162,21 +165,24 @@ class GaitPhaseController(ImpedanceController):
     estimated ankle and the strain-gauge load, then the impedance controller's actuation (with the
     law's blended stiffness for the lead on the loop's lag)."""
 
-    shared = ("ref", "limits", "gain_maxima", "margin_cfg", "stance_limits")
+    shared = ("ref", "limits", "gain_maxima", "margin_cfg", "stance_limits", "stance_hold_nm")
 
     def __init__(self, kin: Kinematics, law: GaitPhaseLaw, *, dt: float, soft_start_s: float,
                  ankle_limit: float, gain_maxima: Mapping[str, float],
                  friction: "FrictionFeedForward | None" = None, torque_loop: JointTorqueLoop | None = None,
                  limits: ImpedanceLimits | None = None, margin_cfg: Mapping | None = None,
-                 stance_limits: Mapping[int, tuple[float, str]] | None = None):
+                 stance_limits: Mapping[int, tuple[float, str]] | None = None, stance_hold_nm: float = 0.0):
         """``ankle_limit`` rad bounds the equilibria; ``gain_maxima``: ``stiffness`` and ``damping``
         (controller.gain_limits); ``limits``: the torque loop's stable set, checked per phase;
         ``margin_cfg``: the config whose plant and loop every phase's (K, B) must keep the required gain
         margin on (:func:`ankle_rt.gain_margin.gain_set_refusal`), as the impedance controller's gains;
         ``stance_limits``: stance phase -> the N m of DP joint torque its spring may ask for where the
-        push-off loads it and what sets that (:func:`stance_torque_limits`, :func:`stance_torque`)."""
+        push-off loads it and what sets that (:func:`stance_torque_limits`, :func:`stance_torque`);
+        ``stance_hold_nm``: the plantarflexor moment each stance spring must hold before the ankle
+        reaches its range (the heaviest wearer's peak walking moment)."""
         self.gait = law
         self.stance_limits = dict(stance_limits or {})
+        self.stance_hold_nm = stance_hold_nm
         self.deferred: tuple[int, dict[str, float]] | None = None   # a live change to the stance phase in force
         self.ankle_limit = ankle_limit
         self.gain_maxima = dict(gain_maxima)
@@ -205,7 +211,8 @@ class GaitPhaseController(ImpedanceController):
             return cls(kin, law, dt=dt, soft_start_s=c["soft_start_s"],
                        ankle_limit=math.radians(cfg["limits"]["ankle_range_deg"]),
                        gain_maxima=c["gain_limits"], friction=friction, torque_loop=loop, limits=limits,
-                       margin_cfg=_estimated_angle(cfg), stance_limits=stance_torque_limits(cfg))
+                       margin_cfg=_estimated_angle(cfg), stance_limits=stance_torque_limits(cfg),
+                       stance_hold_nm=WALKING_PEAK_MOMENT * cfg["wearer"]["mass_kg"])
         except GainError as exc:   # a phase's parameter, or the torque-loop gain that limits its margin
             gain = exc.gain.split(".")[-1]
             key = f"torque_loop.{gain}" if gain in c["torque_loop"] else f"gait_phase.{exc.gain}"
@@ -230,6 +237,15 @@ class GaitPhaseController(ImpedanceController):
             elif not 0.0 <= value <= self.gain_maxima[kind]:
                 raise GainError(where, f"{where} must be in [0, {self.gain_maxima[kind]:g}] "
                                        f"(controller.gain_limits.{kind}), got {value:g}")
+        if phase in STANCE_PHASES:
+            held = params["stiffness_dp"] * (self.ankle_limit - params["equilibrium_dp"])
+            if held < self.stance_hold_nm:
+                raise GainError(f"{name}.stiffness_dp",
+                                f"{name}: its spring holds {held:.0f} N m of plantarflexor moment before the ankle reaches its "
+                                f"range (stiffness_dp x (limits.ankle_range_deg - equilibrium_dp)), below the heaviest "
+                                f"wearer's peak walking moment ({self.stance_hold_nm:.0f} N m: wearer.mass_kg x "
+                                f"{WALKING_PEAK_MOMENT:g} N m/kg): the ankle would yield under the push-off "
+                                f"(docs/daemon.md \"Limits a walker does not trip\")")
         if phase in self.stance_limits:
             most, what = self.stance_limits[phase]
             torque, angle = stance_torque(phase, params, self.gait.ls_angle)
@@ -264,9 +280,8 @@ class GaitPhaseController(ImpedanceController):
         """Start the blend to parameters :meth:`check_gains` accepted (no torque jump). A change to the
         stance phase the ankle is in waits until that phase has ended and applies from its next
         beginning (adv11): the checks hold a stance phase's parameters as it begins, not a spring
-        stiffened under a load the softer one let the ankle yield to (late stance toggled between 30
-        and 250 N m/rad while walking: 250 set at 12.6 deg flung the foot to ANKLE_RANGE at 75 kg; the soft
-        one set mid-push-off let the load fall to a toe-off under the wearer, SG_JUMP at 100 kg)."""
+        changed under the push-off (late stance at 250 N m/rad, no damping, its equilibrium toggled
+        between -0.55 and 0.05 rad every 0.3 s while walking: ANKLE_RANGE at 75 kg)."""
         i = PHASES.index(phase)
         if i in STANCE_PHASES and i == self.gait.phase:
             self.deferred = (i, {**self._deferred_for(i), **gains})
