@@ -503,9 +503,10 @@ def test_a_live_change_to_the_stance_phase_in_force_waits_for_its_next_beginning
         run_cycles(daemon, 2000)
         reply(daemon.handle(proto.SetGains(phase="late_stance", stiffness_dp=250.0, damping_dp=0.0)))
         for k in range(9):
-            reply(daemon.handle(proto.SetGains(phase="late_stance", **sets[k % 2])))
+            answer = reply(daemon.handle(proto.SetGains(phase="late_stance", **sets[k % 2])))
             ctl = daemon.controller
             waited.append(ctl.deferred is not None)
+            assert answer.get("waiting") == ("late_stance" if ctl.deferred is not None else None)
             if ctl.deferred is not None:
                 assert daemon.status()["gait_phase"]["waiting"] == {"late_stance": ctl.deferred[1]}
                 assert ctl.gait.phase == LATE_STANCE
