@@ -840,6 +840,19 @@ def check_walking_limits(cfg: Mapping[str, Any], origin: Callable[[KeyPath], str
                           origin(("safety", "max_sg_step_nm")), "safety.max_sg_step_nm")
 
 
+def motor_shares(cfg: Mapping[str, Any]) -> np.ndarray:
+    """|R^-T|: N m on motor i (at the gearbox output) per N m on ankle axis j [DP, IE] (1/9 and 1/5
+    nominal): what each motor carries of an ankle torque."""
+    return np.abs(np.linalg.inv(motor_ratio(TransmissionParams(**cfg["transmission"])).T))
+
+
+def dp_torque_at_peak(cfg: Mapping[str, Any]) -> float:
+    """N m of DP ankle torque the motors give with each at ``amplifier.current_limit_peak`` (224 N m
+    nominal): what a walk may ask of the motors before the current clamp."""
+    peak_nm = cfg["actuator"]["torque_constant"] * cfg["amplifier"]["current_limit_peak"]
+    return float(peak_nm / motor_shares(cfg)[:, 0].max())
+
+
 def check_walking_current(cfg: Mapping[str, Any], origin: Callable[[KeyPath], str]) -> None:
     """Where someone walks (on the device, or the simulator's walking scenario), each motor's torque at
     the peak current covers its share of the heaviest wearer's rendered walking moment
@@ -852,8 +865,7 @@ def check_walking_current(cfg: Mapping[str, Any], origin: Callable[[KeyPath], st
     beside the walking moment even with the shipped clamps: not required."""
     if cfg["backend"] == "sim" and cfg["sim"]["scenario"] != "walking":
         return
-    R = motor_ratio(TransmissionParams(**cfg["transmission"]))
-    share = np.abs(np.linalg.inv(R.T))          # N m on motor i (gearbox output) per N m on ankle axis j
+    share = motor_shares(cfg)
     peak = cfg["amplifier"]["current_limit_peak"]
     kt = cfg["actuator"]["torque_constant"]
     mass = cfg["wearer"]["mass_kg"]

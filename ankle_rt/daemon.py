@@ -177,11 +177,14 @@ class Daemon:
         self._controller_est = EstimateView(self.est) if self._plugin else self.est
 
     def _gait_phase_status(self) -> dict | None:
-        """The gait-phase controller's phase and per-phase parameters (None for another controller)."""
+        """The gait-phase controller's phase, per-phase parameters and a change waiting for its stance
+        phase's next beginning (None for another controller)."""
         gait = self._gait
         if gait is None:
             return None
-        return {"phase": PHASES[gait.phase], "time_in_phase_s": gait.time, "params": gait.phase_params()}
+        waiting = getattr(self.controller, "deferred", None)
+        return {"phase": PHASES[gait.phase], "time_in_phase_s": gait.time, "params": gait.phase_params(),
+                "waiting": {PHASES[waiting[0]]: dict(waiting[1])} if waiting is not None else {}}
 
     def gait_phase(self) -> int:
         """The log record's gait_phase code: 1 + the gait-phase controller's phase, 0 for any other."""
@@ -316,7 +319,9 @@ class Daemon:
                 raise proto.CommandError("cmd", "the controller changed while its gains were checked; "
                                                 "nothing changed")
             controller.apply_gains(**gains)
-            return {"state": State(self.safety.state).name.lower()}
+            waiting = getattr(controller, "deferred", None)    # a stance phase's change for its next beginning
+            return {"state": State(self.safety.state).name.lower(),
+                    **({"waiting": PHASES[waiting[0]]} if waiting is not None else {})}
 
         return proto.Pending(finish)
 

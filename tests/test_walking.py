@@ -365,6 +365,157 @@ def test_walking_strides_run_through_the_phases_without_a_fault():
     assert max(s["current_peak_a"] for s in run.strides) <= 15.0
 
 
+def test_a_push_off_the_motors_cannot_give_is_refused(tmp_path, monkeypatch):
+    """adv11 (lockstep, config/walk.yaml): late stance's stiffness_dp was accepted up to
+    controller.gain_limits (430 N m/rad); at its shipped equilibrium (-0.55 rad) the push-off asks the
+    spring's K x (12 deg + 0.55 rad) of the motors: 300 N m/rad held the 15 A clamp in 60 cycles (32 in
+    a row) of 4 strides at 75 kg and tripped SG_RAIL in the first stride at 100 kg, fast cadence; 428:
+    SG_RAIL at 75 kg. That torque, at the walk's most dorsiflexed angle (at least late_stance_angle), must now fit in
+    what both motors give at the peak current less max_correction_dp (194 N m): refused naming the key
+    at load and by set_gains (ctl gains --phase) at run time; 255 N m/rad walks below the clamp."""
+    import yaml
+
+    import ankle_rt.control.gait_phase as gp
+    from ankle_rt.bench.walk import run_walk
+    from ankle_rt.control import build_controller
+    from ankle_rt.control.gains import GainError
+    from ankle_rt.kinematics import Kinematics
+    from ankle_rt.params import TransmissionParams
+
+    def late_stance(k: float) -> str:
+        path = tmp_path / f"late-{k:g}.yaml"
+        path.write_text(yaml.safe_dump({"include": [str(WALK)],
+                                        "controller": {"gait_phase": {"late_stance": {"stiffness_dp": k}}}}))
+        return str(path)
+
+    def build(path):
+        cfg = load_config(path)
+        return build_controller(cfg, Kinematics.from_params(TransmissionParams(**cfg["transmission"])), np.zeros(2))
+
+    def saturated(run) -> int:
+        return int(np.sum(np.maximum(np.abs(run.columns["i1"]), np.abs(run.columns["i2"])) >= 14.9))
+
+    with pytest.raises(ConfigError) as err:
+        build(late_stance(300.0))
+    assert err.value.key == "controller.gait_phase.late_stance.stiffness_dp"
+    assert "current_limit_peak" in err.value.message
+    ctl = build(WALK)
+    for gains in ({"stiffness_dp": 300.0}, {"stiffness_dp": 250.0, "equilibrium_dp": -0.69}):
+        with pytest.raises(GainError) as gerr:
+            ctl.check_gains(phase="late_stance", **gains)
+        assert gerr.value.gain == "late_stance.stiffness_dp"
+    ctl.check_gains(phase="late_stance", stiffness_dp=250.0)
+    assert saturated(run_walk(late_stance(255.0), 75.0, "normal", 3)) == 0
+    no_limits = dict.fromkeys(gp.STANCE_PHASES, (math.inf, ""))
+    monkeypatch.setattr(gp, "stance_torque_limits", lambda cfg: no_limits)      # as before the check
+    assert saturated(run_walk(late_stance(300.0), 75.0, "normal", 3)) > 20
+
+
+def test_a_stance_spring_the_gauge_rail_would_read_is_refused(tmp_path, monkeypatch):
+    """adv11 (lockstep): the rail is sized from the wearer (2 N m/kg x wearer.mass_kg), the stance
+    springs were not: a config for a 30 kg wearer (rail 60 N m, jump 4.5 N m, as the checks allow) with
+    the shipped 75 kg tuning rendered 66 N m in early stance and tripped SG_RAIL in the first stride at
+    fast cadence (50 kg, rail 100 N m: 101 N m, SG_RAIL in the fourth stride). Each stance phase's
+    spring at the walk's most dorsiflexed angle must now stay below safety.sg_rail_nm, refused naming
+    the phase's stiffness_dp; the tuning scaled to the wearer (`bench walk`'s rule) walks."""
+    import yaml
+
+    import ankle_rt.bench.walk as bw
+    import ankle_rt.control.gait_phase as gp
+    from ankle_rt.control import build_controller
+    from ankle_rt.kinematics import Kinematics
+    from ankle_rt.params import TransmissionParams
+
+    path = tmp_path / "light.yaml"
+    path.write_text(yaml.safe_dump({"include": [str(WALK)], "wearer": {"mass_kg": 30.0},
+                                    "safety": {"sg_rail_nm": 60.0, "max_sg_step_nm": 4.5}}))
+    cfg = load_config(path)
+    with pytest.raises(ConfigError) as err:
+        build_controller(cfg, Kinematics.from_params(TransmissionParams(**cfg["transmission"])), np.zeros(2))
+    assert err.value.key == "controller.gait_phase.early_stance.stiffness_dp" and "sg_rail_nm" in err.value.message
+    assert bw.run_walk(str(path), 30.0, "fast", 2).fault == "NONE"           # scaled by 30 / 75 kg: accepted
+    no_limits = dict.fromkeys(gp.STANCE_PHASES, (math.inf, ""))
+    monkeypatch.setattr(gp, "stance_torque_limits", lambda cfg: no_limits)   # as before the check,
+    monkeypatch.setattr(bw, "REFERENCE_MASS_KG", 30.0)                       # with the config's own gains
+    assert bw.run_walk(str(path), 30.0, "fast", 2).fault == "SG_RAIL"
+
+
+def test_a_stance_spring_too_soft_for_the_heaviest_wearer_is_refused(monkeypatch):
+    """adv11 (lockstep, config/walk.yaml, wearer.mass_kg 100): a stance stiffness was accepted down to
+    what the loop renders stably (early stance 14 N m/rad with no damping): the 100 kg wearer
+    dorsiflexed the ankle to 25 deg, the load fell below load_off_nm in mid-stance, early swing took
+    over under the wearer and the gauges read the body driving the reflected inertia, SG_RAIL in the
+    first stride at fast cadence (early stance 60 with damping 10, late stance 0: the same). Each stance
+    spring must now hold the heaviest wearer's peak walking moment (1.6 N m/kg x wearer.mass_kg) before
+    the ankle reaches its range, refused naming its stiffness_dp at load and at run time."""
+    import ankle_rt.bench.walk as bw
+    import ankle_rt.control.gait_phase as gp
+    from ankle_rt.control import build_controller
+    from ankle_rt.control.gains import GainError
+    from ankle_rt.kinematics import Kinematics
+    from ankle_rt.params import TransmissionParams
+
+    cfg = load_config(WALK, {"controller": {"gait_phase": {"early_stance": {"stiffness_dp": 14.0, "damping_dp": 0.0}}}})
+    kin = Kinematics.from_params(TransmissionParams(**cfg["transmission"]))
+    with pytest.raises(ConfigError) as err:
+        build_controller(cfg, kin, np.zeros(2))
+    assert err.value.key == "controller.gait_phase.early_stance.stiffness_dp" and "wearer.mass_kg" in err.value.message
+    ctl = build_controller(load_config(WALK), kin, np.zeros(2))
+    for phase, k in (("early_stance", 220.0), ("late_stance", 125.0)):   # 158 and 156 N m held, 160 needed
+        with pytest.raises(GainError) as gerr:
+            ctl.check_gains(phase=phase, stiffness_dp=k)
+        assert gerr.value.gain == f"{phase}.stiffness_dp"
+    ctl.check_gains(phase="early_stance", stiffness_dp=225.0)
+    monkeypatch.setattr(gp, "WALKING_PEAK_MOMENT", 0.0)                      # as before the check
+    monkeypatch.setattr(bw, "wearer_overrides", lambda c, m, cad, seed: {
+        "sim": {"scenario": "walking", "walking": {"mass_kg": m, "cadence": cad, "seed": seed}},
+        "controller": {"gait_phase": {"early_stance": {"stiffness_dp": 14.0, "damping_dp": 0.0}}}})
+    assert bw.run_walk(str(WALK), 100.0, "fast", 2).fault == "SG_RAIL"
+
+
+def test_a_live_change_to_the_stance_phase_in_force_waits_for_its_next_beginning():
+    """adv11 (lockstep, config/walk.yaml, 75 kg at normal cadence): `ctl gains --phase late_stance`
+    toggled every 0.3 s between two accepted sets, 250 N m/rad with no damping at equilibrium -0.55 and
+    0.05 rad, reached the ankle mid-push-off: the push-off's spring set mid-stance held the 15 A clamp
+    and flung the foot through toe-off to ANKLE_RANGE at 4.08 s. A change to the stance phase in force
+    now applies from that phase's next beginning (the parameters the checks hold it to as it begins);
+    a change checked meanwhile is checked merged with the one waiting."""
+    from ankle_rt.control import build_controller
+    from ankle_rt.control.gains import GainError
+    from ankle_rt.kinematics import Kinematics
+    from ankle_rt.params import TransmissionParams
+    from ankle_rt.service import protocol as proto
+    from tests.daemon_helpers import lockstep_daemon, run_cycles
+
+    cfg = load_config(WALK)
+    ctl = build_controller(cfg, Kinematics.from_params(TransmissionParams(**cfg["transmission"])), np.zeros(2))
+    ctl.gait.phase = LATE_STANCE
+    ctl.apply_gains(phase="late_stance", equilibrium_dp=0.05)
+    assert ctl.deferred == (LATE_STANCE, {"equilibrium_dp": 0.05}) and ctl.gait.equilibrium_dp[LATE_STANCE] == -0.55
+    ctl.check_gains(phase="early_stance", stiffness_dp=300.0)
+    with pytest.raises(GainError):        # with 0.05 rad waiting, 150 N m/rad holds 97 N m (-0.55: 187)
+        ctl.check_gains(phase="late_stance", stiffness_dp=150.0)
+
+    daemon = lockstep_daemon(cfg)
+    sets = ({"equilibrium_dp": -0.55}, {"equilibrium_dp": 0.05})
+    waited = []
+    try:
+        run_cycles(daemon, 2000)
+        reply(daemon.handle(proto.SetGains(phase="late_stance", stiffness_dp=250.0, damping_dp=0.0)))
+        for k in range(9):
+            answer = reply(daemon.handle(proto.SetGains(phase="late_stance", **sets[k % 2])))
+            ctl = daemon.controller
+            waited.append(ctl.deferred is not None)
+            assert answer.get("waiting") == ("late_stance" if ctl.deferred is not None else None)
+            if ctl.deferred is not None:
+                assert daemon.status()["gait_phase"]["waiting"] == {"late_stance": ctl.deferred[1]}
+                assert ctl.gait.phase == LATE_STANCE
+            run_cycles(daemon, 300)
+        assert daemon.safety.fault == Fault.NONE and any(waited)
+    finally:
+        daemon.close()
+
+
 def test_the_batch_plant_walks_as_each_plant_alone():
     from sim_backend.batch import BatchPlant
     from sim_backend.plant import SimulatedPlant

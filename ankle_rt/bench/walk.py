@@ -5,8 +5,10 @@ safety layer on a simulated clock).
 
 Wearers: the shipped gait-phase parameters are for 75 kg; for another mass m the stance and safe
 phases' stiffness and damping and the load thresholds are scaled by m / 75 (the able-bodied moment
-scales with mass, Winter 1991), stiffness capped at the joint-torque loop's stable set; swing is the
-foot's alone and keeps its parameters.
+scales with mass, Winter 1991), stiffness capped at the joint-torque loop's stable set and the stance
+phases' where their push-off would trip the gauge rail or ask more than the motors give
+(:func:`ankle_rt.control.gait_phase.stance_torque_limits`); swing is the foot's alone and keeps its
+parameters.
 
 Per stride (heel strike to heel strike, from the scenario's ground truth), against the able-bodied
 stride of that instant (the scenario's ground truth, :mod:`ankle_rt.gait_data`):
@@ -36,9 +38,12 @@ MASS_SCALED_THRESHOLDS = ("load_on_nm", "load_off_nm", "late_stance_load_nm")
 
 
 def wearer_overrides(cfg: Mapping[str, Any], mass_kg: float, cadence: str, seed: int) -> dict:
-    """Config overrides for a wearer of ``mass_kg`` at ``cadence`` (the tuning rule of the module
-    docstring applied to ``cfg``'s gait-phase parameters; a stiffness is capped at what the
-    joint-torque loop renders stably and at controller.gain_limits)."""
+    """Config overrides for a wearer of ``mass_kg`` at ``cadence``, whom the tuning is then for
+    (``wearer.mass_kg``): the tuning rule of the module docstring applied to ``cfg``'s gait-phase
+    parameters (a stiffness is capped at what the joint-torque loop renders stably and at
+    controller.gain_limits, a stance phase's DP stiffness where its push-off would pass the rail or
+    the motors, but never below ``cfg``'s own: a refused one stays refused)."""
+    from ankle_rt.control.gait_phase import PHASES, STANCE_PHASES, stance_stiffness_cap
     from ankle_rt.control.torque_loop import ImpedanceLimits
 
     limits = ImpedanceLimits.from_config(cfg)
@@ -47,9 +52,12 @@ def wearer_overrides(cfg: Mapping[str, Any], mass_kg: float, cadence: str, seed:
     r = mass_kg / REFERENCE_MASS_KG
     gait = {p: {k: min(g[p][k] * r, cap.get(k, math.inf), most[k.split("_")[0]]) for k in MASS_SCALED_PARAMS}
             for p in MASS_SCALED_PHASES}
+    for phase in STANCE_PHASES:
+        p = PHASES[phase]
+        gait[p]["stiffness_dp"] = min(gait[p]["stiffness_dp"], max(g[p]["stiffness_dp"], stance_stiffness_cap(cfg, phase)))
     gait.update({k: g[k] * r for k in MASS_SCALED_THRESHOLDS})
     return {"sim": {"scenario": "walking", "walking": {"mass_kg": mass_kg, "cadence": cadence, "seed": seed}},
-            "controller": {"gait_phase": gait}}
+            "wearer": {"mass_kg": mass_kg}, "controller": {"gait_phase": gait}}
 
 
 @dataclass

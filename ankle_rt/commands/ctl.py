@@ -185,8 +185,8 @@ def status_for_people(status: dict, rad: bool = False) -> dict:
             scale = to_deg * (math.pi / 180.0 if rad else 1.0)
             key, value = (rad_name if rad else deg_name), [v * scale if isinstance(v, float) else v for v in value]
         elif key == "gait_phase" and isinstance(value, dict) and isinstance(value.get("params"), dict):
-            value = {**value, "params": {phase: _equilibria_for_people(params, rad)
-                                         for phase, params in value["params"].items()}}
+            value = {**value, **{part: {phase: _equilibria_for_people(params, rad) for phase, params in value[part].items()}
+                                 for part in ("params", "waiting") if isinstance(value.get(part), dict)}}
         out[key] = value
     return out
 

@@ -38,14 +38,16 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 import numpy as np
 
-from ankle_rt.config_schema import IMPEDANCE_GAINS
+from ankle_rt.config_schema import IMPEDANCE_GAINS, dp_torque_at_peak
 from ankle_rt.control.gains import GainError, GainRamp
 from ankle_rt.control.impedance import ImpedanceController, actuation_from_config
 from ankle_rt.control.torque_loop import ImpedanceLimits, JointTorqueLoop
 from ankle_rt.elementwise import Value, pick, select, stack
 from ankle_rt.estimation import Estimate
 from ankle_rt.gain_margin import gain_set_refusal
+from ankle_rt.gait_data import CADENCES, able_bodied
 from ankle_rt.kinematics import Kinematics
+from ankle_rt.loop_setup import torque_feedback
 from ankle_rt.params import TransmissionParams
 
 if TYPE_CHECKING:
@@ -57,6 +59,13 @@ EARLY_STANCE, LATE_STANCE, EARLY_SWING, LATE_SWING, SAFE = range(len(PHASES))
 PHASE_NAMES = ("none", *PHASES)    # by the log record's gait_phase code (1 + phase; 0: another controller)
 PARAMS = ("stiffness_dp", "damping_dp", "equilibrium_dp", "stiffness_ie", "damping_ie", "equilibrium_ie")
 CABLE_STIFFNESS_LOW = 0.7    # the identified cable stiffness's lower bound (-30 %, as the gain margins)
+STANCE_PHASES = (EARLY_STANCE, LATE_STANCE)
+# rad: the able-bodied ankle's most dorsiflexed angle in stance over the cadences (12 deg at fast cadence,
+# Winter 1991): where a stance phase's spring meets the push-off's peak load
+WALKING_PEAK_DORSIFLEXION = max(float(np.max(able_bodied(c)["angle_dp"])) for c in CADENCES)
+# N m/kg: the able-bodied peak plantarflexor moment over the cadences (1.6 at fast cadence, Winter 1991; Bovi
+# et al. 2011): the wearer's push-off load a stance phase's spring must hold within the ankle range
+WALKING_PEAK_MOMENT = max(peak for _, _, peak, _ in CADENCES.values())
 TRANSITIONS = ("load_on_nm", "load_off_nm", "late_stance_angle", "late_stance_load_nm", "late_swing_angle",
                "late_swing_velocity", "min_dwell_s", "timeout_s", "blend_s")
 
@@ -156,17 +165,25 @@ class GaitPhaseController(ImpedanceController):
     estimated ankle and the strain-gauge load, then the impedance controller's actuation (with the
     law's blended stiffness for the lead on the loop's lag)."""
 
-    shared = ("ref", "limits", "gain_maxima", "margin_cfg")
+    shared = ("ref", "limits", "gain_maxima", "margin_cfg", "stance_limits", "stance_hold_nm")
 
     def __init__(self, kin: Kinematics, law: GaitPhaseLaw, *, dt: float, soft_start_s: float,
                  ankle_limit: float, gain_maxima: Mapping[str, float],
                  friction: "FrictionFeedForward | None" = None, torque_loop: JointTorqueLoop | None = None,
-                 limits: ImpedanceLimits | None = None, margin_cfg: Mapping | None = None):
+                 limits: ImpedanceLimits | None = None, margin_cfg: Mapping | None = None,
+                 stance_limits: Mapping[int, tuple[float, str]] | None = None, stance_hold_nm: float = 0.0):
         """``ankle_limit`` rad bounds the equilibria; ``gain_maxima``: ``stiffness`` and ``damping``
         (controller.gain_limits); ``limits``: the torque loop's stable set, checked per phase;
         ``margin_cfg``: the config whose plant and loop every phase's (K, B) must keep the required gain
-        margin on (:func:`ankle_rt.gain_margin.gain_set_refusal`), as the impedance controller's gains."""
+        margin on (:func:`ankle_rt.gain_margin.gain_set_refusal`), as the impedance controller's gains;
+        ``stance_limits``: stance phase -> the N m of DP joint torque its spring may ask for where the
+        push-off loads it and what sets that (:func:`stance_torque_limits`, :func:`stance_torque`);
+        ``stance_hold_nm``: the plantarflexor moment each stance spring must hold before the ankle
+        reaches its range (the heaviest wearer's peak walking moment)."""
         self.gait = law
+        self.stance_limits = dict(stance_limits or {})
+        self.stance_hold_nm = stance_hold_nm
+        self.deferred: tuple[int, dict[str, float]] | None = None   # a live change to the stance phase in force
         self.ankle_limit = ankle_limit
         self.gain_maxima = dict(gain_maxima)
         super().__init__(kin, np.zeros(2), {"stiffness_dp": 0.0, "stiffness_ie": 0.0, "damping_dp": 0.0,
@@ -194,7 +211,8 @@ class GaitPhaseController(ImpedanceController):
             return cls(kin, law, dt=dt, soft_start_s=c["soft_start_s"],
                        ankle_limit=math.radians(cfg["limits"]["ankle_range_deg"]),
                        gain_maxima=c["gain_limits"], friction=friction, torque_loop=loop, limits=limits,
-                       margin_cfg=_estimated_angle(cfg))
+                       margin_cfg=_estimated_angle(cfg), stance_limits=stance_torque_limits(cfg),
+                       stance_hold_nm=WALKING_PEAK_MOMENT * cfg["wearer"]["mass_kg"])
         except GainError as exc:   # a phase's parameter, or the torque-loop gain that limits its margin
             gain = exc.gain.split(".")[-1]
             key = f"torque_loop.{gain}" if gain in c["torque_loop"] else f"gait_phase.{exc.gain}"
@@ -219,6 +237,23 @@ class GaitPhaseController(ImpedanceController):
             elif not 0.0 <= value <= self.gain_maxima[kind]:
                 raise GainError(where, f"{where} must be in [0, {self.gain_maxima[kind]:g}] "
                                        f"(controller.gain_limits.{kind}), got {value:g}")
+        if phase in STANCE_PHASES:
+            held = params["stiffness_dp"] * (self.ankle_limit - params["equilibrium_dp"])
+            if held < self.stance_hold_nm:
+                raise GainError(f"{name}.stiffness_dp",
+                                f"{name}: its spring holds {held:.0f} N m of plantarflexor moment before the ankle reaches its "
+                                f"range (stiffness_dp x (limits.ankle_range_deg - equilibrium_dp)), below the heaviest "
+                                f"wearer's peak walking moment ({self.stance_hold_nm:.0f} N m: wearer.mass_kg x "
+                                f"{WALKING_PEAK_MOMENT:g} N m/kg): the ankle would yield under the push-off "
+                                f"(docs/daemon.md \"Limits a walker does not trip\")")
+        if phase in self.stance_limits:
+            most, what = self.stance_limits[phase]
+            torque, angle = stance_torque(phase, params, self.gait.ls_angle)
+            if torque > most:
+                raise GainError(f"{name}.stiffness_dp",
+                                f"{name}: its spring asks {torque:.0f} N m DP at {math.degrees(angle):.1f} deg (stiffness_dp "
+                                f"x (angle - equilibrium_dp), the walk's most dorsiflexed stance), beyond {what} "
+                                f"({most:.0f} N m; docs/daemon.md \"Limits a walker does not trip\")")
         bad = self.limits.check(params) if self.limits is not None else None
         if bad is None and self.margin_cfg is not None:      # the slow check only when the quick one passes
             bad = gain_set_refusal(self.margin_cfg, {k: params[k] for k in IMPEDANCE_GAINS}, self.friction.viscous_slope)
@@ -237,12 +272,24 @@ class GaitPhaseController(ImpedanceController):
             if name not in PARAMS:
                 raise GainError(name, f"unknown gait-phase parameter {name!r} (expected one of: {', '.join(PARAMS)})")
         merged = {n: getattr(self.gait, n)[i] for n in PARAMS}
+        merged.update(self._deferred_for(i))
         merged.update(gains)
         self._check_phase(i, merged)
 
     def apply_gains(self, phase: str | None = None, **gains: float) -> None:
-        """Start the blend to parameters :meth:`check_gains` accepted (no torque jump)."""
-        self.gait.set_phase_params(PHASES.index(phase), **gains)
+        """Start the blend to parameters :meth:`check_gains` accepted (no torque jump). A change to the
+        stance phase the ankle is in waits until that phase has ended and applies from its next
+        beginning (adv11): the checks hold a stance phase's parameters as it begins, not a spring
+        changed under the push-off (late stance at 250 N m/rad, no damping, its equilibrium toggled
+        between -0.55 and 0.05 rad every 0.3 s while walking: ANKLE_RANGE at 75 kg)."""
+        i = PHASES.index(phase)
+        if i in STANCE_PHASES and i == self.gait.phase:
+            self.deferred = (i, {**self._deferred_for(i), **gains})
+        else:
+            self.gait.set_phase_params(i, **gains)
+
+    def _deferred_for(self, phase: int) -> dict[str, float]:
+        return self.deferred[1] if self.deferred is not None and self.deferred[0] == phase else {}
 
     def start(self, est: Estimate, where: bool | np.ndarray = True) -> None:
         super().start(est, where)
@@ -257,8 +304,46 @@ class GaitPhaseController(ImpedanceController):
         (each phase has its own equilibrium)."""
         self.gains.advance()
         gait = self.gait
+        if self.deferred is not None and gait.phase != self.deferred[0]:   # the daemon's only (no batch command)
+            gait.set_phase_params(self.deferred[0], **self.deferred[1])
+            self.deferred = None
         t0, t1 = gait.update(-est.sg_dp, est.dp, est.dp_vel, est.ie, est.ie_vel)
         return self.actuate(est, t0, t1, gait.k0, gait.k1)
+
+
+def stance_torque(phase: int, params: Mapping[str, float], late_stance_angle: float) -> tuple[float, float]:
+    """N m of DP joint torque a stance phase's spring asks for where the push-off loads it, and that
+    angle (rad): the able-bodied stance's most dorsiflexed angle (WALKING_PEAK_DORSIFLEXION; late
+    stance at least its entry angle ``late_stance_angle``, it only begins beyond it). The torque loop
+    renders it on the wearer: the gauges read it and the motors must give it."""
+    angle = WALKING_PEAK_DORSIFLEXION if phase == EARLY_STANCE else max(WALKING_PEAK_DORSIFLEXION, late_stance_angle)
+    return abs(params["stiffness_dp"] * (angle - params["equilibrium_dp"])), angle
+
+
+def stance_torque_limits(cfg: Mapping[str, Any]) -> dict[int, tuple[float, str]]:
+    """Stance phase -> (N m, what): the most DP joint torque its spring may ask for at the push-off
+    (:func:`stance_torque`). Both: below ``safety.sg_rail_nm``, or the gauges trip ``SG_RAIL`` on the
+    wearer's push-off (the shipped 75 kg tuning on a 50 kg wearer's rail of 2 N m/kg, 100 N m: 101 N m
+    rendered, ``SG_RAIL`` in the fourth stride at fast cadence; 30 kg: in the first). Late stance also
+    within what both motors give at the peak current (:func:`ankle_rt.config_schema.dp_torque_at_peak`,
+    224 N m nominal) less, with the joint-torque loop, the correction it may add (``max_correction_dp``):
+    194 N m shipped (at 300 N m/rad, equilibrium -0.55 rad: the 15 A clamp for up to 47 ms per stride,
+    ``SG_RAIL`` at 100 kg in the first stride at fast cadence). Early stance hands the push-off over at
+    ``late_stance_angle`` (its equilibrium at -0.3 rad under 400 N m/rad, 204 N m here, walks at up to
+    13.7 A), so only the rail holds it."""
+    rail = (float(cfg["safety"]["sg_rail_nm"]), "safety.sg_rail_nm: the gauges would trip SG_RAIL")
+    correction = cfg["controller"]["torque_loop"]["max_correction_dp"] if torque_feedback(cfg) else 0.0
+    motors = (dp_torque_at_peak(cfg) - correction, "what both motors give at amplifier.current_limit_peak less "
+              "controller.torque_loop.max_correction_dp: the push-off would hold the current clamp")
+    return {EARLY_STANCE: rail, LATE_STANCE: min(rail, motors)}
+
+
+def stance_stiffness_cap(cfg: Mapping[str, Any], phase: int) -> float:
+    """N m/rad: the stiffest DP spring :func:`stance_torque_limits` allows a stance phase with ``cfg``'s
+    equilibrium and late-stance entry angle (``bench walk`` caps a heavier wearer's scaled stiffness here)."""
+    g = cfg["controller"]["gait_phase"]
+    torque, _ = stance_torque(phase, {**g[PHASES[phase]], "stiffness_dp": 1.0}, g["late_stance_angle"])
+    return stance_torque_limits(cfg)[phase][0] / torque if torque > 0.0 else math.inf
 
 
 def heel_strike_hold_s(cfg: Mapping[str, Any]) -> float:
