@@ -472,7 +472,9 @@ def _select_motor(chans: dict[str, Channel], vchans: dict[str, Channel], pool: t
     speed (:func:`_holding`: a Stribeck excess and a load-dependent term hold more than Coulomb alone, and
     a rest they hold is one their law explains). Where that changes the stuck rests of the identification
     or validation data, both are weighed again and the channel selected once more (once: the second
-    model's friction does not judge the rests again)."""
+    model's friction does not judge the rests again). A rest's torque cannot tell static friction from a
+    steep law of velocity, the motion can: the judgement whose model predicts the validation rows far
+    from any rest better (:func:`_moving_error`) is kept, the first one restored where it wins."""
     res = select_channel("motor", chans["motor"], pool, catch_all)
     if chans["motor"].coulomb is None:
         return res
