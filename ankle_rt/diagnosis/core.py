@@ -473,10 +473,13 @@ def _select_motor(chans: dict[str, Channel], vchans: dict[str, Channel], pool: t
     speed (:func:`_holding`: a Stribeck excess and a load-dependent term hold more than Coulomb alone, and
     a rest they hold is one their law explains). Where that changes the stuck rests of the identification
     or validation data, both are weighed again and the channel selected once more (once: the second
-    model's friction does not judge the rests again)."""
+    model's friction does not judge the rests again). A rest's torque cannot tell static friction from a
+    steep law of velocity, the motion can: the judgement whose model predicts the validation rows far
+    from any rest better (:func:`_moving_error`) is kept, the first one restored where it wins."""
     res = select_channel("motor", chans["motor"], pool, catch_all)
     if chans["motor"].coulomb is None:
         return res
+    first = _moving_error(res, vchans["motor"])
     levels = [_holding(res, c["motor"]) for c in (chans, vchans)]
     before = int(chans["motor"].stuck.sum())
     changed = [c["motor"].weigh_rests(h) for c, h in zip((chans, vchans), levels)]
@@ -486,11 +489,35 @@ def _select_motor(chans: dict[str, Channel], vchans: dict[str, Channel], pool: t
         for c in (chans, vchans):
             _add_drift_nuisance(c["motor"])
     again = select_channel("motor", chans["motor"], pool, catch_all)
-    again.notes.insert(0, "stuck rests judged again against what the chosen friction ("
-                       + ", ".join(ts.term.cause for ts in res.terms) + ") holds near zero speed: "
-                       f"{before} -> {int(chans['motor'].stuck.sum())} stuck samples in the identification data; "
-                       "selected again")
+    after = int(chans["motor"].stuck.sum())
+    errors = [first, _moving_error(again, vchans["motor"])]
+    text = ("stuck rests judged again against what the chosen friction ("
+            + ", ".join(ts.term.cause for ts in res.terms) + f") holds near zero speed: {before} -> {after} "
+            "stuck samples in the identification data; selected again")
+    if errors[0] < errors[1]:
+        for c in (chans, vchans):
+            c["motor"].weigh_rests(c["motor"].coulomb)
+            if drift:
+                _add_drift_nuisance(c["motor"])
+        res.notes.insert(0, text + f", but that model predicts the validation data where no motor rests worse "
+                         f"(NRMSE {errors[1]:.4g} against {errors[0]:.4g}): the first judgement kept")
+        return res
+    again.notes.insert(0, text)
     return again
+
+
+def _moving_error(res: ChannelResult, vch: MotorChannel) -> float:
+    """The RMS prediction error of ``res``'s chosen motor model (fitted on the identification data) on
+    the validation rows where no motor rests within the filter's reach (no stuck sample weighs there, so
+    models chosen under either judgement of the rests are compared on the same rows); inf without such
+    rows."""
+    rows = vch.moving_rows
+    if not rows.any():
+        return math.inf
+    vm = ChannelModels(vch)
+    specs = _validated(res, vm, [(ts.term.candidate, ts.term.nl) for ts in res.terms], [])
+    y, X = vm.system(vm.terms(specs))
+    return float(np.sqrt(np.mean((y - X @ res.models.fit(res.models.terms(specs)).coef)[rows] ** 2)))
 
 
 # -- the whole -----------------------------------------------------------------------------------------
