@@ -482,12 +482,8 @@ def _select_motor(chans: dict[str, Channel], vchans: dict[str, Channel], pool: t
     first = _moving_error(res, vchans["motor"])
     levels = [_holding(res, c["motor"]) for c in (chans, vchans)]
     before = int(chans["motor"].stuck.sum())
-    changed = [c["motor"].weigh_rests(h) for c, h in zip((chans, vchans), levels)]
-    if not any(changed):
+    if not _weigh_motor_rests(chans, vchans, levels, drift):
         return res
-    if drift:
-        for c in (chans, vchans):
-            _add_drift_nuisance(c["motor"])
     again = select_channel("motor", chans["motor"], pool, catch_all)
     after = int(chans["motor"].stuck.sum())
     errors = [first, _moving_error(again, vchans["motor"])]
@@ -495,15 +491,23 @@ def _select_motor(chans: dict[str, Channel], vchans: dict[str, Channel], pool: t
             + ", ".join(ts.term.cause for ts in res.terms) + f") holds near zero speed: {before} -> {after} "
             "stuck samples in the identification data; selected again")
     if errors[0] < errors[1]:
-        for c in (chans, vchans):
-            c["motor"].weigh_rests(c["motor"].coulomb)
-            if drift:
-                _add_drift_nuisance(c["motor"])
+        _weigh_motor_rests(chans, vchans, [c["motor"].coulomb for c in (chans, vchans)], drift)
         res.notes.insert(0, text + f", but that model predicts the validation data where no motor rests worse "
                          f"(NRMSE {errors[1]:.4g} against {errors[0]:.4g}): the first judgement kept")
         return res
     again.notes.insert(0, text)
     return again
+
+
+def _weigh_motor_rests(chans: dict[str, Channel], vchans: dict[str, Channel], levels: list, drift: bool) -> bool:
+    """Judge the motor channels' rests (identification, validation) against the holding ``levels``
+    (:meth:`MotorChannel.weigh_rests`) and, with a gauge drift, build its nuisance columns again on the
+    signals filtered anew; whether any stuck sample changed."""
+    changed = any([c["motor"].weigh_rests(h) for c, h in zip((chans, vchans), levels)])
+    if changed and drift:
+        for c in (chans, vchans):
+            _add_drift_nuisance(c["motor"])
+    return changed
 
 
 def _moving_error(res: ChannelResult, vch: MotorChannel) -> float:
