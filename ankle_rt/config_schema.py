@@ -832,9 +832,8 @@ def check_walking_limits(cfg: Mapping[str, Any], origin: Callable[[KeyPath], str
                           origin(("safety", "max_sg_step_nm")), "safety.max_sg_step_nm")
     # the jump check per sample: a slower loop sees more change per sample. Checked where someone walks:
     # on the device, or the simulator's walking scenario (a bench config at another rate need not be)
-    walked = cfg["backend"] != "sim" or cfg["sim"]["scenario"] == "walking"
     step = WALKING_TORQUE_STEP_PER_KG * mass * 1000.0 / cfg["controller"]["rate_hz"]
-    if walked and safety["max_sg_step_nm"] < step:
+    if walked(cfg) and safety["max_sg_step_nm"] < step:
         raise ConfigError(f"must be >= {step:.3g} N m for a {mass:g} kg wearer at {cfg['controller']['rate_hz']} Hz "
                           f"(walking's fastest torque change per sample with margin), got {safety['max_sg_step_nm']:g}",
                           origin(("safety", "max_sg_step_nm")), "safety.max_sg_step_nm")
@@ -853,6 +852,32 @@ def dp_torque_at_peak(cfg: Mapping[str, Any]) -> float:
     return float(peak_nm / motor_shares(cfg)[:, 0].max())
 
 
+def walking_budget(cfg: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray, float, str]:
+    """(|R^-T| shares, N m per motor for the heaviest wearer's rendered walking moment, a motor's N m at
+    the peak current, the moment's description for errors)."""
+    share = motor_shares(cfg)
+    mass = cfg["wearer"]["mass_kg"]
+    need = WALKING_RENDERED_MOMENT_PER_KG * mass
+    what = f"its share of a {mass:g} kg wearer's rendered walking moment ({need:g} N m DP: wearer.mass_kg x " \
+           f"{WALKING_RENDERED_MOMENT_PER_KG:g} N m/kg)"
+    return share, share[:, 0] * need, cfg["actuator"]["torque_constant"] * cfg["amplifier"]["current_limit_peak"], what
+
+
+def walked(cfg: Mapping[str, Any]) -> bool:
+    """Someone walks on this config: the device, or the simulator's walking scenario."""
+    return cfg["backend"] != "sim" or cfg["sim"]["scenario"] == "walking"
+
+
+def correction_shares(cfg: Mapping[str, Any], share: np.ndarray) -> np.ndarray:
+    """N m per motor of the larger of the joint-torque loop's two clamps (one wrong reading at a time);
+    zero without the loop."""
+    ctl = cfg["controller"]
+    if ctl["type"] not in ("impedance", "gait_phase") or ctl["impedance"]["torque_feedback"] == "off":
+        return np.zeros(share.shape[0])
+    loop = ctl["torque_loop"]
+    return np.maximum(share[:, 0] * loop["max_correction_dp"], share[:, 1] * loop["max_correction_ie"])
+
+
 def check_walking_current(cfg: Mapping[str, Any], origin: Callable[[KeyPath], str]) -> None:
     """Where someone walks (on the device, or the simulator's walking scenario), each motor's torque at
     the peak current covers its share of the heaviest wearer's rendered walking moment
@@ -863,28 +888,21 @@ def check_walking_current(cfg: Mapping[str, Any], origin: Callable[[KeyPath], st
     72 ms in a row; a 12 A peak: 580 in 6), max_correction_ie 100 with config/torque-loop-lag-notch.yaml
     73 cycles at the toe-offs. Both corrections at their clamps at once (two wrong readings) do not fit
     beside the walking moment even with the shipped clamps: not required."""
-    if cfg["backend"] == "sim" and cfg["sim"]["scenario"] != "walking":
+    if not walked(cfg):
         return
-    share = motor_shares(cfg)
-    peak = cfg["amplifier"]["current_limit_peak"]
-    kt = cfg["actuator"]["torque_constant"]
-    mass = cfg["wearer"]["mass_kg"]
-    need = WALKING_RENDERED_MOMENT_PER_KG * mass
-    walking = share[:, 0] * need                 # N m per motor for the walking moment
-    motor_peak = kt * peak
-    what = f"its share of a {mass:g} kg wearer's rendered walking moment ({need:g} N m DP: wearer.mass_kg x " \
-           f"{WALKING_RENDERED_MOMENT_PER_KG:g} N m/kg)"
+    share, walking, motor_peak, what = walking_budget(cfg)
+    peak, kt = cfg["amplifier"]["current_limit_peak"], cfg["actuator"]["torque_constant"]
     if walking.max() > motor_peak:
         raise ConfigError(f"must be >= {math.ceil(walking.max() / kt * 100) / 100:g} A: a motor at the peak current gives {motor_peak:.3g} N m, "
                           f"below {what}, {walking.max():.3g} N m, got {peak:g}",
                           origin(("amplifier", "current_limit_peak")), "amplifier.current_limit_peak")
-    ctl = cfg["controller"]
-    if ctl["type"] not in ("impedance", "gait_phase") or ctl["impedance"]["torque_feedback"] == "off":
+    if not correction_shares(cfg, share).any():
         return
+    loop = cfg["controller"]["torque_loop"]
     for axis, name in enumerate(("dp", "ie")):
         key = f"max_correction_{name}"
         most = float(((motor_peak - walking) / share[:, axis]).min())
-        if ctl["torque_loop"][key] > most:
+        if loop[key] > most:
             raise ConfigError(f"must be <= {math.floor(most * 100) / 100:g} N m: a motor at the peak current gives {motor_peak:.3g} N m, and "
-                              f"{what} plus its share of the correction must fit in it, got {ctl['torque_loop'][key]:g}",
+                              f"{what} plus its share of the correction must fit in it, got {loop[key]:g}",
                               origin(("controller", "torque_loop", key)), f"controller.torque_loop.{key}")

@@ -399,3 +399,34 @@ def test_a_torque_loop_gain_that_limits_a_gait_phase_is_named_by_its_own_key():
     with pytest.raises(ConfigError) as err:
         lockstep_daemon(cfg)                     # the phases' margins are checked when it is built
     assert err.value.key == "controller.torque_loop.cutoff_hz"
+
+
+def test_a_friction_feed_forward_the_loop_cannot_carry_is_refused(tmp_path):
+    """Adv11: the stated friction was trusted. The feed-forward pushes with the motion by whatever the
+    device lacks of it; stated 10 N m on the simulator's 0.28 (fraction 1, direction from the loop's
+    error) tripped OSCILLATION after 7 strides at 50 kg, and 5 N m held 15 A in 233 cycles of 6
+    strides at 100 kg fast. Now refused naming controller.friction_ff.fraction, unloaded beyond
+    torque_constant x oscillation_rms_a and, where someone walks, beyond what the peak current leaves
+    beside the walking moment and one clamp; the largest fraction accepted walks on the 0.28 plant
+    without a fault and below the current clamp."""
+    from ankle_rt.bench.walk import run_walk
+    from ankle_rt.control.friction import FrictionFeedForward
+
+    walk = ROOT / "config" / "walk.yaml"
+
+    def stated(coulomb: float, fraction: float, mass: float) -> dict:
+        return {"include": [str(walk)], "actuator": {"coulomb": coulomb}, "wearer": {"mass_kg": mass},
+                "controller": {"friction_ff": {"enabled": True, "viscous": 0.0, "fraction": fraction,
+                                               "error_band": 1e-9}}}
+
+    for mass, coulomb, binds in ((50.0, 10.0, "safety.oscillation_rms_a"), (100.0, 1.5, "walking moment")):
+        with pytest.raises(ConfigError) as err:
+            FrictionFeedForward.from_config(load_config(write(tmp_path, stated(coulomb, 1.0, mass))))
+        assert err.value.key == "controller.friction_ff.fraction" and binds in err.value.message
+        most = float(err.value.message.split("must be <= ")[1].split(":")[0])
+        path = write(tmp_path, stated(coulomb, most, mass))
+        cfg = load_config(path)
+        FrictionFeedForward.from_config(cfg)              # the largest named is accepted
+        run = run_walk(str(path), mass, "fast", strides=3, plant_friction=0.28 / coulomb)
+        current = np.maximum(np.abs(run.columns["i1"]), np.abs(run.columns["i2"]))
+        assert run.fault == "NONE" and current.max() < cfg["amplifier"]["current_limit_peak"] - 0.1

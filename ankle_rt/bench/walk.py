@@ -71,8 +71,13 @@ class WalkRun:
     strides: list[dict[str, float]]
 
 
-def run_walk(cfg_path: str, mass_kg: float, cadence: str, strides: int, seed: int = 0) -> WalkRun:
-    """Walk ``strides`` strides (plus the first, a warm-up not counted) in lockstep; stops early on a fault."""
+def run_walk(cfg_path: str, mass_kg: float, cadence: str, strides: int, seed: int = 0, *,
+             plant_friction: float = 1.0) -> WalkRun:
+    """Walk ``strides`` strides (plus the first, a warm-up not counted) in lockstep; stops early on a fault.
+    ``plant_friction``: the simulated plant's Coulomb-like friction x this, the controller keeping the
+    config's statement (a device with less friction than stated)."""
+    from ankle_rt.backend import open_backend
+    from ankle_rt.bench.impedance import with_plant_friction
     from ankle_rt.clock import SimClock
     from ankle_rt.daemon import Daemon
     from ankle_rt.gait_data import stride_period_s
@@ -81,7 +86,9 @@ def run_walk(cfg_path: str, mass_kg: float, cadence: str, strides: int, seed: in
     cfg = load_config(cfg_path, wearer_overrides(base, mass_kg, cadence, seed))
     start = cfg["sim"]["walking"]["start_s"]
     duration = start + (strides + 1.5) * stride_period_s(cadence)
-    daemon = Daemon(cfg, SimClock())
+    clock = SimClock()
+    backend = None if plant_friction == 1.0 else open_backend(with_plant_friction(cfg, plant_friction), clock)
+    daemon = Daemon(cfg, clock, backend=backend)
     n = int(duration * cfg["controller"]["rate_hz"]) + 2
     cols = {k: np.full(n, np.nan) for k in ("t", "phase", "gait", "stride", "angle", "angle_ab", "moment",
                                            "moment_ab", "i1", "i2", "i2t")}
@@ -111,6 +118,8 @@ def run_walk(cfg_path: str, mass_kg: float, cadence: str, strides: int, seed: in
         daemon.loop.run(cycle, round(duration * 1e9))
     finally:
         daemon.close()
+        if backend is not None:
+            backend.close()
     cols = {key: v[:k[0]] for key, v in cols.items()}
     cols["i2t_budget"] = np.array([safety.i2t_budget])
     from ankle_rt.safety import Fault

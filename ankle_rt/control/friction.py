@@ -85,7 +85,46 @@ class FrictionFeedForward:
                   error_band=f["error_band"], **effect_terms(effects, source)).scaled(f["fraction"])
         if out.enabled:
             out.check_not_beyond(cfg, "model_file" if f["model"] == "identified" and f["model_file"] else None)
+            out.check_carried(cfg)
         return out
+
+    def check_carried(self, cfg: "Config") -> None:
+        """Raise ConfigError naming ``controller.friction_ff.fraction`` (with the largest that fits) unless
+        the loop carries this feed-forward on a device without the friction it states. It pushes with the
+        motion by whatever the device lacks (a negative friction: a relay of up to :meth:`most_torque`),
+        and a config cannot know the device. Unloaded it may give at most ``actuator.torque_constant x
+        safety.oscillation_rms_a`` per motor, a relay whose current the oscillation detector counts as no
+        oscillation (stated 10 N m on the simulator's 0.28: OSCILLATION after 7 strides at 50 kg;
+        30: at standstill); where someone walks, with its load term at the walking moment, at most what
+        each motor's peak current leaves beside its share of that moment and of the larger torque-loop
+        clamp (stated 5 N m: 15 A in 233 cycles of 6 strides at 100 kg fast; 10: OSCILLATION)."""
+        from ankle_rt.config import ConfigError
+        from ankle_rt.config_schema import correction_shares, walked, walking_budget
+
+        unloaded = self.most_torque()
+        fraction = cfg["controller"]["friction_ff"]["fraction"]
+        kt, rms = cfg["actuator"]["torque_constant"], cfg["safety"]["oscillation_rms_a"]
+        stated = "fraction x the stated friction: actuator.coulomb or controller.friction_ff.coulomb, and the " \
+                 "friction effects' static terms"
+        if unloaded > kt * rms:
+            most = fraction * kt * rms / unloaded
+            why = (f"the feed-forward's {unloaded:.3g} N m per motor ({stated}) pushes with the motion wherever the "
+                   f"device has less, and a relay above {kt * rms:.3g} N m (actuator.torque_constant x "
+                   f"safety.oscillation_rms_a) drives an oscillation")
+        elif walked(cfg):
+            share, walking, motor_peak, what = walking_budget(cfg)
+            room = motor_peak - walking - correction_shares(cfg, share)
+            pushed = [self.most_torque(w) for w in walking]
+            if all(p <= r for p, r in zip(pushed, room)):
+                return
+            most = fraction * max(0.0, min(r / p for p, r in zip(pushed, room)))
+            why = (f"a motor at the peak current gives {motor_peak:.3g} N m, and {what}, the larger torque-loop "
+                   f"clamp's share and the feed-forward's up to {max(pushed):.3g} N m ({stated}; its load term "
+                   f"at that moment) must fit in it")
+        else:
+            return
+        raise ConfigError(f"must be <= {math.floor(most * 1000) / 1000:g}: {why}, got {fraction:g}",
+                          getattr(cfg, "source", None), "controller.friction_ff.fraction")
 
     def check_not_beyond(self, cfg: "Config", key: str | None) -> None:
         """Raise ConfigError unless this feed-forward cancels at most the friction the config states the
@@ -109,6 +148,14 @@ class FrictionFeedForward:
                                   f"{excess:.3g} N m (at speeds up to 10 rad/s): over-compensated friction pushes "
                                   f"with the motion and drives a limit cycle",
                                   getattr(cfg, "source", None), f"controller.friction_ff.{key or name}")
+
+    def most_torque(self, cable_torque: float = 0.0) -> float:
+        """N m: the largest torque of the direction-dependent terms at cable torque ``cable_torque`` N m,
+        over every velocity and direction (0 when off): what the feed-forward pushes with the motion on a
+        device that has none of the friction it states (config_schema.check_friction_feed_forward)."""
+        if not self.enabled:
+            return 0.0
+        return self.kc + max(self.a, 0.0) + abs(self.dc) + self.mu * abs(cable_torque)
 
     @property
     def viscous_slope(self) -> float:
