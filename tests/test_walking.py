@@ -708,9 +708,9 @@ def test_a_swing_that_lets_the_foot_run_from_toe_off_is_refused(monkeypatch):
     the loop needs) was accepted and ran the free foot from toe-off into ANKLE_RANGE in the first
     stride at 50-100 kg normal cadence (damping 1-2: SG_RAIL or MOTOR_JUMP at 100 kg, early stance's
     spring taking a foot landed at 33 deg of plantarflexion). A swing phase must now keep the foot,
-    from any toe-off state, within 3/4 of the ankle range, no faster than it left, and within the
-    walk's stance angles from the shortest swing on; refused naming the key at load and at run time,
-    and a change to the swing phase in force waits for its next beginning."""
+    from any toe-off state, within 3/4 of the ankle range, no faster than it left, and from the
+    shortest swing on where the able-bodied heel strike takes it; refused naming the key at load and
+    at run time, and a change to the swing phase in force waits for its next beginning."""
     import ankle_rt.bench.walk as bw
     import ankle_rt.control.swing as sw
     from ankle_rt.control import build_controller

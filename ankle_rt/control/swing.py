@@ -20,16 +20,20 @@ corner of that box of states the linear model above, run over the phase's longes
 - it never moves faster than it entered (the phase may slow the foot, not speed it past the motor-speed
   limit);
 - from the shortest able-bodied swing on (0.39 s at fast cadence: the earliest the heel strike comes
-  after toe-off) it lies within the walk's stance angles, and so does the phase's equilibrium: the heel
-  strike takes the foot where the swing leaves it. Early stance's spring then pulls a plantarflexed foot
-  back under up to the motors' peak torque, and the wearer's weight lands on a dorsiflexed one.
+  after toe-off) it lies where the able-bodied heel strike takes the foot, from the loading response's
+  plantarflexion (-6.0 deg at fast cadence) to the stance's peak, and so does the phase's equilibrium:
+  the heel strike takes the foot where the swing leaves it. Early stance's spring pulls a foot landed
+  further plantarflexed back so hard that the gauges read a dorsiflexor moment, a toe-off in the loading
+  response: early swing then holds the wearer. And the wearer's weight lands on a dorsiflexed foot.
 
 The model is linear, so the box's corners bound every state inside it; friction, which only brakes, is
 left out. Measured on the walking scenario (lockstep, config/walk.yaml, 100 kg): early swing with no
 stiffness and damping 0.09-4 N m s/rad ran to ``ANKLE_RANGE``, or landed the heel on a foot at 31-34 deg
 of plantarflexion and early stance's spring flung it to ``MOTOR_JUMP``; at damping 5 it landed at 24 deg
-at 98 % of the motor-speed limit; late swing with its equilibrium at +30 deg landed the wearer's weight
-on the dorsiflexed foot, ``SG_RAIL``.
+at 98 % of the motor-speed limit; early swing at 8-12 N m/rad (damping 4) landed it at -9 to -15 deg at
+fast cadence, the toe-off read 60 ms later left early swing's soft spring under the wearer for the
+stance (the ankle to 29 deg, the motors at 29.7 of 30 rad/s; at 20 N m/rad: -2 deg, 19 rad/s); late
+swing with its equilibrium at +30 deg landed the wearer's weight on the dorsiflexed foot, ``SG_RAIL``.
 """
 
 from __future__ import annotations
@@ -54,8 +58,17 @@ def _able_bodied_rates(cadence: str, samples: int = 2000) -> np.ndarray:
     return np.gradient(able_bodied(cadence, samples)["angle_dp"]) * samples / stride_period_s(cadence)
 
 
+def _loading_response(cadence: str) -> float:
+    """rad: the able-bodied ankle's plantarflexion after heel strike (before stance dorsiflexes it)."""
+    angle = able_bodied(cadence)["angle_dp"]
+    return float(np.min(angle[:int(np.argmax(angle))]))
+
+
 # rad: the most plantarflexed able-bodied angle over the cadences (the push-off at fast cadence, -20.5 deg)
 TOE_OFF_ANGLE = min(float(np.min(able_bodied(c)["angle_dp"])) for c in CADENCES)
+# rad: where the able-bodied heel strike takes the foot, the loading response's plantarflexion (-6.0 deg at
+# fast cadence)
+LANDING_ANGLE = min(_loading_response(c) for c in CADENCES)
 # rad/s: the able-bodied push-off's fastest plantarflexion over the cadences (8.0 at fast cadence)
 PUSH_OFF_RATE = max(float(-np.min(_able_bodied_rates(c))) for c in CADENCES)
 # s: the shortest able-bodied swing, toe-off to heel strike (0.39 s at fast cadence)
@@ -83,6 +96,7 @@ class SwingLimits:
     dt: float               # s: the model's sampling (the control period)
     horizon: float          # s: the longest a phase lasts (timeout_s)
     stance_angles: tuple[float, float]       # rad: the walk's (push-off, peak dorsiflexion)
+    landing: tuple[float, float]             # rad: where the heel strike may find the foot
     late_swing: tuple[float, float]          # late_swing_angle (rad), late_swing_velocity (rad/s)
 
     @classmethod
@@ -105,7 +119,7 @@ class SwingLimits:
         return cls(inertia=float(motors + cfg["foot"]["inertia_dp"]), lead=float(lead),
                    angle_limit=SWING_RANGE_FRACTION * math.radians(cfg["limits"]["ankle_range_deg"]),
                    entry_rate=min(PUSH_OFF_RATE, motor_rate), dt=1.0 / c["rate_hz"], horizon=float(g["timeout_s"]),
-                   stance_angles=(TOE_OFF_ANGLE, stance_peak),
+                   stance_angles=(TOE_OFF_ANGLE, stance_peak), landing=(LANDING_ANGLE, stance_peak),
                    late_swing=(float(g["late_swing_angle"]), float(g["late_swing_velocity"])))
 
     def entry_states(self, late: bool) -> np.ndarray:
@@ -141,13 +155,13 @@ class SwingLimits:
         the bounds of the module docstring, None when it keeps it in."""
         deg = math.degrees
         starts = self.entry_states(late)
-        lo, hi = self.stance_angles
-        stance = f"the walk's stance angles, {deg(lo):.1f}...{deg(hi):.1f} deg"
+        lo, hi = self.landing
+        landing = (f"{deg(lo):.1f}...{deg(hi):.1f} deg (the able-bodied loading response's plantarflexion to the "
+                   f"stance's peak)")
         see = "docs/daemon.md \"Swing from toe-off\""
         if not lo <= equilibrium <= hi:
-            return ("equilibrium_dp", f"equilibrium_dp {deg(equilibrium):.1f} deg is outside {stance} (the push-off at "
-                                      f"fast cadence to the stance's peak): the heel strike would find the foot there "
-                                      f"({see})")
+            return ("equilibrium_dp", f"equilibrium_dp {deg(equilibrium):.1f} deg is outside {landing}: the heel strike "
+                                      f"would find the foot there ({see})")
         run = self.excursion(stiffness, damping, equilibrium, starts)
         where = (f"entering {'late swing (above late_swing_angle)' if late else 'early swing at toe-off'} "
                  f"anywhere in {deg(starts[0].min()):.1f}...{deg(starts[0].max()):.1f} deg at up to "
@@ -165,5 +179,5 @@ class SwingLimits:
         if early < lo or late_ > hi:
             return ("stiffness_dp", f"the foot lies at {deg(early if early < lo else late_):.1f} deg {SHORTEST_SWING_S:.2f} s "
                                     f"or more after {where} (the shortest swing: the heel strike may find it there), outside "
-                                    f"{stance}: more stiffness_dp to bring it back ({see})")
+                                    f"{landing}: more stiffness_dp to bring it back ({see})")
         return None
