@@ -168,9 +168,9 @@ class SwingLimits:
                  f"{self.entry_rate:.3g} rad/s, on the {self.inertia:.3g} kg m^2 the wearer feels")
         if run.rate > self.entry_rate * (1.0 + RATE_TOLERANCE):
             return ("stiffness_dp", f"the spring (stiffness_dp {stiffness:g}, damping_dp {damping:g}) speeds the free "
-                                    f"foot to {run.rate:.3f} rad/s from {where}, past {self.entry_rate:.3f} rad/s (the "
-                                    f"motors' safety.max_motor_speed_rad_s at the ankle): more damping_dp or less "
-                                    f"stiffness_dp ({see})")
+                                    f"foot to {run.rate:.3f} rad/s from {where}, faster than it entered (the lesser of the "
+                                    f"push-off's {PUSH_OFF_RATE:.1f} rad/s and safety.max_motor_speed_rad_s at the "
+                                    f"ankle): more damping_dp or less stiffness_dp ({see})")
         if max(-run.low, run.high) > self.angle_limit:
             return ("damping_dp", f"the free foot runs to {deg(run.low if -run.low > run.high else run.high):.1f} deg "
                                   f"from {where}, beyond {SWING_RANGE_FRACTION:g} x limits.ankle_range_deg, "
