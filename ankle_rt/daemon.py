@@ -319,7 +319,7 @@ class Daemon:
                 raise proto.CommandError("cmd", "the controller changed while its gains were checked; "
                                                 "nothing changed")
             controller.apply_gains(**gains)
-            waiting = getattr(controller, "deferred", None)    # a stance phase's change for its next beginning
+            waiting = getattr(controller, "deferred", None)    # a stance or swing phase's change for its next beginning
             return {"state": State(self.safety.state).name.lower(),
                     **({"waiting": PHASES[waiting[0]]} if waiting is not None else {})}
 

@@ -682,3 +682,86 @@ def test_a_phase_whose_gains_lose_the_gain_margin_is_refused_naming_it(monkeypat
         ctl.set_gains(phase="late_swing", stiffness_dp=123.0)
     assert err.value.gain == "late_swing.stiffness_dp"
     assert seen[-1]["stiffness_dp"] == 123.0
+
+
+def test_the_swing_model_matches_the_closed_form_free_foot(walk_cfg):
+    """SwingLimits.excursion (the exact discretisation, built by doubling) against the closed forms:
+    with no stiffness the foot coasts to theta_0 + J_f w_0 / B; undamped it swings about its
+    equilibrium with amplitude sqrt(x_0^2 + (w_0 / w_n)^2) and peak rate w_n times that."""
+    from ankle_rt.control.gait_phase import WALKING_PEAK_DORSIFLEXION
+    from ankle_rt.control.swing import SwingLimits
+
+    swing = SwingLimits.from_config(walk_cfg, WALKING_PEAK_DORSIFLEXION)
+    swing = SwingLimits(**{**swing.__dict__, "lead": 0.0, "horizon": 2.0})
+    j, start = swing.inertia, np.array([[-0.3], [-4.0]])
+    coast = swing.excursion(0.0, 5.0, 0.0, start)
+    assert coast.low == pytest.approx(-0.3 - 4.0 * j / 5.0, abs=1e-6) and coast.rate == pytest.approx(4.0)
+    wn = math.sqrt(60.0 / j)
+    ring = swing.excursion(60.0, 0.0, 0.1, start)
+    amplitude = math.hypot(-0.4, 4.0 / wn)
+    assert ring.low == pytest.approx(0.1 - amplitude, abs=1e-4) and ring.high == pytest.approx(0.1 + amplitude, abs=1e-4)
+    assert ring.rate == pytest.approx(wn * amplitude, rel=1e-4)
+
+
+def test_a_swing_that_lets_the_foot_run_from_toe_off_is_refused(monkeypatch):
+    """swing12 (lockstep, config/walk.yaml): early swing with no stiffness and damping 0.09 (the least
+    the loop needs) was accepted and ran the free foot from toe-off into ANKLE_RANGE in the first
+    stride at 50-100 kg normal cadence (damping 1-2: SG_RAIL or MOTOR_JUMP at 100 kg, early stance's
+    spring taking a foot landed at 33 deg of plantarflexion). A swing phase must now keep the foot,
+    from any toe-off state, within 3/4 of the ankle range, no faster than it left, and from the
+    shortest swing on where the able-bodied heel strike takes it; refused naming the key at load and
+    at run time, and a change to the swing phase in force waits for its next beginning."""
+    import ankle_rt.bench.walk as bw
+    import ankle_rt.control.swing as sw
+    from ankle_rt.control import build_controller
+    from ankle_rt.control.gains import GainError
+    from ankle_rt.kinematics import Kinematics
+    from ankle_rt.params import TransmissionParams
+
+    soft = {"early_swing": {"stiffness_dp": 0.0, "damping_dp": 0.09}}
+    cfg = load_config(WALK, {"controller": {"gait_phase": soft}})
+    kin = Kinematics.from_params(TransmissionParams(**cfg["transmission"]))
+    with pytest.raises(ConfigError) as err:
+        build_controller(cfg, kin, np.zeros(2))
+    assert err.value.key == "controller.gait_phase.early_swing.damping_dp" and "toe-off" in err.value.message
+    ctl = build_controller(load_config(WALK), kin, np.zeros(2))
+    for phase, gains, key in (("early_swing", soft["early_swing"], "damping_dp"),
+                              ("early_swing", {"stiffness_dp": 0.0, "damping_dp": 10.0}, "stiffness_dp"),
+                              ("late_swing", {"equilibrium_dp": 0.52}, "equilibrium_dp"),
+                              ("late_swing", {"stiffness_dp": 400.0}, "stiffness_dp")):
+        with pytest.raises(GainError) as gerr:
+            ctl.check_gains(phase=phase, **gains)
+        assert gerr.value.gain == f"{phase}.{key}"
+    ctl.gait.phase = EARLY_SWING
+    ctl.apply_gains(phase="early_swing", damping_dp=9.0)
+    assert ctl.deferred == (EARLY_SWING, {"damping_dp": 9.0}) and ctl.gait.damping_dp[EARLY_SWING] == 8.0
+    monkeypatch.setattr(sw.SwingLimits, "refusal", lambda *args: None)      # as before the check
+    monkeypatch.setattr(bw, "wearer_overrides", lambda c, m, cad, seed: {
+        "sim": {"scenario": "walking", "walking": {"mass_kg": m, "cadence": cad, "seed": seed}},
+        "controller": {"gait_phase": soft}})
+    assert bw.run_walk(str(WALK), 75.0, "normal", 1).fault == "ANKLE_RANGE"
+
+
+def test_the_softest_swing_the_rule_accepts_walks(tmp_path):
+    """At the boundary (the least early-swing damping with any stiffness accepted, 1.18 N m s/rad at
+    25 N m/rad; a hundredth less refused): the 100 kg wearer walks without a fault (bench walk: 8
+    strides at 50 / 75 / 100 kg, normal and fast, 0 faults)."""
+    import yaml
+
+    import ankle_rt.bench.walk as bw
+    from ankle_rt.control import build_controller
+    from ankle_rt.kinematics import Kinematics
+    from ankle_rt.params import TransmissionParams
+
+    def early_swing(damping):
+        path = tmp_path / f"swing-{damping}.yaml"
+        path.write_text(yaml.safe_dump({"include": [str(WALK)], "controller": {"gait_phase": {"early_swing": {
+            "stiffness_dp": 25.0, "damping_dp": damping, "equilibrium_dp": 0.0}}}}))
+        return path
+
+    cfg = load_config(early_swing(1.17))
+    with pytest.raises(ConfigError) as err:
+        build_controller(cfg, Kinematics.from_params(TransmissionParams(**cfg["transmission"])), np.zeros(2))
+    assert err.value.key.startswith("controller.gait_phase.early_swing.")
+    run = bw.run_walk(str(early_swing(1.18)), 100.0, "normal", 2)
+    assert run.fault == "NONE" and len(run.strides) == 2

@@ -41,6 +41,7 @@ import numpy as np
 from ankle_rt.config_schema import IMPEDANCE_GAINS, dp_torque_at_peak
 from ankle_rt.control.gains import GainError, GainRamp
 from ankle_rt.control.impedance import ImpedanceController, actuation_from_config
+from ankle_rt.control.swing import SwingLimits
 from ankle_rt.control.torque_loop import ImpedanceLimits, JointTorqueLoop
 from ankle_rt.elementwise import Value, pick, select, stack
 from ankle_rt.estimation import Estimate
@@ -60,6 +61,7 @@ PHASE_NAMES = ("none", *PHASES)    # by the log record's gait_phase code (1 + ph
 PARAMS = ("stiffness_dp", "damping_dp", "equilibrium_dp", "stiffness_ie", "damping_ie", "equilibrium_ie")
 CABLE_STIFFNESS_LOW = 0.7    # the identified cable stiffness's lower bound (-30 %, as the gain margins)
 STANCE_PHASES = (EARLY_STANCE, LATE_STANCE)
+SWING_PHASES = (EARLY_SWING, LATE_SWING)
 # rad: the able-bodied ankle's most dorsiflexed angle in stance over the cadences (12 deg at fast cadence,
 # Winter 1991): where a stance phase's spring meets the push-off's peak load
 WALKING_PEAK_DORSIFLEXION = max(float(np.max(able_bodied(c)["angle_dp"])) for c in CADENCES)
@@ -165,13 +167,14 @@ class GaitPhaseController(ImpedanceController):
     estimated ankle and the strain-gauge load, then the impedance controller's actuation (with the
     law's blended stiffness for the lead on the loop's lag)."""
 
-    shared = ("ref", "limits", "gain_maxima", "margin_cfg", "stance_limits", "stance_hold_nm")
+    shared = ("ref", "limits", "gain_maxima", "margin_cfg", "stance_limits", "stance_hold_nm", "swing")
 
     def __init__(self, kin: Kinematics, law: GaitPhaseLaw, *, dt: float, soft_start_s: float,
                  ankle_limit: float, gain_maxima: Mapping[str, float],
                  friction: "FrictionFeedForward | None" = None, torque_loop: JointTorqueLoop | None = None,
                  limits: ImpedanceLimits | None = None, margin_cfg: Mapping | None = None,
-                 stance_limits: Mapping[int, tuple[float, str]] | None = None, stance_hold_nm: float = 0.0):
+                 stance_limits: Mapping[int, tuple[float, str]] | None = None, stance_hold_nm: float = 0.0,
+                 swing: SwingLimits | None = None):
         """``ankle_limit`` rad bounds the equilibria; ``gain_maxima``: ``stiffness`` and ``damping``
         (controller.gain_limits); ``limits``: the torque loop's stable set, checked per phase;
         ``margin_cfg``: the config whose plant and loop every phase's (K, B) must keep the required gain
@@ -179,11 +182,13 @@ class GaitPhaseController(ImpedanceController):
         ``stance_limits``: stance phase -> the N m of DP joint torque its spring may ask for where the
         push-off loads it and what sets that (:func:`stance_torque_limits`, :func:`stance_torque`);
         ``stance_hold_nm``: the plantarflexor moment each stance spring must hold before the ankle
-        reaches its range (the heaviest wearer's peak walking moment)."""
+        reaches its range (the heaviest wearer's peak walking moment); ``swing``: how far each swing
+        phase may let the free foot run from toe-off (:class:`~ankle_rt.control.swing.SwingLimits`)."""
         self.gait = law
+        self.swing = swing
         self.stance_limits = dict(stance_limits or {})
         self.stance_hold_nm = stance_hold_nm
-        self.deferred: tuple[int, dict[str, float]] | None = None   # a live change to the stance phase in force
+        self.deferred: tuple[int, dict[str, float]] | None = None   # a live change to the stance or swing phase in force
         self.ankle_limit = ankle_limit
         self.gain_maxima = dict(gain_maxima)
         super().__init__(kin, np.zeros(2), {"stiffness_dp": 0.0, "stiffness_ie": 0.0, "damping_dp": 0.0,
@@ -212,7 +217,8 @@ class GaitPhaseController(ImpedanceController):
                        ankle_limit=math.radians(cfg["limits"]["ankle_range_deg"]),
                        gain_maxima=c["gain_limits"], friction=friction, torque_loop=loop, limits=limits,
                        margin_cfg=_estimated_angle(cfg), stance_limits=stance_torque_limits(cfg),
-                       stance_hold_nm=WALKING_PEAK_MOMENT * cfg["wearer"]["mass_kg"])
+                       stance_hold_nm=WALKING_PEAK_MOMENT * cfg["wearer"]["mass_kg"],
+                       swing=SwingLimits.from_config(cfg, WALKING_PEAK_DORSIFLEXION))
         except GainError as exc:   # a phase's parameter, or the torque-loop gain that limits its margin
             gain = exc.gain.split(".")[-1]
             key = f"torque_loop.{gain}" if gain in c["torque_loop"] else f"gait_phase.{exc.gain}"
@@ -255,6 +261,9 @@ class GaitPhaseController(ImpedanceController):
                                 f"x (angle - equilibrium_dp), the walk's most dorsiflexed stance), beyond {what} "
                                 f"({most:.0f} N m; docs/daemon.md \"Limits a walker does not trip\")")
         bad = self.limits.check(params) if self.limits is not None else None
+        if bad is None and self.swing is not None and phase in SWING_PHASES:
+            bad = self.swing.refusal(phase == LATE_SWING, params["stiffness_dp"], params["damping_dp"],
+                                     params["equilibrium_dp"])
         if bad is None and self.margin_cfg is not None:      # the slow check only when the quick one passes
             bad = gain_set_refusal(self.margin_cfg, {k: params[k] for k in IMPEDANCE_GAINS}, self.friction.viscous_slope)
         if bad is not None:
@@ -262,7 +271,8 @@ class GaitPhaseController(ImpedanceController):
 
     def check_gains(self, phase: str | None = None, **gains: float) -> None:
         """Raise GainError naming the parameter unless one phase's new parameters (PARAMS names) keep
-        the gain limits, the ankle range, the torque loop's stable set and its gain margin. Slow with
+        the gain limits, the ankle range, the stance bounds, the swing's excursion from toe-off
+        (:class:`~ankle_rt.control.swing.SwingLimits`), the torque loop's stable set and its gain margin. Slow with
         the margin (~0.05 s): the daemon runs it off the loop thread, then :meth:`apply_gains`."""
         if phase not in PHASES:
             raise GainError("phase", f"the gait_phase controller needs a phase (one of: {', '.join(PHASES)}), "
@@ -278,12 +288,13 @@ class GaitPhaseController(ImpedanceController):
 
     def apply_gains(self, phase: str | None = None, **gains: float) -> None:
         """Start the blend to parameters :meth:`check_gains` accepted (no torque jump). A change to the
-        stance phase the ankle is in waits until that phase has ended and applies from its next
-        beginning (adv11): the checks hold a stance phase's parameters as it begins, not a spring
-        changed under the push-off (late stance at 250 N m/rad, no damping, its equilibrium toggled
-        between -0.55 and 0.05 rad every 0.3 s while walking: ANKLE_RANGE at 75 kg)."""
+        stance or swing phase the ankle is in waits until that phase has ended and applies from its next
+        beginning (adv11; swing12 for swing): the checks hold a phase's parameters as it begins (a stance
+        spring from the push-off's load, a swing from the toe-off's state), not a spring changed under
+        the push-off (late stance at 250 N m/rad, no damping, its equilibrium toggled between -0.55 and
+        0.05 rad every 0.3 s while walking: ANKLE_RANGE at 75 kg) or a swing changed mid-flight."""
         i = PHASES.index(phase)
-        if i in STANCE_PHASES and i == self.gait.phase:
+        if i in STANCE_PHASES + SWING_PHASES and i == self.gait.phase:
             self.deferred = (i, {**self._deferred_for(i), **gains})
         else:
             self.gait.set_phase_params(i, **gains)
