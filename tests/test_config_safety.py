@@ -430,3 +430,22 @@ def test_a_friction_feed_forward_the_loop_cannot_carry_is_refused(tmp_path):
         run = run_walk(str(path), mass, "fast", strides=3, plant_friction=0.28 / coulomb)
         current = np.maximum(np.abs(run.columns["i1"]), np.abs(run.columns["i2"]))
         assert run.fault == "NONE" and current.max() < cfg["amplifier"]["current_limit_peak"] - 0.1
+
+
+def test_the_largest_friction_fraction_named_is_the_budget_over_the_stated_friction_and_is_accepted(tmp_path):
+    """Adv12: with a stated 10 N m and the 1.66 N m unloaded budget the error named 0.165 and refused
+    0.166 = 1.66 / 10 ("must be <= 0.166 ..., got 0.166" for the stated 1.66 x 0.1), the product
+    0.166 x 10 rounding to 1.6600000000000001: the bound's comparison and its number allow for rounding."""
+    from ankle_rt.control.friction import FrictionFeedForward
+
+    def stated(fraction: float) -> dict:
+        return {"include": [str(ROOT / "config" / "walk.yaml")], "actuator": {"coulomb": 10.0},
+                "wearer": {"mass_kg": 50.0}, "controller": {"friction_ff": {"enabled": True, "viscous": 0.0,
+                                                                               "fraction": fraction}}}
+
+    with pytest.raises(ConfigError) as err:
+        FrictionFeedForward.from_config(load_config(write(tmp_path, stated(1.0))))
+    assert err.value.key == "controller.friction_ff.fraction" and err.value.message.startswith("must be <= 0.166:")
+    FrictionFeedForward.from_config(load_config(write(tmp_path, stated(0.166))))
+    with pytest.raises(ConfigError):
+        FrictionFeedForward.from_config(load_config(write(tmp_path, stated(0.167))))

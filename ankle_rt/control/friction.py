@@ -47,6 +47,9 @@ FRICTION_EFFECTS = ("stribeck", "asymmetric_friction", "load_dependent_friction"
 # standstill band to 10 rad/s, unloaded and at a cable torque beyond any the device carries
 CHECK_VELOCITIES = tuple(s * 10.0 ** (k / 4.0) for s in (-1.0, 1.0) for k in range(-16, 5))
 CHECK_CABLE_TORQUES = (0.0, 500.0)
+# relative slack of check_carried's comparisons: a fraction computed as budget / stated friction (1.66 / 10)
+# must fit the budget it was computed from despite the floating-point rounding (0.166 x 10 = 1.6600000000000001)
+CARRIED_SLACK = 1e-9
 
 
 class FrictionFeedForward:
@@ -106,7 +109,7 @@ class FrictionFeedForward:
         kt, rms = cfg["actuator"]["torque_constant"], cfg["safety"]["oscillation_rms_a"]
         stated = "fraction x the stated friction: actuator.coulomb or controller.friction_ff.coulomb, and the " \
                  "friction effects' static terms"
-        if unloaded > kt * rms:
+        if unloaded > kt * rms * (1.0 + CARRIED_SLACK):
             most = fraction * kt * rms / unloaded
             why = (f"the feed-forward's {unloaded:.3g} N m per motor ({stated}) pushes with the motion wherever the "
                    f"device has less, and a relay above {kt * rms:.3g} N m (actuator.torque_constant x "
@@ -115,7 +118,7 @@ class FrictionFeedForward:
             share, walking, motor_peak, what = walking_budget(cfg)
             room = motor_peak - walking - correction_shares(cfg, share)
             pushed = [self.most_torque(w) for w in walking]
-            if all(p <= r for p, r in zip(pushed, room)):
+            if all(p - r <= CARRIED_SLACK * motor_peak for p, r in zip(pushed, room)):
                 return
             most = fraction * max(0.0, min(r / p for p, r in zip(pushed, room)))
             why = (f"a motor at the peak current gives {motor_peak:.3g} N m, and {what}, the larger torque-loop "
@@ -123,7 +126,7 @@ class FrictionFeedForward:
                    f"at that moment) must fit in it")
         else:
             return
-        raise ConfigError(f"must be <= {math.floor(most * 1000) / 1000:g}: {why}, got {fraction:g}",
+        raise ConfigError(f"must be <= {math.floor(most * 1000 * (1.0 + CARRIED_SLACK)) / 1000:g}: {why}, got {fraction:g}",
                           getattr(cfg, "source", None), "controller.friction_ff.fraction")
 
     def check_not_beyond(self, cfg: "Config", key: str | None) -> None:
