@@ -449,3 +449,20 @@ def test_the_largest_friction_fraction_named_is_the_budget_over_the_stated_frict
     FrictionFeedForward.from_config(load_config(write(tmp_path, stated(0.166))))
     with pytest.raises(ConfigError):
         FrictionFeedForward.from_config(load_config(write(tmp_path, stated(0.167))))
+
+
+def test_a_friction_fraction_beyond_both_bounds_names_the_tighter():
+    """Adv12: stated 10 N m at 100 kg exceeds both bounds; the error named the unloaded one's 0.166, and
+    0.166 was then refused naming 0.09 (the walking budget's). Now the first error names the number
+    both accept."""
+    from ankle_rt.control.friction import FrictionFeedForward
+
+    cfg = load_config(ROOT / "config" / "walk.yaml", {"actuator": {"coulomb": 10.0}, "wearer": {"mass_kg": 100.0},
+                                                      "controller": {"friction_ff": {"enabled": True, "viscous": 0.0}}})
+    with pytest.raises(ConfigError) as err:
+        FrictionFeedForward.from_config(cfg)
+    assert err.value.key == "controller.friction_ff.fraction" and "walking moment" in err.value.message
+    most = float(err.value.message.split("must be <= ")[1].split(":")[0])
+    assert 0.0 < most < 0.166
+    cfg["controller"]["friction_ff"]["fraction"] = most
+    FrictionFeedForward.from_config(cfg)                  # the number named is accepted

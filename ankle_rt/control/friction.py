@@ -109,23 +109,24 @@ class FrictionFeedForward:
         kt, rms = cfg["actuator"]["torque_constant"], cfg["safety"]["oscillation_rms_a"]
         stated = "fraction x the stated friction: actuator.coulomb or controller.friction_ff.coulomb, and the " \
                  "friction effects' static terms"
+        bounds = []                              # (the largest fraction that fits, why), one per bound exceeded
         if unloaded > kt * rms * (1.0 + CARRIED_SLACK):
-            most = fraction * kt * rms / unloaded
-            why = (f"the feed-forward's {unloaded:.3g} N m per motor ({stated}) pushes with the motion wherever the "
-                   f"device has less, and a relay above {kt * rms:.3g} N m (actuator.torque_constant x "
-                   f"safety.oscillation_rms_a) drives an oscillation")
-        elif walked(cfg):
+            bounds.append((fraction * kt * rms / unloaded,
+                           f"the feed-forward's {unloaded:.3g} N m per motor ({stated}) pushes with the motion wherever "
+                           f"the device has less, and a relay above {kt * rms:.3g} N m (actuator.torque_constant x "
+                           f"safety.oscillation_rms_a) drives an oscillation"))
+        if walked(cfg):
             share, walking, motor_peak, what = walking_budget(cfg)
             room = motor_peak - walking - correction_shares(cfg, share)
             pushed = [self.most_torque(w) for w in walking]
-            if all(p - r <= CARRIED_SLACK * motor_peak for p, r in zip(pushed, room)):
-                return
-            most = fraction * max(0.0, min(r / p for p, r in zip(pushed, room)))
-            why = (f"a motor at the peak current gives {motor_peak:.3g} N m, and {what}, the larger torque-loop "
-                   f"clamp's share and the feed-forward's up to {max(pushed):.3g} N m ({stated}; its load term "
-                   f"at that moment) must fit in it")
-        else:
+            if any(p - r > CARRIED_SLACK * motor_peak for p, r in zip(pushed, room)):
+                bounds.append((fraction * max(0.0, min(r / p for p, r in zip(pushed, room))),
+                               f"a motor at the peak current gives {motor_peak:.3g} N m, and {what}, the larger "
+                               f"torque-loop clamp's share and the feed-forward's up to {max(pushed):.3g} N m "
+                               f"({stated}; its load term at that moment) must fit in it"))
+        if not bounds:
             return
+        most, why = min(bounds)                  # the tighter: the number named is accepted by both
         raise ConfigError(f"must be <= {math.floor(most * 1000 * (1.0 + CARRIED_SLACK)) / 1000:g}: {why}, got {fraction:g}",
                           getattr(cfg, "source", None), "controller.friction_ff.fraction")
 
