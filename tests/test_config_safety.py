@@ -430,3 +430,64 @@ def test_a_friction_feed_forward_the_loop_cannot_carry_is_refused(tmp_path):
         run = run_walk(str(path), mass, "fast", strides=3, plant_friction=0.28 / coulomb)
         current = np.maximum(np.abs(run.columns["i1"]), np.abs(run.columns["i2"]))
         assert run.fault == "NONE" and current.max() < cfg["amplifier"]["current_limit_peak"] - 0.1
+
+
+def test_the_largest_friction_fraction_named_is_the_budget_over_the_stated_friction_and_is_accepted(tmp_path):
+    """Adv12: with a stated 10 N m and the 1.66 N m unloaded budget the error named 0.165 and refused
+    0.166 = 1.66 / 10 ("must be <= 0.166 ..., got 0.166" for the stated 1.66 x 0.1), the product
+    0.166 x 10 rounding to 1.6600000000000001: the bound's comparison and its number allow for rounding."""
+    from ankle_rt.control.friction import FrictionFeedForward
+
+    def stated(fraction: float) -> dict:
+        return {"include": [str(ROOT / "config" / "walk.yaml")], "actuator": {"coulomb": 10.0},
+                "wearer": {"mass_kg": 50.0}, "controller": {"friction_ff": {"enabled": True, "viscous": 0.0,
+                                                                               "fraction": fraction}}}
+
+    with pytest.raises(ConfigError) as err:
+        FrictionFeedForward.from_config(load_config(write(tmp_path, stated(1.0))))
+    assert err.value.key == "controller.friction_ff.fraction" and err.value.message.startswith("must be <= 0.166:")
+    FrictionFeedForward.from_config(load_config(write(tmp_path, stated(0.166))))
+    with pytest.raises(ConfigError):
+        FrictionFeedForward.from_config(load_config(write(tmp_path, stated(0.167))))
+
+
+def test_a_friction_fraction_beyond_both_bounds_names_the_tighter():
+    """Adv12: stated 10 N m at 100 kg exceeds both bounds; the error named the unloaded one's 0.166, and
+    0.166 was then refused naming 0.09 (the walking budget's). Now the first error names the number
+    both accept."""
+    from ankle_rt.control.friction import FrictionFeedForward
+
+    cfg = load_config(ROOT / "config" / "walk.yaml", {"actuator": {"coulomb": 10.0}, "wearer": {"mass_kg": 100.0},
+                                                      "controller": {"friction_ff": {"enabled": True, "viscous": 0.0}}})
+    with pytest.raises(ConfigError) as err:
+        FrictionFeedForward.from_config(cfg)
+    assert err.value.key == "controller.friction_ff.fraction" and "walking moment" in err.value.message
+    most = float(err.value.message.split("must be <= ")[1].split(":")[0])
+    assert 0.0 < most < 0.166
+    cfg["controller"]["friction_ff"]["fraction"] = most
+    FrictionFeedForward.from_config(cfg)                  # the number named is accepted
+
+
+def test_the_walking_bound_counts_the_feed_forward_twice(tmp_path):
+    """Adv12: counted once, a stated load coefficient of 0.5 at 75 kg was accepted at fraction 0.758 and,
+    on a device without that friction, held 15 A in 2 cycles of 12 strides (normal cadence, seed 0;
+    seed 2: 5; 85 kg fast: 5): braking the motion at push-off the feed-forward wound the DP correction
+    to its clamp, then turned over with the velocity on top of it. Counted twice, the largest accepted
+    walks below the clamp."""
+    from ankle_rt.bench.walk import run_walk
+    from ankle_rt.control.friction import FrictionFeedForward
+
+    def stated(fraction: float) -> dict:
+        return {"include": [str(ROOT / "config" / "walk.yaml")], "wearer": {"mass_kg": 75.0},
+                "sim": {"effects": [{"type": "load_dependent_friction", "coefficient": 0.5}]},
+                "controller": {"friction_ff": {"enabled": True, "model": "identified", "viscous": 0.0,
+                                               "fraction": fraction}}}
+
+    with pytest.raises(ConfigError) as err:
+        FrictionFeedForward.from_config(load_config(write(tmp_path, stated(0.758))))
+    assert err.value.key == "controller.friction_ff.fraction" and "twice" in err.value.message
+    most = float(err.value.message.split("must be <= ")[1].split(":")[0])
+    path = write(tmp_path, stated(most))
+    run = run_walk(str(path), 75.0, "normal", strides=12, plant_friction=0.0)
+    current = np.maximum(np.abs(run.columns["i1"]), np.abs(run.columns["i2"]))
+    assert run.fault == "NONE" and current.max() < load_config(path)["amplifier"]["current_limit_peak"] - 0.1
