@@ -13,9 +13,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import lfilter
-
-from ankle_rt.diagnosis.signals import CableChannel, MotorChannel
+from ankle_rt.diagnosis.signals import RELAXATION_S, CableChannel, MotorChannel, lagged
 
 Channel = MotorChannel | CableChannel
 
@@ -537,6 +535,52 @@ def cable_map(ch: CableChannel) -> tuple[np.ndarray, float]:
     return R, float(ch.geometry.levers[0] / R[0, 0])            # r: the pulley radius, m
 
 
+class GearBacklash(Candidate):
+    """A gap between a motor's rotor and its cable pulley (gear backlash), in the load channel of a record
+    without joint angles (:class:`signals.LoadChannel`). The motor encoder reads the rotor, the cable
+    pulls on the pulley, and the pulley lies against the side of the gap its cable's torque pushes it to:
+    the pulley's angle is the rotor's less g sign(tc_i). While the load changes sign the rotor crosses the
+    gap with no change of the cable torque. Per axis the spring law then loses K' (R^-1 g s)_a, s_i a
+    smoothed sign of the cable torque motor i feels as the spring law predicts it (:attr:`load_hat`); the
+    coefficient per axis is -K'_a g. The smoothing (a fraction of each motor's 99th-percentile predicted
+    torque) is searched; quasi-statically the gap is the simulator's backlash per cable with half_width =
+    r g (r the pulley radius), a dead zone of g in each motor's angle."""
+
+    cause = "backlash"
+    channel = "load"
+    nonlinear = "sign_width"
+    form = {"per": "cable"}
+
+    def applies(self, ch):
+        return hasattr(ch, "load_hat")
+
+    def grid(self, ch):
+        return list(np.geomspace(0.02, 0.32, 5))
+
+    def design(self, ch, nl):
+        scale = np.maximum(np.percentile(np.abs(ch.load_hat), 99, axis=0), 1e-12)
+        side = np.tanh(ch.load_hat / (nl * scale)) @ ch.geometry.R_inv.T      # g sign(tc_i) at the axes / g
+        return Design(ch.per_column(ch.sm.smooth(side)))
+
+    def gaps(self, coef: np.ndarray, base_coef: np.ndarray) -> np.ndarray:
+        """The gap's half-width g per axis (rad of motor angle at the output): -coefficient / K'."""
+        return -np.asarray(coef) / base_coef[[0, 3]]
+
+    def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
+        _, r = cable_map(ch)
+        K = base_coef[[0, 3]]
+        g = self.gaps(coef, base_coef)
+        sd = np.sqrt(np.maximum(np.diag(cov)[:2], 0.0)) / np.abs(K)
+        return {"half_width": (r * float(np.mean(g)), r * float(np.sqrt(np.sum(sd ** 2))) / 2.0)}
+
+    def rejection(self, params, coef, base_coef):
+        g = self.gaps(coef, base_coef)
+        if np.any(g <= 0.0):
+            return (f"the fitted gap is {', '.join(f'{v:.3g}' for v in g)} rad per axis: the load would lead the "
+                    "rotor (not a gap)")
+        return super().rejection(params, coef, base_coef)
+
+
 class HardeningStiffness(Candidate):
     """Monotone stiffening of the cables: force k s (1 + (|s| / s_h)^(e - 1)), e on a grid (3: cubic,
     2: k s (1 + |s| / s0), 4), joint-torque correction K phi (R |phi| / s_h)^(e - 1) per axis."""
@@ -630,6 +674,8 @@ MOTOR_CANDIDATES: tuple[Candidate, ...] = (Stribeck(), StribeckExponential(), As
                                            TorqueOffset(), TorqueConstantScale(), CoulombTransition())
 CABLE_CANDIDATES: tuple[Candidate, ...] = (Backlash(), CableBacklash(), HardeningStiffness(), TautHardening(),
                                            CableTautHardening(), EncoderScale())
+#: the load channel (no joint angles, a linear load on the foot): what a motor-side gap leaves in the gauges
+LOAD_CANDIDATES: tuple[Candidate, ...] = (GearBacklash(),)
 
 MIN_COGGING_PERIODS = 2.0
 SCALE_RANGE = (0.5, 2.0)           # plausible torque-constant calibration scales (true / configured)
@@ -642,8 +688,6 @@ SPEED_BANDS = 16                   # speed bands of the angle-domain spectrum
 TAPER_START, TAPER_END = 3.0, 6.0  # x the filter's cut-off: the cogging regressor's taper (Cogging.taper)
 COGGING_SCREENED = 40              # angle-spectrum peaks whose filtered columns are built
 COGGING_PEAKS = 4                  # ... of which the best explaining are scored by the regression
-#: time constants of the cable catch-all's stretch-history columns: a relaxing (viscoelastic) element
-RELAXATION_S = (0.1, 0.3, 1.0, 3.0)
 DELAY_LAGS_S = (0.001, 0.002, 0.004, 0.007, 0.011, 0.016, 0.022)
 
 
@@ -652,12 +696,6 @@ def _time_shapes(ch: Channel) -> list[np.ndarray]:
     t = ch.t - ch.t[0]
     u = (2.0 * t / max(float(t[-1]), 1e-12) - 1.0)[:, None] * np.ones((1, ch.m))
     return [u, 1.5 * u ** 2 - 0.5, 2.5 * u ** 3 - 1.5 * u]
-
-
-def _lagged(x: np.ndarray, dt: float, time_constant: float) -> np.ndarray:
-    """``x`` through a first-order lag of ``time_constant`` (s), started at rest at x[0]."""
-    a = math.exp(-dt / time_constant)
-    return lfilter([1.0 - a], [1.0, -a], x, axis=0, zi=a * x[:1])[0]
 
 
 def time_columns(ch: Channel) -> np.ndarray:
@@ -715,6 +753,10 @@ def without_groups(catch_all, dropped: set[str]):
 INPUT_GROUPS = {"torque level", "latency (torque history)"}
 
 
+#: the cable catch-all's stretch-history columns (a linear load's own dynamics in the load channel's baseline)
+RELAXATION_GROUP = "stretch history (relaxation)"
+
+
 def catch_all_cable(ch: CableChannel) -> tuple[np.ndarray, list[str]]:
     """Generic columns for the cable channel (per axis) and what each correlates with: even and odd
     stretch shapes, rate-dependent terms, soft dead zones, and a slow drift in time."""
@@ -724,7 +766,7 @@ def catch_all_cable(ch: CableChannel) -> tuple[np.ndarray, list[str]]:
     raw = [(p * np.abs(p), "stretch"), (p ** 3, "stretch"), (p ** 5, "stretch"), (np.tanh(4 * p), "stretch"),
            (np.tanh(d / 0.05), "stretch rate"), (d * np.abs(d), "stretch rate"), (p * np.abs(d), "stretch rate"),
            (np.clip(p, -0.1, 0.1), "stretch"), (np.clip(p, -0.3, 0.3), "stretch")]
-    raw += [(p - _lagged(p, ch.dt, tc), "stretch history (relaxation)") for tc in RELAXATION_S]
+    raw += [(p - lagged(p, ch.dt, tc), RELAXATION_GROUP) for tc in RELAXATION_S]
     raw += [(u, "time (drift)") for u in _time_shapes(ch)]
     X = np.hstack([ch.per_column(ch.sm.smooth(r)) for r, _ in raw])
     return X, [g for _, g in raw for _axis in range(ch.m)]

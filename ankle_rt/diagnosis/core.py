@@ -24,7 +24,8 @@ from typing import Any
 import numpy as np
 
 from ankle_rt.config import Config
-from ankle_rt.diagnosis.candidates import (CABLE_CANDIDATES, INPUT_GROUPS, MOTOR_CANDIDATES, Candidate, Channel,
+from ankle_rt.diagnosis.candidates import (CABLE_CANDIDATES, INPUT_GROUPS, LOAD_CANDIDATES, MOTOR_CANDIDATES,
+                                           RELAXATION_GROUP, Candidate, Channel,
                                            catch_all_cable, catch_all_motor, folded_coulomb, time_columns,
                                            without_groups)
 from ankle_rt.diagnosis.regression import rss_only
@@ -33,7 +34,7 @@ from ankle_rt.diagnosis.screening import Screening, screen, strain_gauge_drift, 
 from ankle_rt.diagnosis.selection import (IC_THRESHOLD, LARGE_REDUCTION, MIN_REDUCTION, MIN_SIZE, MIN_SIZE_UNKNOWN,
                                           MIN_UNKNOWN_REDUCTION, AMBIGUOUS_IC, ChannelModels, ChannelResult, Score,
                                           replicates, select_channel, significant)
-from ankle_rt.diagnosis.signals import CableChannel, Geometry, MotorChannel, require_length
+from ankle_rt.diagnosis.signals import CableChannel, Geometry, LoadChannel, MotorChannel, require_length
 from ankle_rt.interchange import InterchangeError, Recording
 
 #: a named set must explain at least this fraction of what the catch-all removes from the baseline
@@ -199,6 +200,8 @@ def build_channels(rec: Recording, inputs: Inputs, good: np.ndarray | None = Non
                                                        inputs.cogging_prior, inputs.counts_per_rev, inputs.coulomb)}
     if inputs.geometry is not None and CableChannel.available(rec):
         chans["cable"] = CableChannel(rec, inputs.geometry, good)
+    elif inputs.geometry is not None and LoadChannel.available(rec):
+        chans["load"] = LoadChannel(rec, inputs.geometry, good)
     return chans
 
 
@@ -243,6 +246,8 @@ def validation_nrmse(result: ChannelResult, vmodels: ChannelModels, specs: list[
 # -- reporting helpers ---------------------------------------------------------------------------------
 BASELINE_NAMES = {"motor": (("inertia", "kg m^2"), ("damping", "N m s/rad"), ("coulomb", "N m")),
                   "cable": (("stiffness", "N m/rad"), ("stiffness_times_beta", "N m s/rad"), ("offset", "N m"))}
+#: the load channel's baseline: the cable and the foot's linear load in series (signals.LoadChannel)
+BASELINE_NAMES["load"] = BASELINE_NAMES["cable"]
 
 
 def baseline_dict(name: str, coef: np.ndarray, cov: np.ndarray, m: int) -> dict[str, Any]:
@@ -252,7 +257,7 @@ def baseline_dict(name: str, coef: np.ndarray, cov: np.ndarray, m: int) -> dict[
     for j, (key, unit) in enumerate(BASELINE_NAMES[name]):
         idx = [j + PER * i for i in range(m)]
         out[key] = {"value": [float(coef[i]) for i in idx], "sd": [float(sd[i]) for i in idx], "unit": unit}
-    if name == "cable":
+    if name != "motor":
         out["beta"] = {"value": [float(coef[1 + PER * i] / coef[PER * i]) if coef[PER * i] != 0.0 else math.nan
                                  for i in range(m)], "unit": "s"}
     return out
@@ -552,8 +557,14 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
     notes += [n for n in (note, vnote) if n]
     chans = build_channels(ident, inputs, scr.good)
     vchans = build_channels(validation, inputs, vscr.good)
-    if plant == "ankle" and "cable" not in chans:
+    loads = [c.get("load") for c in (chans, vchans)]
+    linear_load = all(ch is not None and ch.linear for ch in loads)
+    if plant == "ankle" and "cable" not in chans and not linear_load:
         notes.append("no joint angles (ankle_dp, ankle_ie): cable side (backlash, stiffness) not diagnosed")
+    elif linear_load:
+        notes.append("no joint angles, but the gauges read a spring law of the motor angles (a linear load on the "
+                     "foot: the spring term explains " + ", ".join(f"{100 * v:.1f} %" for v in loads[0].spring_share)
+                     + " of the DP, IE torque): a gap between rotor and pulley is looked for in the load channel")
     drift = "cable" in chans and (drift_pp := strain_gauge_drift(chans["cable"])) is not None
     if drift:
         warnings.append("the strain-gauge offsets drift over the record (peak to peak "
@@ -573,9 +584,12 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
     vmodels = {name: ChannelModels(vch) for name, vch in vchans.items()}
     if "cable" in chans and "cable" in vchans:
         results.append(select_channel("cable", chans["cable"], CABLE_CANDIDATES, catch_all_cable))
+    load_catch_all = without_groups(catch_all_cable, {RELAXATION_GROUP})     # in the load's baseline
+    if linear_load:
+        results.append(select_channel("load", chans["load"], LOAD_CANDIDATES, load_catch_all))
 
     notes += [f"{res.name} channel: {n}" for res in results for n in res.notes]
-    catch_alls = {"motor": motor_catch_all, "cable": catch_all_cable}
+    catch_alls = {"motor": motor_catch_all, "cable": catch_all_cable, "load": load_catch_all}
     chosen, unexplained = _named_sets(results, notes, unusable, vmodels, catch_alls)
     for res in results:
         chosen[res.name] = _validated(res, vmodels[res.name], chosen[res.name], notes)

@@ -24,6 +24,7 @@ Cable channel (per ankle axis, where joint angles are measured):
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -43,6 +44,9 @@ EDGE_S = 0.06              # s dropped at each end (filter transients, delay shi
 REST_S = 0.05
 #: s a motor's encoder must stay unchanged for a stuck rest (see :func:`stuck`)
 STUCK_REST_S = 0.01
+#: s, time constants of the stretch-history columns: a relaxing (viscoelastic) element in the cable
+#: catch-all, a linear load's own dynamics in the load channel's baseline (:class:`LoadChannel`)
+RELAXATION_S = (0.1, 0.3, 1.0, 3.0)
 
 
 def _odd_window(seconds: float, dt: float, least: int) -> int:
@@ -139,6 +143,13 @@ def stuck(resting_: np.ndarray, net: np.ndarray, holding: float | np.ndarray) ->
             if float(np.max(net[a:b, i] - level[a:b, i])) > float(np.min(net[a:b, i] + level[a:b, i])):
                 out[a:b, i] = True
     return out
+
+
+def lagged(x: np.ndarray, dt: float, time_constant: float) -> np.ndarray:
+    """``x`` through a first-order lag of ``time_constant`` (s), started at rest at x[0]."""
+    from scipy.signal import lfilter
+    a = math.exp(-dt / time_constant)
+    return lfilter([1.0 - a], [1.0, -a], x, axis=0, zi=a * x[:1])[0]
 
 
 def shift_rows(x: np.ndarray, samples: float) -> np.ndarray:
@@ -328,12 +339,15 @@ class CableChannel(_StackedChannel):
 
     AXES = ("dp", "ie")
 
-    def __init__(self, rec: Recording, geometry: Geometry, good: np.ndarray | None = None):
+    def __init__(self, rec: Recording, geometry: Geometry, good: np.ndarray | None = None,
+                 joint: np.ndarray | None = None):
+        """``joint``: the joint angles (samples x axes, rad) when not the recording's own columns."""
         super().__init__(rec, good)
         sm = self.sm
         self.geometry = geometry
         pos_m = np.column_stack([rec["motor_pos_1"], rec["motor_pos_2"]])
-        joint = np.column_stack([rec["ankle_dp"], rec["ankle_ie"]])
+        if joint is None:
+            joint = np.column_stack([rec["ankle_dp"], rec["ankle_ie"]])
         self.phi = pos_m @ geometry.R_inv.T - joint
         self.joint = joint
         self.tau_j = np.column_stack([rec["sg_torque_dp"], rec["sg_torque_ie"]])
@@ -361,3 +375,56 @@ class CableChannel(_StackedChannel):
             X[a * k:(a + 1) * k, 3 * a + 1] = self.L_dphi[self.rows, a]
             X[a * k:(a + 1) * k, 3 * a + 2] = 1.0
         return self.with_nuisance(X)
+
+
+class LoadChannel(CableChannel):
+    """The cable channel of a recording without joint angles, where the foot rests on a linear load (a
+    bench rig's torsion springs): the joint angle is then itself a linear function of the gauges'
+    torque, so the gauges read a spring law of the motor angles, ``L[tau_j] = K' L[phi_m] + K' beta'
+    L[D1 phi_m] + offset``, phi_m = R^-1 th_m, K' the cable and the load in series. A gap between a
+    rotor and its pulley (gear backlash, which the motor encoder sees from the rotor's side) leaves the
+    cable torque unchanged while the rotor crosses it, so the motor angle at which the cable torque crosses
+    zero moves by the gap with each change of the load's sign (:class:`candidates.GearBacklash`). With a
+    free foot or walking the gauges carry no spring law of the motor angles (:attr:`linear` is False) and
+    nothing is diagnosed here."""
+
+    def __init__(self, rec: Recording, geometry: Geometry, good: np.ndarray | None = None):
+        super().__init__(rec, geometry, good, joint=np.zeros((len(rec), 2)))
+        # the load's own dynamics (the foot's inertia, the rig's damping, a relaxing element) are linear
+        # filters of the motor angles: nuisance columns of the baseline, never a discrepancy
+        history = [self.sm.smooth(self.phi, 2)] + [self.sm.smooth(self.phi - lagged(self.phi, self.dt, tc))
+                                                   for tc in RELAXATION_S]
+        self.nuisance = np.hstack([self.per_column(h) for h in history])
+        Xb = self.baseline_design()
+        y = self.target()
+        coef = np.linalg.lstsq(Xb, y, rcond=None)[0]
+        #: per axis: the share of the gauge torque's variance the spring term K' phi_m explains alone
+        self.spring_share = np.zeros(2)
+        for a, ya in enumerate(np.split(y, 2)):
+            centred = ya - ya.mean()
+            spring = coef[3 * a] * self.L_phi[self.rows, a]
+            miss = centred - (spring - spring.mean())
+            self.spring_share[a] = 1.0 - float(miss @ miss) / max(float(centred @ centred), 1e-300)
+        self.stiffness = coef[[0, 3]]
+        #: the cable torque each motor feels (samples x motors, N m) as the spring law predicts it from the
+        #: motor angles (not the measured torque: a column of the left side's own noise would fit it)
+        load = np.column_stack([coef[3 * a] * self.phi[:, a] + coef[3 * a + 1] * np.gradient(self.phi[:, a], self.dt)
+                                + coef[3 * a + 2] for a in range(2)])
+        self.load_hat = load @ geometry.R_inv_T.T
+
+    @staticmethod
+    def available(rec: Recording) -> bool:
+        return (all(c in rec for c in ("sg_torque_dp", "sg_torque_ie", "motor_pos_2"))
+                and not all(c in rec for c in ("ankle_dp", "ankle_ie")))
+
+    @property
+    def linear(self) -> bool:
+        """The gauges read a spring law of the motor angles: on both axes a positive stiffness whose term
+        explains at least LINEAR_LOAD_SHARE of the torque's variance (a bench rig: ~1; a free foot or
+        walking: < 0.7 on some axis)."""
+        return bool(np.all(self.stiffness > 0.0) and np.all(self.spring_share >= LINEAR_LOAD_SHARE))
+
+
+#: share of the gauge torque's variance a spring law of the motor angles must explain on each axis for the
+#: load channel (:class:`LoadChannel`) to be diagnosed
+LINEAR_LOAD_SHARE = 0.9
