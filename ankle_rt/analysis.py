@@ -31,6 +31,7 @@ from ankle_rt.config_schema import (IMPEDANCE_GAINS, LOOP_GAINS, SHIPPED_GAINS, 
                                     torque_loop_cutoffs)
 from ankle_rt.linear_model import N_X, LinearModel
 from ankle_rt.lag import Lag
+from ankle_rt.lead import law_damping, loop_lag
 from ankle_rt.notch import IDENTITY_SECTION, Notch
 from ankle_rt.params import PlantParams
 
@@ -354,6 +355,10 @@ class ImpedanceLoop:
     # (ankle_rt.lag.Lag) then notch (ankle_rt.notch.Notch, on the configured cable), and the shapes
     # studied in benchmarks/study_torque_loop_shaping.py
     shaping: tuple[tuple[tuple[float, ...], ...], tuple[tuple[float, ...], ...]] = ((), ())
+    rate_damping: tuple[float, float] = (0.0, 0.0)      # N m s/rad on the high-passed ankle-side motor rate
+    # N m/rad [DP, IE]: the configured cable at the ankle the law's damping is scaled for (ankle_rt.lead; inf: none)
+    law_cable: tuple[float, float] = (math.inf, math.inf)
+    rate_damping_hz: tuple[float, float] = (20.0, 20.0)  # Hz, its high-pass's corner
     dt: float = 1e-3
     delay_cycles: int = 1
     # the torque loop's correction (kp e + ki int e - kd rate, shaped) scaled by this: the describing function
@@ -382,8 +387,11 @@ class ImpedanceLoop:
                    ff_viscous=0.0 if closed else ff_viscous,
                    shaping=tuple(tuple(s for s in axis if s != IDENTITY_SECTION) for axis in
                                  zip(Lag.from_config(tl).sections(dt),
-                                     Notch.from_config(tl, cfg["transmission"]["cable_stiffness"]).sections(dt)))
+                                     *(n.sections(dt) for n in
+                                       Notch.all_from_config(tl, cfg["transmission"]["cable_stiffness"]))))
                    if closed else ((), ()),
+                   rate_damping=pair(tl, "motor_rate_damping"), law_cable=law_cable(cfg) if closed else (math.inf, math.inf),
+                   rate_damping_hz=pair(tl, "motor_rate_damping_hz") if closed else (20.0, 20.0),
                    dt=dt, delay_cycles=delay_cycles)
 
     GAINS = (*LOOP_GAINS, *IMPEDANCE_GAINS)
@@ -447,6 +455,15 @@ class MotorPDLoop:
         return dataclasses.replace(self, **{name: value})
 
 
+def law_cable(cfg: Mapping[str, Any]) -> tuple[float, float]:
+    """N m/rad [DP, IE]: the configured cable's stiffness at the ankle, what the law's damping is scaled for."""
+    from ankle_rt.kinematics import Kinematics
+    from ankle_rt.params import TransmissionParams
+
+    K = Kinematics.from_params(TransmissionParams(**cfg["transmission"])).K
+    return float(K[0, 0]), float(K[1, 1])
+
+
 def _plant(p: PlantParams, *, foot: str, load_slope: float,
            ground: tuple[tuple[float, float], float] = ((GROUND_STIFFNESS, GROUND_STIFFNESS), 0.0),
            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -475,7 +492,7 @@ def _plant(p: PlantParams, *, foot: str, load_slope: float,
     return A, Bm, C
 
 
-N_W = 12     # controller states of the model: theta_m prev, v, tau filter, integrator, observer, u
+N_W = 14     # controller states of the model: theta_m prev, v, tau filter, integrator, observer, u, rate low-pass
 
 
 def _sections(shaping: tuple[tuple[tuple[float, ...], ...], ...]) -> list[tuple[tuple[float, ...], ...]]:
@@ -486,16 +503,17 @@ def _sections(shaping: tuple[tuple[tuple[float, ...], ...], ...]) -> list[tuple[
 
 
 def _controller(lm_kin, K_cable: np.ndarray, c: ImpedanceLoop) -> tuple[np.ndarray, np.ndarray]:
-    """(W, U) over [w_{k-1} (12 + 4 per shaping stage); y_k (6); r (2)]: the controller states w =
+    """(W, U) over [w_{k-1} (14 + 4 per shaping stage); y_k (6); r (2)]: the controller states w =
     [theta_m prev (2), v (2), tau filter (2), integrator (2), observer low-pass (2), ankle-side output u
-    (2), then per shaping stage its two direct-form-II-transposed states (2 + 2)] are w_k = W @ [...],
+    (2), the motor rates' low-pass (2), then per shaping stage its two direct-form-II-transposed states
+    (2 + 2)] are w_k = W @ [...],
     the motor torques U @ [...]; y = [theta_m, tau_j, theta] measured (theta: joint encoders), r a
     desired joint torque added to the impedance law's (reference 0). The observer (dob_hz > 0):
     d = LP(u_{k-1} - tau_j - J_n (w_k - w_{k-1}) / dt), w = R^-1 v, added to u (torque_loop.py)."""
     stages = _sections(c.shaping)
     nw = N_W + 4 * len(stages)
     e = np.eye(nw + 8)
-    th_prev, v_prev, f_prev, i_prev, d_prev, u_prev = (e[2 * j:2 * j + 2] for j in range(6))
+    th_prev, v_prev, f_prev, i_prev, d_prev, u_prev, r_prev = (e[2 * j:2 * j + 2] for j in range(7))
     th, tau, joint, r = e[nw:nw + 2], e[nw + 2:nw + 4], e[nw + 4:nw + 6], e[nw + 6:nw + 8]
     a_v = 1.0 - math.exp(-2.0 * math.pi * c.velocity_cutoff_hz * c.dt)
     a_f = np.diag([1.0 - math.exp(-2.0 * math.pi * f * c.dt) for f in
@@ -506,8 +524,10 @@ def _controller(lm_kin, K_cable: np.ndarray, c: ImpedanceLoop) -> tuple[np.ndarr
     Ri = lm_kin.R_inv
     ankle = joint if c.joint_encoders else Ri @ th - np.linalg.inv(K_cable) @ tau
     rate = Ri @ v
-    lead = [c.stiffness[a] * c.torque_rate_gain[a] / (1.0 + c.kp[a]) for a in (0, 1)]   # JointTorqueLoop.lag_s
-    tau_des = -np.diag(c.stiffness) @ ankle - np.diag(np.add(c.damping, lead)) @ rate + r
+    # the law's damping on the loop's lag (JointTorqueLoop.lag_s) and the configured cable (ankle_rt.lead)
+    damping = [law_damping(c.stiffness[a], c.damping[a], loop_lag(c.kp[a], c.torque_rate_gain[a], a_f[a, a], c.dt),
+                           c.law_cable[a]) for a in (0, 1)]
+    tau_des = -np.diag(c.stiffness) @ ankle - np.diag(damping) @ rate + r
     err = tau_des - f
     # an axis without integral gain has no integrator (held at zero, not a marginal mode at z = 1)
     integ = np.diag([1.0 if k > 0.0 else 0.0 for k in c.ki]) @ i_prev + np.diag(c.ki) @ err * c.dt
@@ -519,6 +539,10 @@ def _controller(lm_kin, K_cable: np.ndarray, c: ImpedanceLoop) -> tuple[np.ndarr
         out = b0 @ pd + s1
         shaped += [b1 @ pd - a1 @ out + s2, b2 @ pd - a2 @ out]
         pd = out
+    # the motor-rate damping on the rate's high-pass (JointTorqueLoop.update: beside the shaped terms)
+    a_r = np.diag([1.0 - math.exp(-2.0 * math.pi * f * c.dt) for f in c.rate_damping_hz])
+    low = r_prev + a_r @ (rate - r_prev)
+    pd = pd - np.diag(c.rate_damping) @ (rate - low)
     u_ankle = tau_des + c.correction_gain * (pd + integ)
     if c.dob_hz > 0.0:
         a_d = 1.0 - math.exp(-2.0 * math.pi * c.dob_hz * c.dt)
@@ -527,7 +551,7 @@ def _controller(lm_kin, K_cable: np.ndarray, c: ImpedanceLoop) -> tuple[np.ndarr
         u_ankle = u_ankle + d
     else:
         d = 0.0 * d_prev
-    return np.vstack([th, v, f, integ, d, u_ankle, *shaped]), lm_kin.R_inv_T @ u_ankle + c.ff_viscous * v
+    return np.vstack([th, v, f, integ, d, u_ankle, low, *shaped]), lm_kin.R_inv_T @ u_ankle + c.ff_viscous * v
 
 
 def closed_loop(p: PlantParams, c: ImpedanceLoop, *, foot: str = "free", load_slope: float = 0.0,

@@ -23,7 +23,7 @@ from typing import Any, Callable, Mapping
 
 import yaml
 
-from ankle_rt.config_schema import SCHEMA, check_consistency
+from ankle_rt.config_schema import SCHEMA, check_consistency, resolve_correction_clamps
 from ankle_rt.schema import (  # noqa: F401  (re-exported: the schema vocabulary's historical home)
     ConfigError, Field, KeyPath, ListOf, Section, non_negative, numeric_fields, positive, validate,
 )
@@ -193,6 +193,7 @@ def config_from_data(data: dict, origin: Callable[[KeyPath], str], source: str) 
     """Merged config data validated key by key and across keys: the Config a run uses (``origin``:
     the file each key came from, for errors; ``source``: the config's name)."""
     cfg = Config(validate(data, SCHEMA, origin))
+    resolve_correction_clamps(cfg)
     check_consistency(cfg, origin)
     _check_gain_margin(cfg, origin)
     cfg.source = source

@@ -12,7 +12,7 @@ continuous current, configured gains within the run-time gain limits).
 from __future__ import annotations
 
 import math
-from typing import Any, Callable, Mapping
+from typing import Any, Callable, Mapping, MutableMapping
 
 import numpy as np
 
@@ -20,7 +20,8 @@ from ankle_rt.command_limits import MAX_TORQUE_KI, MAX_TORQUE_KP, MAX_TORQUE_RAT
 from ankle_rt.controller_registry import check_controller_name
 from ankle_rt.oscillation import BAND_HZ, band_floor
 from ankle_rt.kinematics import motor_ratio
-from ankle_rt.notch import Notch, cable_scale
+from ankle_rt.loop_setup import torque_feedback
+from ankle_rt.notch import AXES, PREFIXES, Notch, cable_scale
 from ankle_rt.params import GRAVITY, TransmissionParams
 from ankle_rt.references import PROFILE_PARAMS, Gait
 from ankle_rt.schema import ConfigError, Field, KeyPath, ListOf, Section, non_negative, positive
@@ -99,29 +100,47 @@ FRICTION_FF = Section({
                                "moves); 0: from the velocity only", default=0.0, high=100.0),
 }, optional=True)
 
-# The joint-torque loop's shipped gains, DP with the notch below (issue 19, docs/daemon.md "Shipped: the notched
-# DP loop"; found by benchmarks/study_torque_loop_shaping.py, measured with `ankle-rt bench impedance` and
-# `bench walk`; the loop shipped before: config/torque-loop-classic.yaml). ki in 1/s, torque_rate in s.
-LOOP_DEFAULTS = {"kp_dp": 15.0, "kp_ie": 6.0, "ki_dp": 15.0, "ki_ie": 10.0, "torque_rate_dp": 0.10,
-                 "torque_rate_ie": 0.06, "cutoff_hz": 80.0}
-# DP max correction 30 N m: the reflected motor inertia of a 15 N m, 2 Hz push at K_dp 200 needs ~23 N m of
-# correction (20 clamped it: 9 N m/rad rendered); it is also what a wrong torque reading can add (docs/daemon.md)
-MAX_CORRECTION_DP_DEFAULT, MAX_CORRECTION_IE_DEFAULT = 30.0, 20.0
+# The joint-torque loop's shipped gains: the noise-bounded loop (issue 19, docs/daemon.md "Sixth pass"; found
+# by benchmarks/study_torque_loop_step.py on the sampled linear model with the strain gauges' noise bounded, measured
+# with `ankle-rt bench impedance`), with the notches and the IE torque filter below. The gait phases walk on
+# config/torque-loop-walk.yaml (the loop shipped before). The step-tuned loop of the same study (a third of the
+# torque step's overshoot) makes three times the current noise and trips OSCILLATION on it: docs/daemon.md.
+# ki in 1/s, torque_rate in s; cutoff_hz is DP's.
+LOOP_DEFAULTS = {"kp_dp": 46.6, "kp_ie": 28.0, "ki_dp": 11.0, "ki_ie": 11.6, "torque_rate_dp": 0.229,
+                 "torque_rate_ie": 0.141, "cutoff_hz": 297.0}
+CUTOFF_HZ_IE_DEFAULT = 80.0
+RATE_DAMPING_DEFAULTS = ((0.0, 0.0), (20.0, 20.0))   # motor_rate_damping_dp/_ie N m s/rad (off), their corners Hz
+# The torque loop's clamps [DP, IE] when max_correction_dp / _ie are unset. Where nobody walks (the simulator's
+# bench experiments) the correction moves the reflected motor inertia: a 15 N m, 2 Hz push at K_dp 50 (7.5 N m at
+# K_ie 25) needs ~115 (~35) N m of it. Where someone walks (the device, the walking scenario) a clamp is also what
+# a wrong torque reading adds on top of the wearer's moment, and the walking budget (check_walking_current) and the
+# friction feed-forward's (FrictionFeedForward.check_carried) share the motors' peak with it: 30 / 20 N m, within
+# both at 100 kg (the budget alone allows 44.09 / 24.49).
+MAX_CORRECTION_BENCH, MAX_CORRECTION_WALKED = (150.0, 60.0), (30.0, 20.0)
 # The torque loop's gain ceilings (MAX_TORQUE_KP/KI/RATE) are ankle_rt.command_limits' (set_gains
 # checks them too): far beyond what the loop's margins allow, so a typo or a non-finite value is refused.
-MAX_CORRECTION = 100.0
+# The clamp's: the DP torque both motors give at the ESCON's 15 A peak (224 N m) and a little more.
+MAX_CORRECTION = 250.0
 # The disturbance observer and its energy tank (ankle_rt/control/torque_loop.py): shipped values and ceilings.
 DOB_HZ_DEFAULT, DOB_INERTIA_DEFAULT, MAX_OBSERVER_DEFAULT = 0.0, 1.0, 20.0
 TANK_J_DEFAULT, TANK_CREDIT_DEFAULT = 0.5, 0.8
 MAX_DOB_HZ, MAX_OBSERVER, MAX_TANK_J = 200.0, 100.0, 10.0
-# The notch [DP, IE] on the torque loop's P and rate terms over the free foot's cable mode (DP 98 Hz nominal;
-# docs/daemon.md, fourth pass): what lets kp_dp rise above ~10 with >= 7 dB over cables x0.7-1.3. IE: none.
-NOTCH_HZ_DEFAULT, NOTCH_ZETA_DEFAULT, NOTCH_DEPTH_DEFAULT = (87.5, 0.0), (0.34, 0.2), (0.37, 0.5)
-# N/m: the cable stiffness NOTCH_HZ_DEFAULT is placed for, config/nominal-params.yaml's; the loop moves the notch
+# The notches [DP, IE] on the torque loop's P and rate terms: a wide one over the free foot's cable mode (DP 98 Hz,
+# IE 77 Hz nominal; docs/daemon.md, fourth pass: what lets kp rise with >= 7 dB over cables x0.7-1.3) and a second
+# (notch2_*) over the loop's own high-frequency mode, the cable mode a large rate gain moves up (~130-150 Hz with
+# the cables stiff). prefix -> ((hz), (zeta), (depth)) [DP, IE].
+NOTCH_DEFAULTS = {"notch": ((85.3, 72.3), (0.97, 0.5), (0.47, 0.58)), "notch2": ((0.0, 0.0), (0.5, 0.5), (1.0, 1.0))}
+NOTCH_ROLES = {"notch": "band-stop (the free foot's cable mode)",
+               "notch2": "second band-stop (the loop's own mode above the cable mode)"}
+assert tuple(NOTCH_ROLES) == tuple(NOTCH_DEFAULTS) == PREFIXES
+# N/m: the cable stiffness the NOTCH_DEFAULTS centres are placed for, config/nominal-params.yaml's; the loop moves the notch
 # to the configured cable as sqrt(transmission.cable_stiffness / this) (ankle_rt.notch)
 NOTCH_CABLE_STIFFNESS_DEFAULT = 218800.0
 MAX_NOTCH_HZ = 400.0   # below the 1 kHz loop's Nyquist frequency
 MAX_CUTOFF_HZ = 400.0  # the torque filter's, shared or per axis
+# The high-passed motor-rate damping [DP, IE] (ankle_rt/control/torque_loop.py): a collocated damping of the motor
+# above a corner, for the held foot's mode (the motor on the cable and the ground, 10-30 Hz). Off by default.
+MAX_RATE_DAMPING, MAX_RATE_DAMPING_HZ = 500.0, 100.0
 # The lag [DP, IE] on the P and rate terms (ankle_rt.lag; docs/daemon.md "Fifth pass"): off by default. Its zero
 # stays far below the cable modes (the study searched 0.2-15 Hz), its boost is an integral's gain by another name.
 MAX_LAG_HZ, MAX_LAG_BOOST = 50.0, 10.0
@@ -173,10 +192,13 @@ TORQUE_LOOP = Section({
     "cutoff_hz": Field(float, "Hz, first-order low-pass of the measured joint torque (below the 77-98 Hz cable modes); "
                               "per axis: cutoff_hz_dp / cutoff_hz_ie", default=LOOP_DEFAULTS["cutoff_hz"], low=1.0,
                        high=MAX_CUTOFF_HZ),
-    "max_correction_dp": positive("N m at the ankle the DP feedback may add (anti-windup; bounds a wrong reading)",
-                                  default=MAX_CORRECTION_DP_DEFAULT, high=MAX_CORRECTION),
-    "max_correction_ie": positive("N m at the ankle the IE feedback may add", default=MAX_CORRECTION_IE_DEFAULT,
+    "max_correction_dp": positive("N m at the ankle the DP feedback may add (anti-windup; bounds a wrong reading); "
+                                  f"unset: {MAX_CORRECTION_BENCH[0]:g} where nobody walks, {MAX_CORRECTION_WALKED[0]:g} "
+                                  "on the device or the walking scenario (config check prints it)", default=None,
                                   high=MAX_CORRECTION),
+    "max_correction_ie": positive("N m at the ankle the IE feedback may add; unset: "
+                                  f"{MAX_CORRECTION_BENCH[1]:g} where nobody walks, {MAX_CORRECTION_WALKED[1]:g} where "
+                                  "someone walks", default=None, high=MAX_CORRECTION),
     "dob_hz": non_negative("Hz, low-pass of the disturbance observer cancelling motor-side friction and inertia; "
                            "0 = no observer", default=DOB_HZ_DEFAULT, high=MAX_DOB_HZ),
     "dob_inertia_dp": Field(float, "the observer's nominal DP inertia as a fraction of the reflected motor inertia "
@@ -193,25 +215,35 @@ TORQUE_LOOP = Section({
     "tank_friction_credit": Field(float, "share of the identified motor friction's dissipation (actuator.coulomb, "
                                          "damping) the tank is credited with", default=TANK_CREDIT_DEFAULT,
                                   low=0.0, high=1.0),
-    **{f"notch_hz_{axis}": non_negative(f"Hz, centre of the {axis.upper()} band-stop on the P and rate terms (the "
-                                        f"free foot's cable mode); 0 = no notch", default=NOTCH_HZ_DEFAULT[i],
-                                        high=MAX_NOTCH_HZ)
-       for i, axis in enumerate(("dp", "ie"))},
+    **{f"{prefix}_hz_{axis}": non_negative(f"Hz, centre of the {axis.upper()} {what} on the P and rate terms; 0 = none",
+                                           default=NOTCH_DEFAULTS[prefix][0][i], high=MAX_NOTCH_HZ)
+       for prefix, what in NOTCH_ROLES.items() for i, axis in enumerate(("dp", "ie"))},
     "notch_cable_stiffness": positive("N/m, the cable stiffness notch_hz_dp and notch_hz_ie are placed for: the loop "
                                       "runs each notch at notch_hz x sqrt(transmission.cable_stiffness / this), where "
                                       "the configured cable puts the mode it sits on (`config check` prints it). "
                                       "Placing notch_hz for your own cable? Set this to your transmission."
                                       "cable_stiffness too, or the notch is moved a second time",
                                       default=NOTCH_CABLE_STIFFNESS_DEFAULT, high=1e8),
-    **{f"notch_zeta_{axis}": Field(float, f"the {axis.upper()} notch's width (damping ratio of its poles)",
-                                   default=NOTCH_ZETA_DEFAULT[i], low=0.02, high=2.0)
-       for i, axis in enumerate(("dp", "ie"))},
-    **{f"notch_depth_{axis}": Field(float, f"the {axis.upper()} notch's gain at its centre (1 = none)",
-                                    default=NOTCH_DEPTH_DEFAULT[i], low=0.0, high=1.0)
-       for i, axis in enumerate(("dp", "ie"))},
+    **{f"{prefix}_zeta_{axis}": Field(float, f"the {axis.upper()} {prefix}'s width (damping ratio of its poles)",
+                                      default=NOTCH_DEFAULTS[prefix][1][i], low=0.02, high=2.0)
+       for prefix in NOTCH_ROLES for i, axis in enumerate(("dp", "ie"))},
+    **{f"{prefix}_depth_{axis}": Field(float, f"the {axis.upper()} {prefix}'s gain at its centre (1 = none)",
+                                       default=NOTCH_DEFAULTS[prefix][2][i], low=0.0, high=1.0)
+       for prefix in NOTCH_ROLES for i, axis in enumerate(("dp", "ie"))},
     **{f"cutoff_hz_{axis}": Field(float, f"Hz, the {axis.upper()} axis's own low-pass of the measured torque; "
-                                         f"unset: cutoff_hz", default=None, low=1.0, high=MAX_CUTOFF_HZ)
-       for axis in ("dp", "ie")},
+                                         f"unset: cutoff_hz", default=default, low=1.0, high=MAX_CUTOFF_HZ)
+       for axis, default in (("dp", None), ("ie", CUTOFF_HZ_IE_DEFAULT))},
+    **{f"motor_rate_damping_{axis}": non_negative(
+        f"N m s/rad at the ankle, damping on the {axis.upper()} ankle-side motor rate above "
+        f"motor_rate_damping_hz_{axis} (high-passed): damps the held foot's mode (the motor on the cable and the "
+        f"ground), which the torque-rate term alone leaves ringing; 0 = off", default=RATE_DAMPING_DEFAULTS[0][i],
+        high=MAX_RATE_DAMPING)
+       for i, axis in enumerate(("dp", "ie"))},
+    **{f"motor_rate_damping_hz_{axis}": Field(float, f"Hz, the corner of the {axis.upper()} motor-rate damping's "
+                                                     f"high-pass (below it the wearer's motion is not damped; it "
+                                                     f"adds motor_rate_damping / (2 pi this) of inertia there)",
+                                              default=RATE_DAMPING_DEFAULTS[1][i], low=0.5, high=MAX_RATE_DAMPING_HZ)
+       for i, axis in enumerate(("dp", "ie"))},
     **{f"lag_hz_{axis}": non_negative(f"Hz, the zero of the {axis.upper()} lag (s + wz) / (s + wz / lag_boost) on "
                                       f"the P and rate terms: gain lag_boost below it, 1 above; 0 = no lag",
                                       default=0.0, high=MAX_LAG_HZ)
@@ -230,12 +262,15 @@ def torque_loop_cutoffs(torque_loop: Mapping[str, Any]) -> tuple[float, float]:
 # The gait-phase controller's shipped parameters, for a 75 kg wearer at normal cadence (tuned on the
 # walking scenario with `ankle-rt bench walk`; sources and tuning rule in docs/daemon.md). Per phase:
 # (stiffness_dp N m/rad, damping_dp N m s/rad, equilibrium_dp rad, stiffness_ie, damping_ie, equilibrium_ie).
+# The dampings are rendered ones (ankle_rt.lead: the law leads the loop's lag and the cable's share of the motor's
+# motion): on config/torque-loop-walk.yaml they give the law the motor-rate damping the phases had when they were
+# tuned as law coefficients (9, 6, 8, 8, 6 DP; 1.5, 1.5, 1, 1, 1.5 IE), which rendered these.
 GAIT_PHASE_DEFAULTS = {
-    "early_stance": (400.0, 9.0, -0.02, 100.0, 1.5, 0.0),
-    "late_stance": (150.0, 6.0, -0.55, 100.0, 1.5, 0.0),
-    "early_swing": (60.0, 8.0, 0.0, 40.0, 1.0, 0.0),
-    "late_swing": (100.0, 8.0, 0.0, 40.0, 1.0, 0.0),
-    "safe": (150.0, 6.0, 0.0, 60.0, 1.5, 0.0),
+    "early_stance": (400.0, 6.39, -0.02, 100.0, 0.58, 0.0),
+    "late_stance": (150.0, 5.5, -0.55, 100.0, 0.58, 0.0),
+    "early_swing": (60.0, 7.74, 0.0, 40.0, 0.82, 0.0),
+    "late_swing": (100.0, 7.55, 0.0, 40.0, 0.82, 0.0),
+    "safe": (150.0, 5.5, 0.0, 60.0, 1.04, 0.0),
 }
 MAX_EQUILIBRIUM = 0.7   # rad; the configured ankle range bounds it further (40 deg shipped)
 
@@ -756,11 +791,14 @@ def check_reference_rate_limit(cfg: Mapping[str, Any], origin: Callable[[KeyPath
 def check_notch_frequencies(cfg: Mapping[str, Any], origin: Callable[[KeyPath], str]) -> None:
     """A torque-loop notch lies below the loop's Nyquist frequency where the loop runs it (moved to the
     configured cable, :class:`ankle_rt.notch.Notch`): the sampled band-stop has nowhere else to be (the
-    schema's MAX_NOTCH_HZ is the 1 kHz loop's; controller.rate_hz goes down to 250 Hz)."""
+    schema's MAX_NOTCH_HZ is the 1 kHz loop's; controller.rate_hz goes down to 250 Hz). Checked where the loop
+    runs (a controller that uses it); the motor-side PD at 250 Hz keeps the shipped 1 kHz loop's notches."""
+    if not torque_loop_used(cfg):
+        return
     rate, loop = cfg["controller"]["rate_hz"], cfg["controller"]["torque_loop"]
     k = cfg["transmission"]["cable_stiffness"]
     scale = cable_scale(loop, k)
-    for key, hz in zip(("notch_hz_dp", "notch_hz_ie"), Notch.from_config(loop, k).hz):
+    for key, hz in ((f"{n}_hz_{a}", hz) for n in PREFIXES for a, hz in zip(AXES, Notch.from_config(loop, k, n).hz)):
         if hz >= 0.5 * rate:
             moved = "" if scale == 1.0 else (
                 f" (it runs at {hz:g} Hz: placed for controller.torque_loop.notch_cable_stiffness "
@@ -868,14 +906,40 @@ def walked(cfg: Mapping[str, Any]) -> bool:
     return cfg["backend"] != "sim" or cfg["sim"]["scenario"] == "walking"
 
 
+def torque_loop_used(cfg: Mapping[str, Any]) -> bool:
+    """The controller runs the joint-torque loop (impedance or gait phase, :func:`torque_feedback`)."""
+    return cfg["controller"]["type"] in ("impedance", "gait_phase") and torque_feedback(cfg)
+
+
 def correction_shares(cfg: Mapping[str, Any], share: np.ndarray) -> np.ndarray:
     """N m per motor of the larger of the joint-torque loop's two clamps (one wrong reading at a time);
     zero without the loop."""
     ctl = cfg["controller"]
-    if ctl["type"] not in ("impedance", "gait_phase") or ctl["impedance"]["torque_feedback"] == "off":
+    if not torque_loop_used(cfg):
         return np.zeros(share.shape[0])
     loop = ctl["torque_loop"]
     return np.maximum(share[:, 0] * loop["max_correction_dp"], share[:, 1] * loop["max_correction_ie"])
+
+
+def walking_correction_limits(cfg: Mapping[str, Any]) -> tuple[float, float] | None:
+    """N m [DP, IE]: the largest clamp each axis may have where someone walks (each motor's share of the
+    heaviest wearer's walking moment plus its share of that clamp within its torque at the peak current;
+    rounded down to 0.01), None where nobody walks or the walking moment alone does not fit."""
+    if not walked(cfg):
+        return None
+    share, walking, motor_peak, _ = walking_budget(cfg)
+    if walking.max() > motor_peak:
+        return None
+    return tuple(math.floor(float(((motor_peak - walking) / share[:, axis]).min()) * 100) / 100 for axis in (0, 1))
+
+
+def resolve_correction_clamps(cfg: MutableMapping[str, Any]) -> None:
+    """Fill an unset ``controller.torque_loop.max_correction_dp`` / ``_ie`` in place: MAX_CORRECTION_WALKED
+    where someone walks (:func:`walked`), else MAX_CORRECTION_BENCH."""
+    loop, clamps = cfg["controller"]["torque_loop"], MAX_CORRECTION_WALKED if walked(cfg) else MAX_CORRECTION_BENCH
+    for key, clamp in zip(("max_correction_dp", "max_correction_ie"), clamps):
+        if loop[key] is None:
+            loop[key] = clamp
 
 
 def check_walking_current(cfg: Mapping[str, Any], origin: Callable[[KeyPath], str]) -> None:
@@ -899,10 +963,9 @@ def check_walking_current(cfg: Mapping[str, Any], origin: Callable[[KeyPath], st
     if not correction_shares(cfg, share).any():
         return
     loop = cfg["controller"]["torque_loop"]
-    for axis, name in enumerate(("dp", "ie")):
+    for axis, (name, most) in enumerate(zip(("dp", "ie"), walking_correction_limits(cfg))):
         key = f"max_correction_{name}"
-        most = float(((motor_peak - walking) / share[:, axis]).min())
         if loop[key] > most:
-            raise ConfigError(f"must be <= {math.floor(most * 100) / 100:g} N m: a motor at the peak current gives {motor_peak:.3g} N m, and "
+            raise ConfigError(f"must be <= {most:g} N m: a motor at the peak current gives {motor_peak:.3g} N m, and "
                               f"{what} plus its share of the correction must fit in it, got {loop[key]:g}",
                               origin(("controller", "torque_loop", key)), f"controller.torque_loop.{key}")

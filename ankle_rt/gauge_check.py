@@ -37,7 +37,8 @@ if TYPE_CHECKING:
 CUTOFF_HZ = 5.0            # residual low-pass
 TOLERANCE_NM = 6.0         # N m at the ankle, above the motors' Coulomb friction on the axis
 TOLERANCE_FRACTION = 0.3   # of |c|: load-dependent cable friction (0.12 identified) and model errors
-HOLD_S = 0.05              # s the residual must stay beyond the tolerance
+HOLD_S = 0.04              # s the residual must stay beyond the tolerance (0.05 missed a 57 N m spike
+                           # held 20 ms under the shipped loop, whose rebound ended the residual at 47 ms)
 FAST_CUTOFF_HZ = 20.0      # the fast residual: a gauge stepped far off trips at once (no hold)
 FAST_TOLERANCE_NM = 12.0   # N m above the slow residual's tolerance
 FAST_HOLD_S = 0.04         # s the fast residual must stay beyond it (an actuation lag the model leaves

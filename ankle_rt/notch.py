@@ -1,7 +1,7 @@
 """The joint-torque loop's band-stops [DP, IE], each one second-order section (b0, b1, b2, a1, a2): one
 :class:`Notch` serves the daemon's loop (ankle_rt.control.torque_loop) and the sampled linear model
 (ankle_rt.analysis), so the margin check counts exactly the filter the loop runs. The configured centres
-(``notch_hz_dp`` / ``notch_hz_ie``) are placed for the cable stiffness ``notch_cable_stiffness``; the
+(``notch_hz_dp`` / ``notch_hz_ie``, and a second band-stop's ``notch2_hz_dp`` / ``_ie``) are placed for the cable stiffness ``notch_cable_stiffness``; the
 loop runs them where the configured cable (``transmission.cable_stiffness``) puts the cable modes they
 sit on: x sqrt(k / notch_cable_stiffness), a mode of fixed inertias on a spring of stiffness k. A leaf
 module: the model imports it without the control package."""
@@ -38,21 +38,31 @@ def cable_scale(torque_loop: Mapping[str, Any], cable_stiffness: float) -> float
     return math.sqrt(float(cable_stiffness) / float(torque_loop["notch_cable_stiffness"]))
 
 
+# the band-stops' key prefixes in controller.torque_loop, in the order the loop runs them: the free foot's
+# cable mode, then the loop's own high-frequency mode (the cable mode the loop's rate term moves up)
+PREFIXES = ("notch", "notch2")
+
+
 @dataclass(frozen=True)
 class Notch:
-    """The band-stops [DP, IE] on the torque loop's P and rate terms as the loop runs them."""
+    """The band-stops [DP, IE] of one key prefix on the torque loop's P and rate terms as the loop runs them."""
 
     hz: tuple[float, float]        # centres on the configured cable; 0: none
     zeta: tuple[float, float]      # widths (the denominator's damping ratio)
     depth: tuple[float, float]     # gains at the centres
 
     @classmethod
-    def from_config(cls, torque_loop: Mapping[str, Any], cable_stiffness: float) -> "Notch":
-        """From ``controller.torque_loop`` on a cable of ``cable_stiffness`` N/m (``transmission.cable_stiffness``):
-        the configured centres moved by :func:`cable_scale`."""
-        pair = lambda key: tuple(float(torque_loop[f"{key}_{a}"]) for a in AXES)  # noqa: E731
+    def from_config(cls, torque_loop: Mapping[str, Any], cable_stiffness: float, prefix: str = "notch") -> "Notch":
+        """From ``controller.torque_loop``'s ``<prefix>_hz_dp`` ... keys on a cable of ``cable_stiffness`` N/m
+        (``transmission.cable_stiffness``): the configured centres moved by :func:`cable_scale`."""
+        pair = lambda key: tuple(float(torque_loop[f"{prefix}_{key}_{a}"]) for a in AXES)  # noqa: E731
         scale = cable_scale(torque_loop, cable_stiffness)
-        return cls(hz=tuple(f * scale for f in pair("notch_hz")), zeta=pair("notch_zeta"), depth=pair("notch_depth"))
+        return cls(hz=tuple(f * scale for f in pair("hz")), zeta=pair("zeta"), depth=pair("depth"))
+
+    @classmethod
+    def all_from_config(cls, torque_loop: Mapping[str, Any], cable_stiffness: float) -> tuple["Notch", ...]:
+        """Every prefix's band-stops (PREFIXES), in the order the loop runs them."""
+        return tuple(cls.from_config(torque_loop, cable_stiffness, prefix) for prefix in PREFIXES)
 
     def sections(self, dt: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
         """The notch of each axis [DP, IE] as a second-order section over ``dt`` (:func:`notch_section`)."""

@@ -14,6 +14,7 @@ from ankle_rt.daemon import run_lockstep
 from ankle_rt.safety import Fault
 from ankle_rt.sweep.cycle import BatchRun
 from tests.daemon_helpers import classic_torque_loop
+from tests.loop_configs import WALK_LOOP
 
 SECONDS = 3.0
 # an identified friction model (as diagnose --write-model writes) in the plant and in the feed-forward
@@ -100,7 +101,7 @@ def test_batched_identified_friction_feed_forward_matches_the_daemon(sim_cfg, fe
     sim_cfg["controller"]["friction_ff"].update(enabled=True, model="identified", model_file="")
     cfgs = [sim_cfg.deep_copy() for _ in range(3)]
     loop = cfgs[1]["controller"]["torque_loop"]
-    loop.update(ki_ie=0.5 * loop["ki_ie"], torque_rate_dp=1.2 * loop["torque_rate_dp"], cutoff_hz=100.0,
+    loop.update(ki_ie=0.5 * loop["ki_ie"], torque_rate_dp=1.05 * loop["torque_rate_dp"], cutoff_hz_dp=350.0,
                 max_correction_dp=0.7 * loop["max_correction_dp"], lag_hz_dp=3.0, lag_boost_dp=1.5, cutoff_hz_ie=120.0)
     cfgs[1]["sim"]["effects"][2]["coefficient"] = 0.2
     cfgs[1]["reference"]["profile"] = "hold"
@@ -158,6 +159,7 @@ def test_batched_walking_scenario_matches_the_daemon(sim_cfg, controller):
     from ankle_rt.sweep.spec import SCENARIOS
 
     walking = SCENARIOS["gait"]
+    sim_cfg["controller"]["torque_loop"].update(WALK_LOOP)     # the loop that walks (the shipped one: < 6 dB at x1.2)
     sim_cfg["controller"]["type"] = controller
     sim_cfg["reference"]["profile"] = "gait"
     sim_cfg["reference"]["gait"] = dict(walking["reference"]["gait"])

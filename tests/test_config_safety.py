@@ -395,10 +395,10 @@ def test_a_torque_loop_gain_that_limits_a_gait_phase_is_named_by_its_own_key():
     named as a phase key that does not exist (controller.gait_phase.late_stance.cutoff_hz)."""
     from tests.daemon_helpers import lockstep_daemon
 
-    cfg = load_config(ROOT / "config" / "walk.yaml", {"controller": {"torque_loop": {"cutoff_hz": 1.0}}})
+    cfg = load_config(ROOT / "config" / "walk.yaml", {"controller": {"torque_loop": {"cutoff_hz_dp": 1.0}}})
     with pytest.raises(ConfigError) as err:
         lockstep_daemon(cfg)                     # the phases' margins are checked when it is built
-    assert err.value.key == "controller.torque_loop.cutoff_hz"
+    assert err.value.key == "controller.torque_loop.cutoff_hz_dp"
 
 
 def test_a_friction_feed_forward_the_loop_cannot_carry_is_refused(tmp_path):

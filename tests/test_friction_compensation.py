@@ -130,13 +130,14 @@ def _ie_sine_run(cfg_path, plant_scale: float, k: float = 200.0):
 
 
 def test_passive_on_a_plant_with_less_friction_than_stated(tmp_path):
-    """Lockstep, the worst damping case of the shipped loop (IE K 100, 3 N m, 0.5-1 Hz): with the opt-in
-    compensation on a device with exactly ``fraction`` of the stated friction the ankle stays passive
-    and renders less damping than without compensation on the same device. On a device with half the
-    stated friction (the compensation 1.4x its friction) it stays passive with the direction from the
-    loop's error, and gives energy back with the direction from the velocity alone (error_band 0)."""
+    """Lockstep, the worst damping case of the loop the compensation was made for (the walking loop,
+    config/torque-loop-walk.yaml: IE K 100, 3 N m, 0.5-1 Hz): with the opt-in compensation on a device
+    with exactly ``fraction`` of the stated friction the ankle stays passive and renders less damping
+    than without compensation on the same device. On a device with half the stated friction (the
+    compensation 1.4x its friction) it stays passive with the direction from the loop's error, and gives
+    energy back with the direction from the velocity alone (error_band 0)."""
     path = tmp_path / "f.yaml"
-    path.write_text(f"include: [{default_config_path()}, {OPT_IN}]\n")
+    path.write_text(f"include: [{default_config_path()}, {CONFIG_DIR / 'torque-loop-walk.yaml'}, {OPT_IN}]\n")
     f = load_config(path)["controller"]["friction_ff"]["fraction"]
     ours = _ie_sine_run(path, f)
     assert ours.passive()

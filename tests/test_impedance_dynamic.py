@@ -82,7 +82,8 @@ def test_the_empty_tank_lets_the_observer_only_brake(base):
     """The observer pushing along the motion (friction cancelling) drains the tank; once it is empty
     the observer's torque along the motion is cut, while braking stays allowed."""
     tl = dict(base["controller"]["torque_loop"], dob_hz=20.0, tank_j=0.01, tank_friction_credit=0.0,
-              kp_dp=0.0, kp_ie=0.0, ki_dp=0.0, ki_ie=0.0, torque_rate_dp=0.0, torque_rate_ie=0.0)
+              kp_dp=0.0, kp_ie=0.0, ki_dp=0.0, ki_ie=0.0, torque_rate_dp=0.0, torque_rate_ie=0.0,
+              motor_rate_damping_dp=0.0, motor_rate_damping_ie=0.0)
     gains = TorqueLoopGains.from_config(tl, base["transmission"]["cable_stiffness"])
     loop = JointTorqueLoop(gains, 1e-3, ReflectedActuator.from_config(base))
     loop.reset_state(0.0, 0.0)

@@ -27,6 +27,7 @@ from ankle_rt.kinematics import Kinematics
 from ankle_rt.params import PlantParams, TransmissionParams
 from ankle_rt.paths import default_config_path
 from ankle_rt.safety import Fault, State
+from tests.loop_configs import walk_loop_config
 
 PLANT = [{"type": "load_dependent_friction", "coefficient": 0.12},
          {"type": "stribeck", "static_excess": 0.15, "stribeck_velocity": 0.1}]
@@ -244,10 +245,12 @@ def test_the_stable_set_of_impedances_is_stable_at_its_boundary(base):
 
 
 def test_impedances_outside_the_stable_set_are_refused(base):
+    """On the walking loop (kp_ie 6: the shipped loop's kp_ie 28 needs no damping at any accepted stiffness)."""
+    base = walk_loop_config()
     kin = Kinematics.from_params(TransmissionParams(**base["transmission"]))
     cfg = impedance_cfg(base)
-    # a soft IE spring without damping: the integral destabilises it (linear model: unstable). DP, with the
-    # shipped kp_dp 15, needs no damping at the bench's stiffnesses (docs/daemon.md "Which impedances")
+    # a soft IE spring without damping: the integral destabilises it (linear model: unstable). DP, with
+    # kp_dp 15, needs no damping at the bench's stiffnesses (docs/daemon.md "Which impedances")
     cfg["controller"]["impedance"].update(stiffness_ie=2.0, damping_ie=0.0)
     with pytest.raises(ConfigError, match=r"controller\.impedance\.damping_ie: damping_ie 0 N m s/rad is below"):
         build_controller(cfg, kin, np.zeros(2))

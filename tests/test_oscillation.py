@@ -41,9 +41,11 @@ def shipped_gains(cfg) -> TorqueLoopGains:
 
 
 def issue_gains(cfg, max_correction) -> TorqueLoopGains:
-    """The issue's hot loop: kp 100 on the loop shipped then (ki 10/s, rate 0.03 / 0.06 s, no notch)."""
+    """The issue's hot loop: kp 100 on the loop shipped then (ki 10/s, rate 0.03 / 0.06 s, an 80 Hz torque
+    filter, no notch, no motor-rate damping)."""
+    none = Notch((0.0, 0.0), (0.3, 0.3), (1.0, 1.0))
     return dataclasses.replace(shipped_gains(cfg), kp=(100.0, 100.0), ki=(10.0, 10.0), torque_rate=(0.03, 0.06),
-                               notch=Notch((0.0, 0.0), (0.3, 0.3), (1.0, 1.0)),
+                               cutoff_hz=(80.0, 80.0), notch=none, notch2=none, rate_damping=(0.0, 0.0),
                                max_correction_nm=(max_correction, max_correction))
 
 
@@ -146,8 +148,11 @@ def test_a_commanded_excitation_in_the_band_faults_or_stays_small(controller, na
     """Safety8: start_profile's sine (to 50 Hz) and chirp (to 100 Hz) are rate-limited to
     reference.max_rate_rad_s (2 rad/s: 6 mrad at 50 Hz). Under the PD their set values reach 1.3-1.7 A
     RMS in the detector's band (peak 3.3-7 A): OSCILLATION after the hold, 0.8-1.6 s after the start.
-    Under the impedance controller the band stays at 0.16-0.19 A (peak 2.5 A; the classic loop,
-    config/torque-loop-classic.yaml: 0.10-0.11 A, 2.4 A): no fault, nothing to catch."""
+    Under the impedance controller the band stays at 0.57-0.73 A, most of it the loop's 0.4 A of gauge noise
+    (the loop shipped before, config/torque-loop-walk.yaml: 0.16-0.19 A; the classic loop: 0.10-0.11 A), under
+    the detector's 1 A: no fault, nothing to catch. The peak (1.8 A sine, 9.2 A chirp) is the chirp's start,
+    0-10 Hz with the 10 deg reference: the loop moves the reflected inertia the wearer no longer feels (the
+    loop shipped before: 2.5 A)."""
     from ankle_rt.service import protocol as proto
     from tests.daemon_helpers import lockstep_daemon, reply, run_cycles
 
@@ -171,5 +176,6 @@ def test_a_commanded_excitation_in_the_band_faults_or_stays_small(controller, na
         assert daemon.safety.fault == Fault.OSCILLATION and peak < 8.0
         assert r["t"][np.flatnonzero(r["fault"])[0]] < 0.6 + 1.6
     else:
-        assert daemon.safety.fault == Fault.NONE and band < 0.2 and peak < 3.0
+        assert daemon.safety.fault == Fault.NONE and band < 0.8 * cfg["safety"]["oscillation_rms_a"], band
+        assert peak < 0.8 * cfg["amplifier"]["current_limit_peak"], peak
     daemon.close()

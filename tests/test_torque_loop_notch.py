@@ -1,6 +1,7 @@
 """The notch on the joint-torque loop's P and rate terms (issue 19, fourth pass): it takes gain out at
 the free foot's cable mode only, the daemon's loop and the linear model run the same section, and the
-margin check counts it (a high-gain set is stable only with it); it follows the configured cable stiffness."""
+margin check counts it (a high-gain set is stable only with it); it follows the configured cable stiffness.
+Written around the notched DP loop (the walking loop, config/torque-loop-walk.yaml)."""
 
 from __future__ import annotations
 
@@ -17,6 +18,7 @@ from ankle_rt.config_schema import NOTCH_CABLE_STIFFNESS_DEFAULT as K_NOMINAL
 from ankle_rt.control.torque_loop import JointTorqueLoop, TorqueLoopGains
 from ankle_rt.notch import IDENTITY_SECTION, Notch, notch_section
 from ankle_rt.paths import default_config_path
+from tests.loop_configs import walk_loop_config
 
 DT = 1e-3
 # the study's DP set with the 80 Hz cutoff (benchmarks/study_torque_loop_shaping.py): unstable without the notch
@@ -27,7 +29,7 @@ NO_NOTCH = {"notch_hz_dp": 0.0, "notch_hz_ie": 0.0}
 
 @pytest.fixture(scope="module")
 def base():
-    return load_config(default_config_path())
+    return walk_loop_config()
 
 
 def section_gain(sec: tuple[float, ...], f: float) -> float:
@@ -118,7 +120,7 @@ def test_a_notch_beyond_the_loops_nyquist_frequency_is_refused_naming_its_key():
     from ankle_rt.schema import ConfigError
 
     with pytest.raises(ConfigError) as err:
-        load_config(default_config_path(), {"controller": {"rate_hz": 250, "torque_loop": {"notch_hz_ie": 200.0}}})
+        walk_loop_config({"controller": {"type": "impedance", "rate_hz": 250, "torque_loop": {"notch_hz_ie": 200.0}}})
     assert err.value.key == "controller.torque_loop.notch_hz_ie" and "Nyquist" in err.value.message
 
 
@@ -126,8 +128,8 @@ def test_a_notch_beyond_the_loops_nyquist_frequency_is_refused_naming_its_key():
 
 def _on_cable(factor: float, **torque_loop):
     """The shipped impedance config on a cable ``factor`` x nominal (the margin check at load included)."""
-    return load_config(default_config_path(), {"controller": {"type": "impedance", "torque_loop": torque_loop},
-                                               "transmission": {"cable_stiffness": factor * K_NOMINAL}})
+    return walk_loop_config({"controller": {"type": "impedance", "torque_loop": torque_loop},
+                             "transmission": {"cable_stiffness": factor * K_NOMINAL}})
 
 
 def test_the_shipped_notch_is_placed_for_the_nominal_cable_and_unchanged_there(base):
@@ -185,7 +187,7 @@ def test_a_cable_off_nominal_is_accepted_with_margin(factor):
 def test_a_notch_placed_for_the_own_cable_is_not_moved_again():
     """notch_hz placed for a measured cable with notch_cable_stiffness set to it runs where it is put."""
     k = 1.2 * K_NOMINAL
-    tl = dict(load_config(default_config_path())["controller"]["torque_loop"], notch_hz_dp=95.0,
+    tl = dict(walk_loop_config()["controller"]["torque_loop"], notch_hz_dp=95.0,
               notch_cable_stiffness=k)
     assert Notch.from_config(tl, k).hz[0] == 95.0
 
@@ -195,15 +197,15 @@ def test_a_notch_moved_beyond_the_nyquist_frequency_is_refused_naming_its_key():
     131 Hz on a cable x1.2: refused naming notch_hz_ie and what moved it."""
     from ankle_rt.schema import ConfigError
 
-    changes = {"controller": {"rate_hz": 250, "torque_loop": {"notch_hz_ie": 120.0}},
+    changes = {"controller": {"type": "impedance", "rate_hz": 250, "torque_loop": {"notch_hz_ie": 120.0}},
                "transmission": {"cable_stiffness": 1.2 * K_NOMINAL}}
     with pytest.raises(ConfigError) as err:
-        load_config(default_config_path(), changes)
+        walk_loop_config(changes)
     assert err.value.key == "controller.torque_loop.notch_hz_ie" and "Nyquist" in err.value.message
     assert "notch_cable_stiffness" in err.value.message
     changes["transmission"]["cable_stiffness"] = K_NOMINAL      # not moved: below Nyquist
     try:
-        load_config(default_config_path(), changes)
+        walk_loop_config(changes)
     except ConfigError as exc:
         assert exc.key != "controller.torque_loop.notch_hz_ie"
 

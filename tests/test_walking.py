@@ -692,7 +692,7 @@ def test_the_swing_model_matches_the_closed_form_free_foot(walk_cfg):
     from ankle_rt.control.swing import SwingLimits
 
     swing = SwingLimits.from_config(walk_cfg, WALKING_PEAK_DORSIFLEXION)
-    swing = SwingLimits(**{**swing.__dict__, "lead": 0.0, "horizon": 2.0})
+    swing = SwingLimits(**{**swing.__dict__, "horizon": 2.0})
     j, start = swing.inertia, np.array([[-0.3], [-4.0]])
     coast = swing.excursion(0.0, 5.0, 0.0, start)
     assert coast.low == pytest.approx(-0.3 - 4.0 * j / 5.0, abs=1e-6) and coast.rate == pytest.approx(4.0)
@@ -734,7 +734,8 @@ def test_a_swing_that_lets_the_foot_run_from_toe_off_is_refused(monkeypatch):
         assert gerr.value.gain == f"{phase}.{key}"
     ctl.gait.phase = EARLY_SWING
     ctl.apply_gains(phase="early_swing", damping_dp=9.0)
-    assert ctl.deferred == (EARLY_SWING, {"damping_dp": 9.0}) and ctl.gait.damping_dp[EARLY_SWING] == 8.0
+    shipped = load_config(WALK)["controller"]["gait_phase"]["early_swing"]["damping_dp"]
+    assert ctl.deferred == (EARLY_SWING, {"damping_dp": 9.0}) and ctl.gait.damping_dp[EARLY_SWING] == shipped
     monkeypatch.setattr(sw.SwingLimits, "refusal", lambda *args: None)      # as before the check
     monkeypatch.setattr(bw, "wearer_overrides", lambda c, m, cad, seed: {
         "sim": {"scenario": "walking", "walking": {"mass_kg": m, "cadence": cad, "seed": seed}},
@@ -743,9 +744,10 @@ def test_a_swing_that_lets_the_foot_run_from_toe_off_is_refused(monkeypatch):
 
 
 def test_the_softest_swing_the_rule_accepts_walks(tmp_path):
-    """At the boundary (the least early-swing damping with any stiffness accepted, 1.18 N m s/rad at
-    25 N m/rad; a hundredth less refused): the 100 kg wearer walks without a fault (bench walk: 8
-    strides at 50 / 75 / 100 kg, normal and fast, 0 faults)."""
+    """At the boundary (the least early-swing damping with any stiffness accepted, 1.33 N m s/rad at
+    25 N m/rad, the rendered damping since the law renders the commanded one (1.18 as a law coefficient
+    before, which added K kd / (1 + kp) = 0.16); a hundredth less refused): the 100 kg wearer walks
+    without a fault (bench walk: 8 strides at 50 / 75 / 100 kg, normal and fast, 0 faults)."""
     import yaml
 
     import ankle_rt.bench.walk as bw
@@ -759,9 +761,9 @@ def test_the_softest_swing_the_rule_accepts_walks(tmp_path):
             "stiffness_dp": 25.0, "damping_dp": damping, "equilibrium_dp": 0.0}}}}))
         return path
 
-    cfg = load_config(early_swing(1.17))
+    cfg = load_config(early_swing(1.32))
     with pytest.raises(ConfigError) as err:
         build_controller(cfg, Kinematics.from_params(TransmissionParams(**cfg["transmission"])), np.zeros(2))
     assert err.value.key.startswith("controller.gait_phase.early_swing.")
-    run = bw.run_walk(str(early_swing(1.18)), 100.0, "normal", 2)
+    run = bw.run_walk(str(early_swing(1.33)), 100.0, "normal", 2)
     assert run.fault == "NONE" and len(run.strides) == 2

@@ -101,26 +101,29 @@ def describe(cfg) -> list[str]:
 def _torque_loop_lines(cfg) -> list[str]:
     """The joint-torque loop under the impedance or gait-phase controller, its notches where the loop runs
     them: moved from the cable they are placed for (``notch_cable_stiffness``) to the configured one; its
-    per-axis torque filter and lag when configured."""
+    clamps, per-axis torque filters, lags and motor-rate damping."""
     from ankle_rt.config_schema import torque_loop_cutoffs
     from ankle_rt.lag import Lag
     from ankle_rt.loop_setup import torque_feedback
-    from ankle_rt.notch import AXES, Notch, cable_scale
+    from ankle_rt.notch import AXES, PREFIXES, Notch, cable_scale
 
     c = cfg["controller"]
     if c["type"] not in ("impedance", "gait_phase") or not torque_feedback(cfg):
         return []
     tl, k = c["torque_loop"], cfg["transmission"]["cable_stiffness"]
-    notch = Notch.from_config(tl, k)
-    notches = ", ".join(f"{a.upper()} {hz:.4g} Hz (notch_hz_{a} {tl[f'notch_hz_{a}']:g})" if hz > 0.0
-                        else f"{a.upper()} none" for a, hz in zip(AXES, notch.hz))
-    lines = [f"torque loop: kp {tl['kp_dp']:g} / {tl['kp_ie']:g}; notch {notches}: placed for notch_cable_stiffness "
-             f"{tl['notch_cable_stiffness']:g} N/m, x{cable_scale(tl, k):.4g} for transmission.cable_stiffness {k:g}"]
+    notches = "; ".join(
+        f"{prefix} " + ", ".join(f"{a.upper()} {hz:.4g} Hz ({prefix}_hz_{a} {tl[f'{prefix}_hz_{a}']:g})" if hz > 0.0
+                                 else f"{a.upper()} none" for a, hz in zip(AXES, notch.hz))
+        for prefix, notch in zip(PREFIXES, Notch.all_from_config(tl, k)) if prefix == "notch" or any(notch.hz))
+    lines = [f"torque loop: kp {tl['kp_dp']:g} / {tl['kp_ie']:g}; {notches}: placed for notch_cable_stiffness "
+             f"{tl['notch_cable_stiffness']:g} N/m, x{cable_scale(tl, k):.4g} for transmission.cable_stiffness {k:g}",
+             f"             max correction DP {tl['max_correction_dp']:g} / IE {tl['max_correction_ie']:g} N m"]
     lag, cutoffs = Lag.from_config(tl), torque_loop_cutoffs(tl)
-    if any(tl[f"cutoff_hz_{a}"] is not None for a in AXES) or any(lag.on):
-        lags = ", ".join(f"{a.upper()} {hz:g} Hz x{b:g}" if on else f"{a.upper()} none"
-                         for a, hz, b, on in zip(AXES, lag.hz, lag.boost, lag.on))
-        lines.append(f"             torque filter DP {cutoffs[0]:g} / IE {cutoffs[1]:g} Hz; lag {lags}")
+    lags = ", ".join(f"{a.upper()} {hz:g} Hz x{b:g}" if on else f"{a.upper()} none"
+                     for a, hz, b, on in zip(AXES, lag.hz, lag.boost, lag.on))
+    lines.append(f"             torque filter DP {cutoffs[0]:g} / IE {cutoffs[1]:g} Hz; lag {lags}; motor-rate damping "
+                 + ", ".join(f"{a.upper()} {tl[f'motor_rate_damping_{a}']:g} N m s/rad above "
+                             f"{tl[f'motor_rate_damping_hz_{a}']:g} Hz" for a in AXES))
     return lines
 
 

@@ -38,7 +38,7 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 import numpy as np
 
-from ankle_rt.config_schema import IMPEDANCE_GAINS, dp_torque_at_peak
+from ankle_rt.config_schema import IMPEDANCE_GAINS, MAX_CORRECTION_WALKED, dp_torque_at_peak
 from ankle_rt.control.gains import GainError, GainRamp
 from ankle_rt.control.impedance import ImpedanceController, actuation_from_config
 from ankle_rt.control.swing import SwingLimits
@@ -319,7 +319,7 @@ class GaitPhaseController(ImpedanceController):
             gait.set_phase_params(self.deferred[0], **self.deferred[1])
             self.deferred = None
         t0, t1 = gait.update(-est.sg_dp, est.dp, est.dp_vel, est.ie, est.ie_vel)
-        return self.actuate(est, t0, t1, gait.k0, gait.k1)
+        return self.actuate(est, t0, t1, gait.k0, gait.k1, gait.b0, gait.b1)
 
 
 def stance_torque(phase: int, params: Mapping[str, float], late_stance_angle: float) -> tuple[float, float]:
@@ -337,15 +337,19 @@ def stance_torque_limits(cfg: Mapping[str, Any]) -> dict[int, tuple[float, str]]
     wearer's push-off (the shipped 75 kg tuning on a 50 kg wearer's rail of 2 N m/kg, 100 N m: 101 N m
     rendered, ``SG_RAIL`` in the fourth stride at fast cadence; 30 kg: in the first). Late stance also
     within what both motors give at the peak current (:func:`ankle_rt.config_schema.dp_torque_at_peak`,
-    224 N m nominal) less, with the joint-torque loop, the correction it may add (``max_correction_dp``):
-    194 N m shipped (at 300 N m/rad, equilibrium -0.55 rad: the 15 A clamp for up to 47 ms per stride,
+    224 N m nominal) less, with the joint-torque loop, the correction it may add (``max_correction_dp``, at most
+    the device's 30 N m, ``MAX_CORRECTION_WALKED``): 194 N m shipped (at 300 N m/rad, equilibrium -0.55 rad: the 15 A clamp for up to 47 ms per stride,
     ``SG_RAIL`` at 100 kg in the first stride at fast cadence). Early stance hands the push-off over at
     ``late_stance_angle`` (its equilibrium at -0.3 rad under 400 N m/rad, 204 N m here, walks at up to
     13.7 A), so only the rail holds it."""
     rail = (float(cfg["safety"]["sg_rail_nm"]), "safety.sg_rail_nm: the gauges would trip SG_RAIL")
-    correction = cfg["controller"]["torque_loop"]["max_correction_dp"] if torque_feedback(cfg) else 0.0
+    # the correction the push-off leaves room for: the clamp, at most the device's (beyond it the corrections take
+    # only what the peak current leaves beside the desired torque: JointTorqueLoop.fit)
+    correction = min(cfg["controller"]["torque_loop"]["max_correction_dp"], MAX_CORRECTION_WALKED[0]) \
+        if torque_feedback(cfg) else 0.0
     motors = (dp_torque_at_peak(cfg) - correction, "what both motors give at amplifier.current_limit_peak less "
-              "controller.torque_loop.max_correction_dp: the push-off would hold the current clamp")
+              "controller.torque_loop.max_correction_dp (at most "
+              f"{MAX_CORRECTION_WALKED[0]:g}): the push-off would hold the current clamp")
     return {EARLY_STANCE: rail, LATE_STANCE: min(rail, motors)}
 
 

@@ -15,17 +15,19 @@ the per-motor friction feed-forward, which sees the cable torque each motor feel
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING, Mapping
 
 import numpy as np
 
 from ankle_rt.control.friction import FrictionFeedForward
 from ankle_rt.control.gains import GainError, RampedGainController
-from ankle_rt.control.torque_loop import ImpedanceLimits, JointTorqueLoop, TorqueLoopGains
+from ankle_rt.control.torque_loop import ImpedanceLimits, JointTorqueLoop, TorqueLoopGains, correction_room
 from ankle_rt.config_schema import IMPEDANCE_GAINS, LOOP_GAINS
-from ankle_rt.elementwise import Value, select
+from ankle_rt.elementwise import Value, any_true, minimum, select
 from ankle_rt.estimation import Estimate
 from ankle_rt.kinematics import Kinematics
+from ankle_rt.lead import law_damping
 from ankle_rt.loop_setup import ReflectedActuator, torque_feedback, uses_joint_encoders
 
 if TYPE_CHECKING:
@@ -57,6 +59,9 @@ class ImpedanceController(RampedGainController):
         self.torque_loop = torque_loop
         self.joint_encoders = joint_encoders
         self.lead0, self.lead1 = torque_loop.lag_s if torque_loop is not None else (0.0, 0.0)
+        # the cable at the ankle the law's damping is scaled for (ankle_rt.lead); open loop: none
+        self.cable0, self.cable1 = ((float(kin.K[0, 0]), float(kin.K[1, 1])) if torque_loop is not None
+                                    else (math.inf, math.inf))
 
     @classmethod
     def from_config(cls, cfg: "Config", kin: Kinematics, ref: np.ndarray,
@@ -101,22 +106,26 @@ class ImpedanceController(RampedGainController):
             loop.set_gains(v[4], v[5], v[6], v[7], v[8], v[9])
             self.lead0, self.lead1 = loop.lag_s
         a0, a1 = self.angles(est)
-        return self.actuate(est, k0 * (ref_dp - a0) - b0 * est.dp_vel, k1 * (ref_ie - a1) - b1 * est.ie_vel, k0, k1)
+        return self.actuate(est, k0 * (ref_dp - a0) - b0 * est.dp_vel, k1 * (ref_ie - a1) - b1 * est.ie_vel,
+                            k0, k1, b0, b1)
 
     def angles(self, est: Estimate) -> tuple[Value, Value]:
         """The joint encoders' angles when ``joint_encoders`` (angle_source), else the estimate."""
         joint = self.joint_encoders
         return select(joint, est.joint_dp, est.dp), select(joint, est.joint_ie, est.ie)
 
-    def actuate(self, est: Estimate, t0: Value, t1: Value, k0: Value, k1: Value) -> tuple[Value, Value]:
+    def actuate(self, est: Estimate, t0: Value, t1: Value, k0: Value, k1: Value, b0: Value, b1: Value
+                ) -> tuple[Value, Value]:
         """Motor torques (N m) rendering the desired joint torques ``t0``, ``t1`` (N m [DP, IE]) of a
-        law with stiffness ``k0``, ``k1`` (N m/rad): the loop's lag on the spring torque (lag_s) led by
-        K lag_s of damping (JointTorqueLoop.lag_s, counted by ImpedanceLimits), the joint-torque loop
-        if closed, R^-T, the friction feed-forward (its direction also from the loop's error where
-        ``friction_ff.error_band`` says so), times the soft-start scale (advanced by the law).
-        Element-wise; every controller on this actuation (impedance, gait phase) calls it once per cycle."""
-        t0 = t0 - k0 * self.lead0 * est.dp_vel
-        t1 = t1 - k1 * self.lead1 * est.ie_vel
+        law with stiffness ``k0``, ``k1`` (N m/rad) and damping ``b0``, ``b1`` (N m s/rad): under the
+        loop the law's damping becomes :func:`ankle_rt.lead.law_damping`'s (it leads the loop's lag on
+        the spring torque and makes up for the cable's share of the motor's motion, so the ankle renders
+        ``b0``, ``b1``), the joint-torque loop if closed, R^-T, the friction
+        feed-forward (its direction also from the loop's error where ``friction_ff.error_band`` says
+        so), times the soft-start scale (advanced by the law). Element-wise; every controller on this
+        actuation (impedance, gait phase) calls it once per cycle."""
+        t0 = t0 - (law_damping(k0, b0, self.lead0, self.cable0) - b0) * est.dp_vel
+        t1 = t1 - (law_damping(k1, b1, self.lead1, self.cable1) - b1) * est.ie_vel
         s = self.gains.scale
         j0, j1 = est.sg_dp, est.sg_ie
         loop = self.torque_loop
@@ -127,8 +136,17 @@ class ImpedanceController(RampedGainController):
             e0, e1 = d0 - loop.f0, d1 - loop.f1     # the loop's error, for the feed-forward's direction
         RiT = self.RiT
         ff = self.friction
-        return (s * (RiT[0] * t0 + RiT[1] * t1 + ff.torque(est.mv1, RiT[0] * j0 + RiT[1] * j1, RiT[0] * e0 + RiT[1] * e1)),
-                s * (RiT[2] * t0 + RiT[3] * t1 + ff.torque(est.mv2, RiT[2] * j0 + RiT[3] * j1, RiT[2] * e0 + RiT[3] * e1)))
+        f1 = ff.torque(est.mv1, RiT[0] * j0 + RiT[1] * j1, RiT[0] * e0 + RiT[1] * e1)
+        f2 = ff.torque(est.mv2, RiT[2] * j0 + RiT[3] * j1, RiT[2] * e0 + RiT[3] * e1)
+        m1, m2 = RiT[0] * t0 + RiT[1] * t1 + f1, RiT[2] * t0 + RiT[3] * t1 + f2
+        if loop is not None:   # the desired torque first: the corrections get what the peak current leaves
+            c0, c1, limit = loop.c0, loop.c1, loop.motor_limit
+            room = minimum(correction_room(m1, RiT[0] * c0 + RiT[1] * c1, limit),
+                           correction_room(m2, RiT[2] * c0 + RiT[3] * c1, limit))
+            if any_true(room < 1.0):
+                t0, t1 = loop.fit(room)
+                m1, m2 = RiT[0] * t0 + RiT[1] * t1 + f1, RiT[2] * t0 + RiT[3] * t1 + f2
+        return s * m1, s * m2
 
 
 def actuation_from_config(cfg: "Config", friction: FrictionFeedForward | None
@@ -140,5 +158,6 @@ def actuation_from_config(cfg: "Config", friction: FrictionFeedForward | None
         return None, None, friction
     c = cfg["controller"]
     loop = JointTorqueLoop(TorqueLoopGains.from_config(c["torque_loop"], cfg["transmission"]["cable_stiffness"]),
-                           1.0 / c["rate_hz"], ReflectedActuator.from_config(cfg))
+                           1.0 / c["rate_hz"], ReflectedActuator.from_config(cfg),
+                           cfg["actuator"]["torque_constant"] * cfg["amplifier"]["current_limit_peak"])
     return loop, ImpedanceLimits.from_config(cfg), friction.without_viscous() if friction is not None else None

@@ -3,9 +3,10 @@ to the heel strike (swing12).
 
 In swing the foot is off the ground: what moves it is the phase's spring and damper on the inertia the
 wearer feels, J / (1 + kp) of the reflected motor inertia through the joint-torque loop (J without it)
-plus the foot's own, with the law's lead K kd / (1 + kp) adding damping:
+plus the foot's own, damped by the phase's B (under the loop the law renders B: its lead on the loop's lag
+and the cable's share of the motor's motion, :func:`ankle_rt.lead.law_damping`, cancel what the loop takes):
 
-    J_f theta'' = K (theta_0 - theta) - (B + K lead) theta'
+    J_f theta'' = K (theta_0 - theta) - B theta'
 
 The walk's stance angles run from the able-bodied push-off at the fastest cadence (-20.5 deg, Winter 1991
 via :mod:`ankle_rt.gait_data`) to the stance's peak dorsiflexion (12 deg). The foot enters early swing
@@ -90,7 +91,6 @@ class SwingLimits:
     """The free-foot model and the bounds of the module docstring for one config."""
 
     inertia: float          # kg m^2, J_f: what the wearer feels of the motors plus the foot
-    lead: float             # s: the law adds K lead of damping
     angle_limit: float      # rad: the foot must stay within +-this
     entry_rate: float       # rad/s: the fastest the foot enters a swing phase, and the fastest it may move
     dt: float               # s: the model's sampling (the control period)
@@ -110,13 +110,13 @@ class SwingLimits:
         g = c["gait_phase"]
         if torque_feedback(cfg):
             lim = ImpedanceLimits.from_config(cfg)
-            motors, lead = lim.inertia[0] / (1.0 + lim.kp[0]), lim.lag[0]
+            motors = lim.inertia[0] / (1.0 + lim.kp[0])
         else:
-            motors, lead = ReflectedActuator.from_config(cfg).inertia[0], 0.0
+            motors = ReflectedActuator.from_config(cfg).inertia[0]
         # the ankle DP rate at which a motor (|R[i, 0]| rad/s per rad/s) reaches the motor-speed limit
         motor_rate = cfg["safety"]["max_motor_speed_rad_s"] / float(np.max(np.abs(motor_ratio(
             TransmissionParams(**cfg["transmission"]))[:, 0])))
-        return cls(inertia=float(motors + cfg["foot"]["inertia_dp"]), lead=float(lead),
+        return cls(inertia=float(motors + cfg["foot"]["inertia_dp"]),
                    angle_limit=SWING_RANGE_FRACTION * math.radians(cfg["limits"]["ankle_range_deg"]),
                    entry_rate=min(PUSH_OFF_RATE, motor_rate), dt=1.0 / c["rate_hz"], horizon=float(g["timeout_s"]),
                    stance_angles=(TOE_OFF_ANGLE, stance_peak), landing=(LANDING_ANGLE, stance_peak),
@@ -136,7 +136,7 @@ class SwingLimits:
         """The model from the ``starts`` (2, n) over the horizon, sampled every control period (the exact
         discretisation, the trajectory built by doubling: a dozen small products)."""
         j = self.inertia
-        a = np.array([[0.0, 1.0], [-stiffness / j, -(damping + stiffness * self.lead) / j]])
+        a = np.array([[0.0, 1.0], [-stiffness / j, -damping / j]])
         step = expm(a * self.dt)
         n = starts.shape[1]
         x = starts - np.array([[equilibrium], [0.0]])

@@ -65,8 +65,9 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 from ankle_rt.config_schema import torque_loop_cutoffs
-from ankle_rt.elementwise import Value, clip, select, stack
+from ankle_rt.elementwise import Value, clip, minimum, positive_part, select, stack
 from ankle_rt.lag import Lag
+from ankle_rt.lead import loop_lag
 from ankle_rt.loop_setup import ReflectedActuator
 from ankle_rt.notch import Notch
 
@@ -98,6 +99,9 @@ class TorqueLoopGains:
     tank_j: float                            # J, the energy tank's capacity
     tank_friction_credit: float              # share of the identified friction's dissipation the tank gets
     notch: Notch                             # band-stops on the P and rate terms, on the configured cable
+    notch2: Notch                            # the second band-stops, after the first
+    rate_damping: tuple[float, float]        # N m s/rad, on the high-passed ankle-side motor rate
+    rate_damping_hz: tuple[float, float]     # Hz, that high-pass's corner
     lag: Lag                                 # low-frequency boosts on the P and rate terms, before the notch
 
     @classmethod
@@ -109,7 +113,9 @@ class TorqueLoopGains:
                    cutoff_hz=torque_loop_cutoffs(c), max_correction_nm=pair("max_correction"),
                    dob_hz=float(c["dob_hz"]), dob_inertia=pair("dob_inertia"), max_observer_nm=pair("max_observer"),
                    tank_j=float(c["tank_j"]), tank_friction_credit=float(c["tank_friction_credit"]),
-                   notch=Notch.from_config(c, cable_stiffness), lag=Lag.from_config(c))
+                   notch=Notch.from_config(c, cable_stiffness), notch2=Notch.from_config(c, cable_stiffness, "notch2"),
+                   rate_damping=pair("motor_rate_damping"), rate_damping_hz=pair("motor_rate_damping_hz"),
+                   lag=Lag.from_config(c))
 
 
 class JointTorqueLoop:
@@ -119,17 +125,23 @@ class JointTorqueLoop:
     batch of devices (:meth:`stack`, the batched daemon cycle) they are arrays over the batch and the
     same :meth:`update` runs once for all of them."""
 
-    def __init__(self, gains: TorqueLoopGains, dt: float, actuator: ReflectedActuator | None = None):
-        """``actuator``: needed with the observer (``gains.dob_hz`` > 0)."""
+    def __init__(self, gains: TorqueLoopGains, dt: float, actuator: ReflectedActuator | None = None,
+                 motor_limit: float = math.inf):
+        """``actuator``: needed with the observer (``gains.dob_hz`` > 0). ``motor_limit``: N m per motor at
+        the gearbox output, its torque at the peak current (the caller fits the corrections in it, :meth:`fit`)."""
         self.gains = gains
         self.dt = dt
+        self.motor_limit = motor_limit
         self.set_gains(*gains.kp, *gains.ki, *gains.torque_rate)
         self.lim0, self.lim1 = gains.max_correction_nm
         self.alpha0, self.alpha1 = (1.0 - math.exp(-2.0 * math.pi * f * dt) for f in gains.cutoff_hz)
+        self.rd0, self.rd1 = gains.rate_damping
+        self.ar0, self.ar1 = (1.0 - math.exp(-2.0 * math.pi * f * dt) for f in gains.rate_damping_hz)
         self.lag0, self.lag1 = gains.lag.sections(dt)            # (b0, b1, b2, a1, a2) per axis
         # a bool (a bool array over a batch that mixes lags): the cycle runs the lag only where one is on
         self.lagged = any(gains.lag.on)
         self.notch0, self.notch1 = gains.notch.sections(dt)
+        self.second0, self.second1 = gains.notch2.sections(dt)
         on = gains.dob_hz > 0.0
         if on and actuator is None:
             raise ValueError("JointTorqueLoop: the disturbance observer needs the reflected actuator")
@@ -146,7 +158,11 @@ class JointTorqueLoop:
         self.d0 = self.d1 = self.u0 = self.u1 = self.w0 = self.w1 = 0.0
         self.e0 = self.e1 = 0.0
         self.n01 = self.n02 = self.n11 = self.n12 = 0.0
+        self.m01 = self.m02 = self.m11 = self.m12 = 0.0
         self.g01 = self.g11 = 0.0
+        self.r0 = self.r1 = 0.0                         # the motor rates' low-pass (the high-pass is w - r)
+        self.c0 = self.c1 = 0.0                         # this cycle's corrections (N m), for fit
+        self.held_i0 = self.held_i1 = self.held_g01 = self.held_g11 = 0.0   # the states fit falls back to
         self.reset_state(0.0, 0.0)
 
     def set_gains(self, kp0: Value, kp1: Value, ki0: Value, ki1: Value, rate0: Value, rate1: Value) -> None:
@@ -159,17 +175,18 @@ class JointTorqueLoop:
 
     @property
     def lag_s(self) -> tuple[Value, Value]:
-        """s [DP, IE]: the loop follows a desired torque as tau_des / (1 + s kd / (1 + kp)) (the rate
-        term acts on the measured torque), a lag that turns a commanded stiffness K into K kd / (1 + kp)
-        of negative damping (-0.86 N m s/rad at K_ie 100: the IE ankle gave energy back at 2 Hz). The
-        impedance law leads it by that much damping."""
-        return self.kdr0 * self.dt / (1.0 + self.kp0), self.kdr1 * self.dt / (1.0 + self.kp1)
+        """s [DP, IE]: the loop follows a desired torque as tau_des / (1 + s lag) (:func:`ankle_rt.lead.loop_lag`:
+        the rate term acts on the measured torque, the filter's delay takes some of it back), a lag that turns
+        a commanded stiffness K into K lag of negative damping (-0.86 N m s/rad at K_ie 100 with the classic
+        loop: the IE ankle gave energy back at 2 Hz). The impedance law leads it (:func:`ankle_rt.lead.law_damping`)."""
+        dt = self.dt
+        return (loop_lag(self.kp0, self.kdr0 * dt, self.alpha0, dt), loop_lag(self.kp1, self.kdr1 * dt, self.alpha1, dt))
 
     @classmethod
     def stack(cls, loops: Sequence["JointTorqueLoop"]) -> "JointTorqueLoop":
         """One loop standing for ``loops`` (one per device of a batch): gains and state become arrays
         over the batch (``gains``, descriptive only, is the first device's)."""
-        return stack(loops, shared=("gains",), columns=("lag0", "lag1", "notch0", "notch1"))
+        return stack(loops, shared=("gains",), columns=("lag0", "lag1", "notch0", "notch1", "second0", "second1"))
 
     def reset_state(self, tau_dp: Value, tau_ie: Value, w_dp: Value = 0.0, w_ie: Value = 0.0,
                     where: bool | np.ndarray = True) -> None:
@@ -185,6 +202,8 @@ class JointTorqueLoop:
         self.d1 = select(where, 0.0, self.d1)
         self.w0 = select(where, w_dp, self.w0)
         self.w1 = select(where, w_ie, self.w1)
+        self.r0 = select(where, w_dp, self.r0)        # a steady rate is no damping's business
+        self.r1 = select(where, w_ie, self.r1)
         self.u0 = select(where, tau_dp, self.u0)     # at rest the motors hold the cable torque
         self.u1 = select(where, tau_ie, self.u1)
         self.e0 = select(where, self.tank_max, self.e0)
@@ -193,6 +212,10 @@ class JointTorqueLoop:
         self.n02 = select(where, 0.0, self.n02)
         self.n11 = select(where, 0.0, self.n11)
         self.n12 = select(where, 0.0, self.n12)
+        self.m01 = select(where, 0.0, self.m01)
+        self.m02 = select(where, 0.0, self.m02)
+        self.m11 = select(where, 0.0, self.m11)
+        self.m12 = select(where, 0.0, self.m12)
         self.g01 = select(where, 0.0, self.g01)
         self.g11 = select(where, 0.0, self.g11)
 
@@ -206,7 +229,7 @@ class JointTorqueLoop:
         f1 = p1 + self.alpha1 * (sg_ie - p1)
         self.f0, self.f1 = f0, f1
         e0, e1 = tau_dp - f0, tau_ie - f1
-        # the lag, then the notch on the P and rate terms (the identity without one)
+        # the lag, then the notches on the P and rate terms (the identity without one)
         x0, x1 = self.kp0 * e0 - self.kdr0 * (f0 - p0), self.kp1 * e1 - self.kdr1 * (f1 - p1)
         lagged = self.lagged is not False
         if lagged:
@@ -214,16 +237,41 @@ class JointTorqueLoop:
             x1, g11, _ = _section(self.lag1, x1, self.g11, 0.0)
         pd0, self.n01, self.n02 = _section(self.notch0, x0, self.n01, self.n02)
         pd1, self.n11, self.n12 = _section(self.notch1, x1, self.n11, self.n12)
+        pd0, self.m01, self.m02 = _section(self.second0, pd0, self.m01, self.m02)
+        pd1, self.m11, self.m12 = _section(self.second1, pd1, self.m11, self.m12)
+        # the motor-rate damping on the rate's high-pass, beside the shaped terms (not through the notches)
+        self.r0 = r0 = self.r0 + self.ar0 * (w_dp - self.r0)
+        self.r1 = r1 = self.r1 + self.ar1 * (w_ie - self.r1)
+        pd0 = pd0 - self.rd0 * (w_dp - r0)
+        pd1 = pd1 - self.rd1 * (w_ie - r1)
         c0, i0 = self._correction(e0, pd0, self.i0 + self.kidt0 * e0, self.i0, self.lim0, integrate)
         c1, i1 = self._correction(e1, pd1, self.i1 + self.kidt1 * e1, self.i1, self.lim1, integrate)
+        self.held_i0, self.held_i1, self.held_g01, self.held_g11 = self.i0, self.i1, self.g01, self.g11
         self.i0, self.i1 = i0, i1
         if lagged:
             self.g01 = self._lag_state(self.g01, g01, c0, self.lim0)
             self.g11 = self._lag_state(self.g11, g11, c1, self.lim1)
+        self.c0, self.c1 = c0, c1
         u0 = tau_dp + c0 + self._observe(0, sg_dp, w_dp, integrate)
         u1 = tau_ie + c1 + self._observe(1, sg_ie, w_ie, integrate)
         self.u0, self.u1 = u0, u1
         return u0, u1
+
+    def fit(self, scale: Value) -> tuple[Value, Value]:
+        """This cycle's outputs with both corrections scaled by ``scale`` (0-1: what the motors' peak
+        current leaves beside the desired torque, :func:`correction_room`), and where scaled the
+        integrators and lags kept at their last states: conditional integration against the actuator,
+        not only against ``max_correction`` (at the current clamp they would wind up behind it)."""
+        cut = 1.0 - scale
+        short = cut > 0.0
+        self.u0 = self.u0 - cut * self.c0
+        self.u1 = self.u1 - cut * self.c1
+        self.c0, self.c1 = scale * self.c0, scale * self.c1
+        self.i0 = select(short, self.held_i0, self.i0)
+        self.i1 = select(short, self.held_i1, self.i1)
+        self.g01 = select(short, self.held_g01, self.g01)
+        self.g11 = select(short, self.held_g11, self.g11)
+        return self.u0, self.u1
 
     @staticmethod
     def _correction(e: Value, pd: Value, i_new: Value, i_old: Value, lim: Value,
@@ -267,6 +315,16 @@ class JointTorqueLoop:
         return out
 
 
+def correction_room(total: Value, correction: Value, limit: Value) -> Value:
+    """The share (0-1) of a motor's ``correction`` (N m) that fits: the motor torque ``total`` (N m, the
+    correction included) kept within +-``limit`` (its torque at the peak current) by taking back only
+    the part of the correction that pushes it beyond. 1 where it fits or pulls back, 0 where the rest
+    alone is beyond (the current clamp's job then; the desired torque keeps the motors first)."""
+    over = positive_part(abs(total) - limit)
+    pushing = select(total * correction > 0.0, abs(correction), 0.0)
+    return 1.0 - minimum(over, pushing) / (pushing + (pushing == 0.0))
+
+
 def _section(c: tuple[float, ...], x: Value, s1: Value, s2: Value) -> tuple[Value, Value, Value]:
     """One second-order section ``c`` = (b0, b1, b2, a1, a2) in direct form II transposed: its output
     for the input ``x`` and its next states from ``s1``, ``s2`` (a first-order one keeps s2 at 0)."""
@@ -286,7 +344,9 @@ class ImpedanceLimits:
 
     - the integral: c (1 + kp) >= 2 J ki, c = D / 2 + (1 + kp) B (the Routh condition, factor 2);
     - the rendered damping ratio (B + D / (2 (1 + kp))) / (2 sqrt(K J / (1 + kp))) >= MIN_DAMPING_RATIO;
-    - B counts the law's lead K kd / (1 + kp) (:attr:`JointTorqueLoop.lag_s`) on top of the commanded;
+    - B counts the law's lead K kd / (1 + kp) on top of the commanded: the law damps the motor rate with at
+      least B + K lag (ankle_rt.lead.law_damping), and the motor's damping is what the conditions need
+      (the ankle renders B: the loop's lag takes the lead back at the ankle, not at the motor);
     - K <= MAX_STIFFNESS_FRACTION x the cable stiffness at the ankle (0.3 DP, 0.5 IE).
     """
 
@@ -295,7 +355,7 @@ class ImpedanceLimits:
     max_stiffness: tuple[float, float]    # N m/rad
     kp: tuple[float, float]
     ki: tuple[float, float]
-    lag: tuple[float, float] = (0.0, 0.0)    # s, kd / (1 + kp): the law adds K lag of damping
+    lag: tuple[float, float] = (0.0, 0.0)    # s, kd / (1 + kp): the law adds K lag of damping on the motor rate
 
     @classmethod
     def from_config(cls, cfg: "Config") -> "ImpedanceLimits":
