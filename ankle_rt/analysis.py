@@ -628,6 +628,35 @@ def torque_step_response(p: PlantParams, c: ImpedanceLoop, step_nm: tuple[float,
     return out
 
 
+def _discrete_lyapunov(T: np.ndarray, Q: np.ndarray, doublings: int = 40) -> np.ndarray:
+    """P = sum_k T^k Q T^k' (P = T P T' + Q) for a stable T, by doubling: 2^doublings terms (numpy only,
+    the runtime has no scipy)."""
+    P, Tk = Q.copy(), T.copy()
+    for _ in range(doublings):
+        P = P + Tk @ P @ Tk.T
+        Tk = Tk @ Tk
+    return P
+
+
+@functools.lru_cache(maxsize=64)
+def gauge_noise_current_a(p: PlantParams, c: ImpedanceLoop, noise_nm: tuple[float, float],
+                          torque_constant: float) -> tuple[float, float]:
+    """A [motor 1, motor 2]: the set-value RMS that white strain-gauge noise (``noise_nm`` N m RMS per sample
+    [DP, IE], independent) makes through the closed loop, foot free, nominal plant; ``torque_constant`` N m/A
+    at the output. What the loop's gain on the measured torque (kp, torque_rate, the filter) costs at rest:
+    the daemon's current at rest is this and the encoders' share (issue 19, docs/daemon.md "Sixth pass")."""
+    Ad, Bd, Cy, kin = _sampled_plant(p, c.dt, foot="free", load_slope=0.0)
+    W, U = c.rows(kin, kin.K)
+    T = _assemble(Ad, Bd, Cy, W, U, c.delay_cycles)[0]
+    nx, nw = N_X, W.shape[0]
+    g = np.zeros((T.shape[0], 2))
+    g[nx:nx + nw] = W[:, nw + 2:nw + 4]              # y = [theta_m (2), tau_j (2), theta (2)]
+    g[nx + nw:nx + nw + 2] = U[:, nw + 2:nw + 4]     # the newest command (the motor torques)
+    P = _discrete_lyapunov(T, g @ np.diag(np.square(noise_nm)) @ g.T)
+    rms = np.sqrt(np.diag(P)[nx + nw:nx + nw + 2]) / torque_constant
+    return float(rms[0]), float(rms[1])
+
+
 def spectral_radius(T: np.ndarray) -> float:
     return float(np.max(np.abs(np.linalg.eigvals(T))))
 
@@ -851,6 +880,30 @@ def gain_set_margin_db(cfg_like: Mapping[str, Any], gains: Mapping[str, float], 
         restored[key] = loop_margin_db(p, ImpedanceLoop.from_config(off, closed=True, ff_viscous=ff_viscous),
                                        load_coefficient=coefficient)
     return margin, max(restored, key=restored.get)
+
+
+def gain_set_noise_a(cfg_like: Mapping[str, Any], gains: Mapping[str, float]) -> tuple[float, str]:
+    """(A, gain): the larger motor's set-value RMS the strain gauges' noise (``sensors.strain_gauge_noise_rms``
+    per axis) makes through the joint-torque loop with ``gains`` in place of the config's
+    (:func:`gauge_noise_current_a`), and the gain to name for it: of the torque-loop gains in ``gains`` that
+    move, the one whose configured value takes the most noise away; none moved, the ``kp`` of the axis whose
+    gauge makes more. 0 without the loop."""
+    from ankle_rt.loop_setup import torque_feedback
+
+    if cfg_like["controller"]["type"] == "pd" or not torque_feedback(_with_gains(cfg_like, gains)):
+        return 0.0, "kp_dp"
+    sigma, kt = cfg_like["sensors"]["strain_gauge_noise_rms"], cfg_like["actuator"]["torque_constant"]
+    p = PlantParams.from_config(cfg_like)
+
+    def noise(g: Mapping[str, float], axes: tuple[float, float] = (1.0, 1.0)) -> float:
+        loop = ImpedanceLoop.from_config(_with_gains(cfg_like, g), closed=True)
+        return max(gauge_noise_current_a(p, loop, (sigma * axes[0], sigma * axes[1]), kt))
+
+    tl = cfg_like["controller"]["torque_loop"]
+    moved = [k for k, v in gains.items() if k in tl and tl[k] != v]
+    if moved:
+        return noise(gains), min(moved, key=lambda k: noise({**gains, k: tl[k]}))
+    return noise(gains), ("kp_dp", "kp_ie")[int(noise(gains, (0.0, 1.0)) > noise(gains, (1.0, 0.0)))]
 
 
 @functools.lru_cache(maxsize=64)

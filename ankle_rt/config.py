@@ -203,19 +203,21 @@ def config_from_data(data: dict, origin: Callable[[KeyPath], str], source: str) 
 def _check_gain_margin(cfg: Config, origin: Callable[[KeyPath], str]) -> None:
     """The impedance controller (with or without the joint-torque loop) and the motor-side PD (the
     gain set ``controller.pd_gains`` picks; choosing the other is a config change, checked again):
-    the configured gain set must keep the required gain margin over the plant range (ConfigError
-    naming the gain that limits it)."""
-    from ankle_rt.gain_margin import gain_set_refusal
+    the configured gain set must keep the required gain margin over the plant range, and the joint-torque
+    loop (impedance, gait phase) must not turn the gauges' noise into more current than the oscillation
+    detector allows (ConfigError naming the gain that limits it)."""
+    from ankle_rt.gain_margin import gain_set_refusal, noise_refusal
 
     ctl = cfg["controller"]
     if ctl["type"] == "pd":
         section = ctl["pd_gains"] + "_gains"
-        gains = ctl[section]
+        bad = gain_set_refusal(cfg, ctl[section])
     elif ctl["type"] == "impedance":
-        section, gains = None, {}
+        section, bad = None, gain_set_refusal(cfg, {})
+    elif ctl["type"] == "gait_phase":   # the phases' margins: when the controller is built; the loop's noise here
+        section, bad = "torque_loop", noise_refusal(cfg, {})
     else:
         return
-    bad = gain_set_refusal(cfg, gains)
     if bad is not None:
         name, reason = bad
         section = section or ("torque_loop" if name in ctl["torque_loop"] else "impedance")

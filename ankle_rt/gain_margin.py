@@ -12,13 +12,18 @@ from typing import Any, Mapping
 
 
 RAMP_CHECK_POINTS = 8    # a gain ramp is checked at this many evenly spaced points, its end included
+# The most of safety.oscillation_rms_a the strain gauges' noise may make of a set value at rest: the detector
+# must not trip on the loop's own noise (the step-tuned loop of docs/daemon.md's sixth pass, 1.1 A in the
+# model, tripped it at 1 A), nor the noise hide half of what it watches for.
+MAX_NOISE_SHARE = 0.5
 
 
-def gain_set_refusal(cfg: Mapping[str, Any], gains: Mapping[str, float], ff_viscous: float = 0.0
-                     ) -> tuple[str, str] | None:
+def gain_set_refusal(cfg: Mapping[str, Any], gains: Mapping[str, float], ff_viscous: float = 0.0, *,
+                     noise: bool = True) -> tuple[str, str] | None:
     """(gain name, reason) when the closed loop with ``gains`` in place of the config's (and the friction
     feed-forward's viscous slope ``ff_viscous``, N m s/rad) keeps less than the required gain margin
-    over the plant range (:func:`ankle_rt.analysis.gain_set_margin_db`); None when it keeps it."""
+    over the plant range (:func:`ankle_rt.analysis.gain_set_margin_db`) or, with ``noise``, makes too much
+    current of the gauges' noise (:func:`noise_refusal`); None when it keeps both."""
     import numpy as np
 
     from ankle_rt.analysis import REQUIRED_GAIN_MARGIN_DB, gain_set_margin_db
@@ -32,7 +37,7 @@ def gain_set_refusal(cfg: Mapping[str, Any], gains: Mapping[str, float], ff_visc
         return name, (f"{name}: the gain set cannot be shown stable: the closed-loop model of this plant "
                       f"fails ({type(exc).__name__}: {exc}); check the physical parameters")
     if name is None:
-        return None
+        return noise_refusal(cfg, gains) if noise else None
     c = cfg["controller"]
     value = gains.get(name, c["torque_loop"].get(name, c["impedance"].get(name)))
     how = ("is unstable in some case (at its gains, or with its correction clamped by max_correction)"
@@ -40,6 +45,23 @@ def gain_set_refusal(cfg: Mapping[str, Any], gains: Mapping[str, float], ff_visc
     ff = f" with the friction feed-forward's viscous {ff_viscous:g} N m s/rad" if ff_viscous > 0.0 else ""
     return name, (f"{name} {value:g}: the closed loop{ff} {how} over cable stiffness +/-30 %, the friction range "
                   f"and foot free and held (at least {REQUIRED_GAIN_MARGIN_DB:g} dB required; docs/daemon.md)")
+
+
+def noise_refusal(cfg: Mapping[str, Any], gains: Mapping[str, float]) -> tuple[str, str] | None:
+    """(gain name, reason) when the joint-torque loop with ``gains`` turns the strain gauges' noise into more
+    set-value RMS than MAX_NOISE_SHARE x ``safety.oscillation_rms_a`` (:func:`ankle_rt.analysis.gain_set_noise_a`,
+    the larger motor, foot free); None when it does not."""
+    from ankle_rt.analysis import gain_set_noise_a
+
+    noise, name = gain_set_noise_a(cfg, gains)
+    most = MAX_NOISE_SHARE * cfg["safety"]["oscillation_rms_a"]
+    if noise <= most:
+        return None
+    value = gains.get(name, cfg["controller"]["torque_loop"][name])
+    return name, (f"{name} {value:g}: the joint-torque loop turns the strain gauges' noise (sensors.strain_gauge_noise_rms "
+                  f"{cfg['sensors']['strain_gauge_noise_rms']:g} N m) into {noise:.2f} A RMS of set value at rest, above "
+                  f"{most:.2f} A ({MAX_NOISE_SHARE:g} x safety.oscillation_rms_a: the oscillation detector would trip on "
+                  f"it); lower kp, torque_rate or the torque filter's cutoff (docs/daemon.md)")
 
 
 def ramp_refusal(cfg: Mapping[str, Any], start: Mapping[str, float], end: Mapping[str, float],

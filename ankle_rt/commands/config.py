@@ -101,8 +101,10 @@ def describe(cfg) -> list[str]:
 def _torque_loop_lines(cfg) -> list[str]:
     """The joint-torque loop under the impedance or gait-phase controller, its notches where the loop runs
     them: moved from the cable they are placed for (``notch_cable_stiffness``) to the configured one; its
-    clamps, per-axis torque filters, lags and motor-rate damping."""
+    clamps, the set-value noise it makes of the gauges' noise, per-axis torque filters, lags and motor-rate damping."""
+    from ankle_rt.analysis import gain_set_noise_a
     from ankle_rt.config_schema import torque_loop_cutoffs
+    from ankle_rt.gain_margin import MAX_NOISE_SHARE
     from ankle_rt.lag import Lag
     from ankle_rt.loop_setup import torque_feedback
     from ankle_rt.notch import AXES, PREFIXES, Notch, cable_scale
@@ -117,7 +119,9 @@ def _torque_loop_lines(cfg) -> list[str]:
         for prefix, notch in zip(PREFIXES, Notch.all_from_config(tl, k)) if prefix == "notch" or any(notch.hz))
     lines = [f"torque loop: kp {tl['kp_dp']:g} / {tl['kp_ie']:g}; {notches}: placed for notch_cable_stiffness "
              f"{tl['notch_cable_stiffness']:g} N/m, x{cable_scale(tl, k):.4g} for transmission.cable_stiffness {k:g}",
-             f"             max correction DP {tl['max_correction_dp']:g} / IE {tl['max_correction_ie']:g} N m"]
+             f"             max correction DP {tl['max_correction_dp']:g} / IE {tl['max_correction_ie']:g} N m; "
+             f"gauge noise at rest {gain_set_noise_a(cfg, {})[0]:.2f} A RMS per motor (model; at most "
+             f"{MAX_NOISE_SHARE * cfg['safety']['oscillation_rms_a']:.2f})"]
     lag, cutoffs = Lag.from_config(tl), torque_loop_cutoffs(tl)
     lags = ", ".join(f"{a.upper()} {hz:g} Hz x{b:g}" if on else f"{a.upper()} none"
                      for a, hz, b, on in zip(AXES, lag.hz, lag.boost, lag.on))

@@ -265,7 +265,9 @@ class GaitPhaseController(ImpedanceController):
             bad = self.swing.refusal(phase == LATE_SWING, params["stiffness_dp"], params["damping_dp"],
                                      params["equilibrium_dp"])
         if bad is None and self.margin_cfg is not None:      # the slow check only when the quick one passes
-            bad = gain_set_refusal(self.margin_cfg, {k: params[k] for k in IMPEDANCE_GAINS}, self.friction.viscous_slope)
+            # the gauges' noise is the torque loop's, checked with the config (ankle_rt.config), not a phase's
+            bad = gain_set_refusal(self.margin_cfg, {k: params[k] for k in IMPEDANCE_GAINS}, self.friction.viscous_slope,
+                                   noise=False)
         if bad is not None:
             raise GainError(f"{name}.{bad[0]}", f"{name}: {bad[1]}")
 
