@@ -40,6 +40,7 @@ DYNAMIC_MAX_HZ = 2.0      # dynamic stiffness and damping are judged on the sine
 # stiff as the explicit (held over a tick) ground stays stable on the 4 g m^2 foot (3000 is not)
 GROUNDS = {"rigid": ((1000.0, 500.0), 1.0), "soft": ((300.0, 150.0), 1.0)}
 FINAL_WINDOW_S = 0.2      # the step's final value: mean over the run's last this long
+QUIET_WINDOW_S = 0.4      # the current noise at rest: the set values' spread over the settle's last this long
 
 
 @dataclass(frozen=True)
@@ -130,6 +131,7 @@ class ImpedanceResult:
     steps: list[dict[str, Any]] = field(default_factory=list)
     fault: str = "NONE"
     final_offset_rad: float = math.nan   # max |ankle angle| over the last 0.1 s (back at the equilibrium?)
+    current_noise_a: float = math.nan    # A: the larger motor's set-value RMS about its mean, at rest
     loops: list[dict[str, np.ndarray]] = field(default_factory=list)   # torque-angle loops for the plot
 
     def stiffness_error_max_pct(self, min_torque: float = 1.0) -> float:
@@ -196,7 +198,7 @@ class ImpedanceResult:
                 "apparent_inertia_kg_m2": self.apparent_inertia_kg_m2(),
                 "passive": self.passive(),
                 "hysteresis_j_per_cycle": self.hysteresis_j_per_cycle(),
-                "torque_tracking_rms_nm": self.torque_tracking_rms_nm()}
+                "torque_tracking_rms_nm": self.torque_tracking_rms_nm(), "current_noise_a": self.current_noise_a}
 
 
 def bench_config(cfg: Config, *, stiffness: tuple[float, float], damping: tuple[float, float],
@@ -266,6 +268,10 @@ def run_impedance(cfg: Config, exp: Experiment, *, plant_cfg: Config | None = No
     t = run["t"]
     angle = (run["ankle_dp"], run["ankle_ie"])
     res.final_offset_rad = float(max(np.max(np.abs(a[t >= duration - 0.1])) for a in angle))
+    # what the loop makes of the gauges' noise and the encoders' counts with nothing to do: the set values'
+    # spread at rest, before the first push (the loop amplifies noise in its rate term; the motor heats with it)
+    quiet = (t >= SETTLE_S - QUIET_WINDOW_S) & (t < SETTLE_S)
+    res.current_noise_a = float(max(np.std(run[f"current_cmd_{m}"][quiet]) for m in (1, 2)))
     desired = _desired_torque(cfg, run)
     measured = (run["sg_torque_dp"], run["sg_torque_ie"])
     for s in segs:

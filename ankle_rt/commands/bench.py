@@ -230,16 +230,18 @@ net energy to the foot), a 6 N m DP / 3 N m IE torque step with the foot on rigi
 (overshoot of the strain-gauge torque), and the stability margin of the sampled loop from the linear model (ZOH + one cycle of
 delay) over cable stiffness +/-30 %, viscous friction x0.5-x2, load-dependent friction sliding with
 or against the load, foot free or held. The plant: the config's effects plus --load-friction and
---stribeck (defaults: load-dependent 0.12, Stribeck 0.15 N m at 0.1 rad/s)."""
+--stribeck (defaults: load-dependent 0.12, Stribeck 0.15 N m at 0.1 rad/s). Both controllers compensate the
+plant's identified friction (--friction-ff, default identified: the plant's own friction model, the workflow
+identify -> compensate; --plant-friction runs a plant with more or less friction than the model states)."""
 
 SUMMARY_KEYS = ("stiffness_error_max_pct", "dynamic_stiffness_error_max_pct", "damping_error_max_pct",
                 "torque_step_overshoot_pct", "torque_step_ideal_overshoot_pct", "torque_step_excess_pct",
                 "apparent_inertia_kg_m2", "passive", "hysteresis_j_per_cycle",
-                "stability_margin_db", "torque_tracking_rms_nm")
+                "stability_margin_db", "torque_tracking_rms_nm", "current_noise_a")
 WORST = {"stiffness_error_max_pct": max, "dynamic_stiffness_error_max_pct": max, "damping_error_max_pct": max,
          "torque_step_overshoot_pct": max, "torque_step_ideal_overshoot_pct": max, "torque_step_excess_pct": max,
          "apparent_inertia_kg_m2": max, "passive": all,
-         "hysteresis_j_per_cycle": max, "torque_tracking_rms_nm": max}
+         "hysteresis_j_per_cycle": max, "torque_tracking_rms_nm": max, "current_noise_a": max}
 
 
 def _number(low: float, strict: bool):
@@ -268,8 +270,9 @@ def register_impedance(sub: argparse._SubParsersAction) -> None:
                    help="load-dependent cable friction coefficient in the plant (0: off; default 0.12)")
     p.add_argument("--stribeck", type=_number(0.0, False), nargs=2, default=[0.15, 0.1], metavar=("A", "VS"),
                    help="Stribeck excess N m and velocity rad/s in the plant (A 0: off; default 0.15 0.1)")
-    p.add_argument("--friction-ff", choices=("off", "coulomb_viscous", "identified"), default="off",
-                   help="friction feed-forward of both controllers (identified: the plant's own friction model)")
+    p.add_argument("--friction-ff", choices=("off", "coulomb_viscous", "identified"), default="identified",
+                   help="friction feed-forward of both controllers (default identified: the plant's own friction model, "
+                        "what `ankle-rt identify` gives a device; off: the loop alone)")
     p.add_argument("--plant-friction", type=_number(0.0, True), default=1.0, metavar="S",
                    help="the simulated plant's Coulomb, Stribeck, asymmetric and load-dependent friction x S, the "
                         "controllers' friction model (the feed-forward's) kept: does compensation go active on a "
@@ -428,13 +431,13 @@ def bench_impedance(args: argparse.Namespace) -> int:
           f"commanded K_dp {', '.join(f'{k:g}' for k in args.stiffness)} N m/rad, damping {args.damping[0]:g} / "
           f"{args.damping[1]:g} N m s/rad")
     print(f"{'variant':32s} {'K err %':>7s} {'Kdyn err %':>10s} {'B err %':>7s} {'step os %':>9s} {'J kg m2':>7s} "
-          f"{'passive':>7s} {'hyst J':>6s} {'margin dB':>9s} {'tau err':>7s}  faults")
+          f"{'passive':>7s} {'hyst J':>6s} {'margin dB':>9s} {'tau err':>7s} {'noise A':>7s}  faults")
     for name, v in variants.items():
         s = v["summary"]
         print(f"{name:32s} {s['stiffness_error_max_pct']:7.1f} {s['dynamic_stiffness_error_max_pct']:10.1f} "
               f"{s['damping_error_max_pct']:7.0f} {s['torque_step_overshoot_pct']:9.1f} {s['apparent_inertia_kg_m2']:7.3f} "
               f"{str(s['passive']):>7s} {s['hysteresis_j_per_cycle']:6.3f} {s['stability_margin_db']:9.1f} "
-              f"{s['torque_tracking_rms_nm']:7.2f}  {','.join(s['faults'])}")
+              f"{s['torque_tracking_rms_nm']:7.2f} {s['current_noise_a']:7.2f}  {','.join(s['faults'])}")
     for name, reason in refused.items():
         print(f"{name:32s} refused: {reason}")
     for name in ("closed loop", "open loop"):
