@@ -55,7 +55,7 @@ def noise_refusal(cfg: Mapping[str, Any], gains: Mapping[str, float]) -> tuple[s
 
     noise, name = gain_set_noise_a(cfg, gains)
     most = MAX_NOISE_SHARE * cfg["safety"]["oscillation_rms_a"]
-    if noise <= most:
+    if noise <= most or not math.isfinite(noise):   # an unstable loop has no noise figure: the margin checks name it
         return None
     value = gains.get(name, cfg["controller"]["torque_loop"][name])
     return name, (f"{name} {value:g}: the joint-torque loop turns the strain gauges' noise (sensors.strain_gauge_noise_rms "

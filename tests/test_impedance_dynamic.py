@@ -8,6 +8,7 @@ from __future__ import annotations
 import pytest
 
 from ankle_rt.config import load_config
+from ankle_rt.config_schema import MAX_CORRECTION_WALKED
 from ankle_rt.control.torque_loop import JointTorqueLoop, TorqueLoopGains
 from ankle_rt.loop_setup import ReflectedActuator
 from ankle_rt.bench.impedance import Experiment, bench_config, run_impedance
@@ -65,14 +66,20 @@ def test_passive_with_the_cable_stiffness_off_by_30_percent(base, factor):
 
 
 def test_joint_encoders_see_the_cable_backlash(base):
-    """0.2 mm of cable slack each way at K_dp 200: through the cables the rendered stiffness is far
-    too soft for small pushes (the estimated angle cannot see slack); with the joint encoders in the
-    law it is within the issue's 15 %."""
+    """0.2 mm of cable slack each way at K_dp 200, with the clamps a device gets: through the cables the
+    rendered stiffness is far too soft for small pushes (the estimated angle cannot see slack); with the
+    joint encoders in the law it is within the issue's 15 %. (With the simulator bench's clamps, 150 / 60
+    N m, the slack's limit cycle grows into OSCILLATION at the 6 N m pulse: docs/daemon.md "Sixth pass".)"""
     effects = PLANT + [{"type": "backlash", "half_width": 0.0002}]
     exp = Experiment(pulses_nm=((3.0, -3.0, 6.0), ()), pulse_s=1.2, rest_s=0.5, sine_hz=(), axes=("dp",),
                      step_nm=NO_STEP)
-    encoders = run_impedance(impedance_cfg(base, 200.0, effects, angle_source="joint_encoders"), exp)
-    cables = run_impedance(impedance_cfg(base, 200.0, effects, angle_source="estimated"), exp)
+
+    def device(cfg):
+        cfg["controller"]["torque_loop"].update(zip(("max_correction_dp", "max_correction_ie"), MAX_CORRECTION_WALKED))
+        return cfg
+
+    encoders = run_impedance(device(impedance_cfg(base, 200.0, effects, angle_source="joint_encoders")), exp)
+    cables = run_impedance(device(impedance_cfg(base, 200.0, effects, angle_source="estimated")), exp)
     assert encoders.fault == cables.fault == "NONE"
     assert encoders.stiffness_error_max_pct() <= 15.0
     assert cables.stiffness_error_max_pct() > 15.0

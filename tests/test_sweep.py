@@ -228,7 +228,9 @@ def test_the_table_falls_back_to_csv_without_pyarrow(tmp_path, monkeypatch):
 def test_every_sampling_method_maps_each_distribution_into_its_support(tmp_path, method):
     parameters = {
         "actuator.coulomb": {"dist": "normal", "mean": 0.28, "std": 0.02},
-        "sensors.strain_gauge_noise_rms": {"dist": "log-uniform", "low": 0.005, "high": 0.08, "steps": 3},
+        # within what the joint-torque loop carries: more gauge noise than ~0.025 N m rings it past the oscillation
+        # detector's share (ankle_rt.gain_margin.noise_refusal) and the config refuses the impedance runs
+        "sensors.strain_gauge_noise_rms": {"dist": "log-uniform", "low": 0.006, "high": 0.024, "steps": 3},
         "actuator.damping": {"dist": "uniform", "low": 0.08, "high": 0.14, "steps": 2},
         "controller.type": {"dist": "choice", "values": ["pd", "impedance"]},
     }
@@ -243,10 +245,10 @@ def test_every_sampling_method_maps_each_distribution_into_its_support(tmp_path,
     assert [r.values for r in study.runs] == [r.values for r in again.runs]
     assert len(study.runs) == (12 if method == "grid" else 16)
     noise = [r.config["sensors"]["strain_gauge_noise_rms"] for r in study.runs]
-    assert all(0.005 <= v <= 0.08 for v in noise)
+    assert all(0.006 * (1 - 1e-12) <= v <= 0.024 * (1 + 1e-12) for v in noise)
     assert {r.config["controller"]["type"] for r in study.runs} == {"pd", "impedance"}
     if method == "grid":
-        assert sorted(set(noise)) == pytest.approx([0.005, 0.02, 0.08])
+        assert sorted(set(noise)) == pytest.approx([0.006, 0.012, 0.024])
     else:
         kc = [r.config["actuator"]["coulomb"] for r in study.runs]
         assert 0.2 < min(kc) and max(kc) < 0.36 and len(set(kc)) == 16

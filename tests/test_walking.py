@@ -668,7 +668,8 @@ def test_a_phase_whose_gains_lose_the_gain_margin_is_refused_naming_it(monkeypat
 
     seen = []
 
-    def refusal(cfg, gains, ff_viscous=0.0):
+    def refusal(cfg, gains, ff_viscous=0.0, *, noise=True):
+        assert not noise                  # the gauges' noise is the loop's, checked with the config
         seen.append(dict(gains))
         return ("stiffness_dp", "loses the margin") if gains["stiffness_dp"] == 123.0 else None
 
