@@ -361,7 +361,7 @@ class TorqueOffset(Candidate):
     cause = "torque_offset"
 
     def design(self, ch, nl):
-        return Design(ch.per_column(np.ones((ch.n_samples, ch.m))))
+        return Design(ch.constants())
 
     def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
         return {f"torque_{i + 1}": (float(coef[i]), _sd(cov, i)) for i in range(len(coef))}

@@ -287,6 +287,14 @@ class MotorChannel(_StackedChannel):
                                 for i in range(mask.shape[1])])
         return ~near[self.rows].T.ravel()
 
+    def constants(self) -> np.ndarray:
+        """A constant per motor (one column each, :meth:`per_column`), weighed before L like every other
+        signal: a load on a stuck motor is held by its static friction like the rest of its torque, so the
+        stuck samples read 0 = 0 for it too. Unweighed, the column asked for the load where the left side
+        is weighed out, and the load came out biased toward zero (generator D seeds 128, 132, 138: the
+        remainder read as friction asymmetry and an ``unknown`` offset)."""
+        return self.per_column(self.sm.smooth(np.ones((self.n_samples, self.m))))
+
     def remove_gauge_offset(self, offset: np.ndarray) -> None:
         """Correct the cable torque for strain-gauge zero offsets (N m per ankle axis [DP, IE])."""
         self.tc = self.tc - np.asarray(offset) @ self.geometry.R_inv_T.T
