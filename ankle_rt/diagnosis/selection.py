@@ -428,38 +428,50 @@ def _plausible(models: ChannelModels, chosen: list[Term], nl_sd: list[float],
         chosen, nl_sd = chosen[:bad] + chosen[bad + 1:], nl_sd[:bad] + nl_sd[bad + 1:]
 
 
+#: what the rows a term must show on (:attr:`Candidate.motion_rows`) leave out, for the notes
+MOTION_ROWS_TEXT = {"moving_rows": "where no motor rests", "sliding_rows": "where no motor rests or reverses"}
+
+
 def _shown_in_motion(models: ChannelModels, chosen: list[Term], nl_sd: list[float], n_eff: float,
                      out: ChannelResult) -> tuple[list[Term], list[float]]:
     """The chosen terms without those that must show while the motors move (:attr:`Candidate.in_motion`)
-    and do not: scored with the others in on the rows where no motor rests within the filter's reach
-    (each dropped with a note). A motor that sticks takes its torque before it moves: the breakaway
-    lags the torque, which a short actuation delay fitted from the rests' edges (generator D). Only
-    where some rest is stuck (signals.stuck): where the friction law holds every rest, the motors creep
-    through them and the rows beside them are as good as any."""
-    rows = getattr(models.ch, "moving_rows", None)
-    if rows is None or rows.all() or not models.ch.stuck.any():
+    and do not: scored with the others in on the rows of the channel their :attr:`Candidate.motion_rows`
+    names, those where no motor rests (or also reverses) within the filter's reach (each dropped with a
+    note). A motor that sticks takes its torque before it moves: the breakaway lags the torque, which a
+    short actuation delay fitted, and the torques held at a few angles fitted a ripple (generator D).
+    Only where some rest is stuck (signals.stuck): where the friction law holds every rest, the motors
+    creep through them and the rows beside them are as good as any."""
+    if not getattr(models.ch, "stuck", np.zeros(1)).any():
         return chosen, nl_sd
-    share = float(rows.mean())
     for i in reversed(range(len(chosen))):
-        if not chosen[i].candidate.in_motion:
+        cand = chosen[i].candidate
+        rows = getattr(models.ch, cand.motion_rows) if cand.in_motion else None
+        if rows is None or rows.all() or not rows.any():
             continue
-        rest = chosen[:i] + chosen[i + 1:]
-        (y, X), (_, Xr) = models.system(chosen), models.system(rest)
-        yr = next((t.design.y for t in rest if t.design.y is not None), models.y0)
-        rss_with, rss_without = rss_only(y[rows], X[rows]), rss_only(yr[rows], Xr[rows])
-        s = Score(chosen[i].cause, chosen[i].candidate, chosen[i].nl, rss_with, models.k(chosen))
-        n = int(rows.sum())
-        ic = information_criterion(rss_with, n, s.k, n_eff * share)
-        s.delta_ic = information_criterion(rss_without, n, models.k(rest), n_eff * share) - ic
-        s.reduction = 1.0 - rss_with / rss_without
-        s.size = math.sqrt(max(0.0, rss_without - rss_with) / n) / models.scale
+        s = _score_on_rows(models, chosen, i, rows, n_eff)
         if significant(s):
             continue
-        out.notes.append(f"{chosen[i].cause} dropped: where no motor rests ({100 * share:.0f} % of the rows) it "
-                         f"removes {100 * s.reduction:.1f} % of the residual (criterion gain {s.delta_ic:.1f}): "
-                         "what it fits is the motors' breakaway after a rest")
-        chosen, nl_sd = rest, nl_sd[:i] + nl_sd[i + 1:]
+        out.notes.append(f"{chosen[i].cause} dropped: {MOTION_ROWS_TEXT[cand.motion_rows]} ({100 * rows.mean():.0f} % "
+                         f"of the rows) it removes {100 * s.reduction:.1f} % of the residual (criterion gain "
+                         f"{s.delta_ic:.1f}): what it fits is where the motors stick")
+        chosen, nl_sd = chosen[:i] + chosen[i + 1:], nl_sd[:i] + nl_sd[i + 1:]
     return chosen, nl_sd
+
+
+def _score_on_rows(models: ChannelModels, chosen: list[Term], i: int, rows: np.ndarray, n_eff: float) -> Score:
+    """Term ``i`` scored with the others in on ``rows`` of the stacked system alone (both models fitted
+    there, ``n_eff`` scaled by the share of rows kept)."""
+    rest = chosen[:i] + chosen[i + 1:]
+    (y, X), (_, Xr) = models.system(chosen), models.system(rest)
+    yr = next((t.design.y for t in rest if t.design.y is not None), models.y0)
+    rss_with, rss_without = rss_only(y[rows], X[rows]), rss_only(yr[rows], Xr[rows])
+    s = Score(chosen[i].cause, chosen[i].candidate, chosen[i].nl, rss_with, models.k(chosen))
+    n, share = int(rows.sum()), float(rows.mean())
+    ic = information_criterion(rss_with, n, s.k, n_eff * share)
+    s.delta_ic = information_criterion(rss_without, n, models.k(rest), n_eff * share) - ic
+    s.reduction = 1.0 - rss_with / rss_without
+    s.size = math.sqrt(max(0.0, rss_without - rss_with) / n) / models.scale
+    return s
 
 
 def _refine(models: ChannelModels, chosen: list[Term], n_eff: float) -> tuple[list[Term], list[float]]:
