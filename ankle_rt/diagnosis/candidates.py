@@ -38,10 +38,10 @@ class Candidate:
     form: dict[str, str] = {}
     #: a richer form of the same effect tried once this one is chosen (e.g. cogging with a harmonic)
     upgrade: "Candidate | None" = None
-    #: the effect must show while the motors move, not only beside their rests (selection._shown_in_motion),
-    #: on the rows of the motor channel this names (signals.MotorChannel.moving_rows or sliding_rows)
+    #: the effect must show while the motors move, not only beside their rests (selection._shown_in_motion)
     in_motion: bool = False
-    motion_rows: str = "moving_rows"
+    #: ... and also where they neither rest nor reverse, mid-stroke (selection._not_in_motion)
+    mid_stroke: bool = False
 
     def applies(self, ch: Channel) -> bool:
         return True
@@ -214,9 +214,6 @@ class Cogging(Candidate):
     cause = "cogging"
     nonlinear = "periods_per_rev"
     integer = True
-    #: a ripple of the rotor angle shows wherever the rotor turns (slowly, near the reversals too); torques
-    #: held at a few angles through rests shorter than REST_S fit a ripple at some count as well
-    in_motion = True
 
     def applies(self, ch) -> bool:
         """Only where the travel holds MIN_COGGING_PERIODS periods of a count it may search (a motor that
@@ -476,7 +473,7 @@ class Delay(Candidate):
     #: a command's latency shifts the whole torque, mid-stroke too; a sticking motor's breakaway lags the
     #: torque at its rests and at the brief sticks of its reversals, shorter than any rest the stuck test judges
     in_motion = True
-    motion_rows = "sliding_rows"
+    mid_stroke = True
 
     def grid(self, ch):
         return list(np.arange(0.25e-3, 25.01e-3, 0.5e-3))
