@@ -158,6 +158,14 @@ def test_a_rest_the_chosen_friction_holds_is_weighed_again():
     assert not ch.weigh_rests(0.28 + 0.3)                    # nothing changes: no second selection
 
 
+def _diagnosed_without(case, candidate: type, check: str):
+    """The case diagnosed with the candidate class's check (a boolean attribute) switched off."""
+    setattr(candidate, check, False)
+    try:
+        return diagnose(case.ident, case.valid, plant="ankle", cfg=case.nominal_cfg)
+    finally:
+        setattr(candidate, check, True)
+
 @pytest.mark.slow
 def test_a_delay_fitted_from_the_breakaways_is_not_named():
     """A motor that sticks takes its torque before it moves: the motion lags the torque at every breakaway,
@@ -169,12 +177,7 @@ def test_a_delay_fitted_from_the_breakaways_is_not_named():
     diag = diagnose(case.ident, case.valid, plant="ankle", cfg=case.nominal_cfg)
     assert diag.causes == ["none"], (diag.causes, diag.notes)
     assert any("delay dropped: where no motor rests" in n for n in diag.notes), diag.notes
-    try:
-        Delay.in_motion = False
-        unchecked = diagnose(case.ident, case.valid, plant="ankle", cfg=case.nominal_cfg)
-    finally:
-        Delay.in_motion = True
-    assert "delay" in unchecked.causes
+    assert "delay" in _diagnosed_without(case, Delay, "in_motion").causes
 
 
 @pytest.mark.slow
@@ -255,11 +258,7 @@ def test_a_delay_fitted_at_the_reversals_is_not_named():
     diag = diagnose(case.ident, case.valid, plant="ankle", cfg=case.nominal_cfg)
     assert diag.causes == ["torque_offset"], (diag.causes, diag.notes)
     assert any("delay dropped: where no motor rests or reverses" in n for n in diag.notes), diag.notes
-    try:
-        Delay.mid_stroke = False
-        unchecked = diagnose(case.ident, case.valid, plant="ankle", cfg=case.nominal_cfg)
-    finally:
-        Delay.mid_stroke = True
+    unchecked = _diagnosed_without(case, Delay, "mid_stroke")
     assert "delay" in unchecked.causes, unchecked.causes
 
 
