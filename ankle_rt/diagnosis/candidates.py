@@ -40,6 +40,8 @@ class Candidate:
     upgrade: "Candidate | None" = None
     #: the effect must show while the motors move, not only beside their rests (selection._shown_in_motion)
     in_motion: bool = False
+    #: ... and also where they neither rest nor reverse, mid-stroke (selection._not_in_motion)
+    mid_stroke: bool = False
 
     def applies(self, ch: Channel) -> bool:
         return True
@@ -361,7 +363,7 @@ class TorqueOffset(Candidate):
     cause = "torque_offset"
 
     def design(self, ch, nl):
-        return Design(ch.per_column(np.ones((ch.n_samples, ch.m))))
+        return Design(ch.constants())
 
     def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
         return {f"torque_{i + 1}": (float(coef[i]), _sd(cov, i)) for i in range(len(coef))}
@@ -468,7 +470,10 @@ class EncoderScale(Candidate):
 class Delay(Candidate):
     cause = "delay"
     nonlinear = "delay"
+    #: a command's latency shifts the whole torque, mid-stroke too; a sticking motor's breakaway lags the
+    #: torque at its rests and at the brief sticks of its reversals, shorter than any rest the stuck test judges
     in_motion = True
+    mid_stroke = True
 
     def grid(self, ch):
         return list(np.arange(0.25e-3, 25.01e-3, 0.5e-3))

@@ -325,7 +325,7 @@ def _add_drift_nuisance(ch: Channel) -> None:
     or axis, and on the motor side the gauges' constant offset as well (the cable side has its own)."""
     ch.nuisance = time_columns(ch)
     if isinstance(ch, MotorChannel):
-        ch.nuisance = np.hstack([ch.nuisance, ch.per_column(np.ones((ch.n_samples, ch.m)))])
+        ch.nuisance = np.hstack([ch.nuisance, ch.constants()])
 
 
 def _remove_gauge_offsets(chans: dict[str, Channel], label: str, warnings: list[str]) -> None:

@@ -126,6 +126,15 @@ def resting(pos: np.ndarray, samples: int) -> np.ndarray:
     return out
 
 
+def reversals(vel: np.ndarray) -> np.ndarray:
+    """Per sample and motor: the velocity's sign differs from the sample before (samples x motors). Around a
+    reversal the friction turns over (a motor that sticks breaks away there), whatever law describes it."""
+    sign = np.sign(vel)
+    out = np.zeros(vel.shape, dtype=bool)
+    out[1:] = sign[1:] != sign[:-1]
+    return out
+
+
 def stuck(resting_: np.ndarray, net: np.ndarray, holding: float | np.ndarray) -> np.ndarray:
     """Per sample and motor: a rest (a run of ``resting_``, every count in it kept for a while: the motor
     moves at most at a creep speed) whose filtered net torque (``net``, N m: input minus cable torque) no
@@ -253,6 +262,8 @@ class MotorChannel(_StackedChannel):
         self.short_rests = resting(self.pos, max(3, int(round(STUCK_REST_S / self.dt))))
         #: per stacked row: no rest of its motor (count unchanged STUCK_REST_S) within the filter's reach
         self.moving_rows = self._far_from(self.short_rests)
+        #: per stacked row: no motor rests or reverses within the filter's reach (see :func:`reversals`)
+        self.sliding_rows = self._far_from(self.short_rests | reversals(sm.smooth(self.pos, 1, weigh=False)))
         self._acc = sm.fast_derivative(self.pos, 2)
         self.v_eps = v_eps
         self.set_smoothing_velocity(v_eps)
@@ -286,6 +297,14 @@ class MotorChannel(_StackedChannel):
         near = np.column_stack([np.convolve(mask[:, i].astype(float), kernel, mode="same") > 0.5
                                 for i in range(mask.shape[1])])
         return ~near[self.rows].T.ravel()
+
+    def constants(self) -> np.ndarray:
+        """A constant per motor (one column each, :meth:`per_column`), weighed before L like every other
+        signal: a load on a stuck motor is held by its static friction like the rest of its torque, so the
+        stuck samples read 0 = 0 for it too. Unweighed, the column asked for the load where the left side
+        is weighed out, and the load came out biased toward zero (generator D seeds 128, 132, 138: the
+        remainder read as friction asymmetry and an ``unknown`` offset)."""
+        return self.per_column(self.sm.smooth(np.ones((self.n_samples, self.m))))
 
     def remove_gauge_offset(self, offset: np.ndarray) -> None:
         """Correct the cable torque for strain-gauge zero offsets (N m per ankle axis [DP, IE])."""
