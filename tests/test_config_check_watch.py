@@ -81,7 +81,11 @@ def test_watch_follows_a_running_daemon_and_ends_cleanly(daemon, capsys):  # noq
     assert closed.wait(timeout=120) == EXIT_BROKEN_PIPE
     assert b"Traceback" not in closed.stderr.read()
 
-    interrupted = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # SIGINT at its default in the child: a suite started in the background by a non-interactive shell
+    # inherits it ignored (bash's rule for `cmd &`), and Python then installs no KeyboardInterrupt
+    default_sigint = lambda: signal.signal(signal.SIGINT, signal.SIG_DFL)  # noqa: E731
+    interrupted = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                   preexec_fn=default_sigint)
     assert interrupted.stdout.readline().startswith("ankle-rt ctl watch")   # it is drawing
     interrupted.send_signal(signal.SIGINT)
     out, err = interrupted.communicate(timeout=120)
