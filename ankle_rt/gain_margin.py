@@ -51,9 +51,12 @@ def noise_refusal(cfg: Mapping[str, Any], gains: Mapping[str, float]) -> tuple[s
     """(gain name, reason) when the joint-torque loop with ``gains`` turns the strain gauges' noise into more
     set-value RMS than MAX_NOISE_SHARE x ``safety.oscillation_rms_a`` (:func:`ankle_rt.analysis.gain_set_noise_a`,
     the larger motor, foot free); None when it does not."""
+    import numpy as np
+
     from ankle_rt.analysis import gain_set_noise_a
 
-    noise, name = gain_set_noise_a(cfg, gains)
+    with np.errstate(all="ignore"):      # an unstable loop's sum overflows to nan: handled below, as the margin's
+        noise, name = gain_set_noise_a(cfg, gains)
     most = MAX_NOISE_SHARE * cfg["safety"]["oscillation_rms_a"]
     if noise <= most or not math.isfinite(noise):   # an unstable loop has no noise figure: the margin checks name it
         return None
