@@ -31,6 +31,7 @@ from ankle_rt.config_schema import (IMPEDANCE_GAINS, LOOP_GAINS, SHIPPED_GAINS, 
                                     torque_loop_cutoffs)
 from ankle_rt.linear_model import N_X, LinearModel
 from ankle_rt.lag import Lag
+from ankle_rt.joint_blend import blended_angle, crossover_alpha, law_crossover_hz
 from ankle_rt.lead import law_damping, loop_lag
 from ankle_rt.notch import IDENTITY_SECTION, Notch
 from ankle_rt.params import PlantParams
@@ -348,6 +349,7 @@ class ImpedanceLoop:
     dob_hz: float = 0.0                     # disturbance observer's low-pass (0: no observer)
     dob_inertia: tuple[float, float] = (0.0, 0.0)   # kg m^2, the observer's nominal (ankle-side) inertia
     joint_encoders: bool = False            # the impedance law's angle: joint encoders (else through the cables)
+    joint_crossover_hz: float = 0.0         # ... below this, the estimate through the cables above (0: joint alone)
     velocity_cutoff_hz: float = 100.0       # estimation.velocity_cutoff_hz
     ff_viscous: float = 0.0                 # N m s/rad per motor: the friction feed-forward's viscous slope
     # per axis [DP, IE], discrete second-order sections (b0, b1, b2, a1, a2) in cascade on the loop's
@@ -358,6 +360,9 @@ class ImpedanceLoop:
     rate_damping: tuple[float, float] = (0.0, 0.0)      # N m s/rad on the high-passed ankle-side motor rate
     # N m/rad [DP, IE]: the configured cable at the ankle the law's damping is scaled for (ankle_rt.lead; inf: none)
     law_cable: tuple[float, float] = (math.inf, math.inf)
+    # N m/rad [DP, IE]: the configured cable at the ankle the angle estimate divides the measured torque by
+    # (ankle_rt.estimation.Estimator: the configured kinematics, not the plant's); None: the plant's own
+    estimate_cable: tuple[float, float] | None = None
     rate_damping_hz: tuple[float, float] = (20.0, 20.0)  # Hz, its high-pass's corner
     dt: float = 1e-3
     delay_cycles: int = 1
@@ -383,6 +388,7 @@ class ImpedanceLoop:
                    cutoff_hz=tl["cutoff_hz"], axis_cutoff_hz=(tl.get("cutoff_hz_dp"), tl.get("cutoff_hz_ie")),
                    dob_hz=float(tl["dob_hz"]) if closed else 0.0,
                    dob_inertia=(frac[0] * inertia[0], frac[1] * inertia[1]), joint_encoders=uses_joint_encoders(cfg),
+                   joint_crossover_hz=law_crossover_hz(imp["joint_crossover_hz"], closed),
                    velocity_cutoff_hz=cfg["estimation"]["velocity_cutoff_hz"],
                    ff_viscous=0.0 if closed else ff_viscous,
                    shaping=tuple(tuple(s for s in axis if s != IDENTITY_SECTION) for axis in
@@ -391,6 +397,7 @@ class ImpedanceLoop:
                                        Notch.all_from_config(tl, cfg["transmission"]["cable_stiffness"]))))
                    if closed else ((), ()),
                    rate_damping=pair(tl, "motor_rate_damping"), law_cable=law_cable(cfg) if closed else (math.inf, math.inf),
+                   estimate_cable=law_cable(cfg),
                    rate_damping_hz=pair(tl, "motor_rate_damping_hz") if closed else (20.0, 20.0),
                    dt=dt, delay_cycles=delay_cycles)
 
@@ -456,7 +463,8 @@ class MotorPDLoop:
 
 
 def law_cable(cfg: Mapping[str, Any]) -> tuple[float, float]:
-    """N m/rad [DP, IE]: the configured cable's stiffness at the ankle, what the law's damping is scaled for."""
+    """N m/rad [DP, IE]: the configured cable's stiffness at the ankle, what the law's damping is scaled for and
+    the angle estimate through the cables divides the measured torque by."""
     from ankle_rt.kinematics import Kinematics
     from ankle_rt.params import TransmissionParams
 
@@ -492,7 +500,8 @@ def _plant(p: PlantParams, *, foot: str, load_slope: float,
     return A, Bm, C
 
 
-N_W = 14     # controller states of the model: theta_m prev, v, tau filter, integrator, observer, u, rate low-pass
+N_W = 16     # controller states of the model: theta_m prev, v, tau filter, integrator, observer, u, rate low-pass,
+             # the joint encoders' low-passed lead over the estimate
 
 
 def _sections(shaping: tuple[tuple[tuple[float, ...], ...], ...]) -> list[tuple[tuple[float, ...], ...]]:
@@ -503,9 +512,10 @@ def _sections(shaping: tuple[tuple[tuple[float, ...], ...], ...]) -> list[tuple[
 
 
 def _controller(lm_kin, K_cable: np.ndarray, c: ImpedanceLoop) -> tuple[np.ndarray, np.ndarray]:
-    """(W, U) over [w_{k-1} (14 + 4 per shaping stage); y_k (6); r (2)]: the controller states w =
+    """(W, U) over [w_{k-1} (16 + 4 per shaping stage); y_k (6); r (2)]: the controller states w =
     [theta_m prev (2), v (2), tau filter (2), integrator (2), observer low-pass (2), ankle-side output u
-    (2), the motor rates' low-pass (2), then per shaping stage its two direct-form-II-transposed states
+    (2), the motor rates' low-pass (2), the joint encoders' low-passed lead over the estimate (2), then per
+    shaping stage its two direct-form-II-transposed states
     (2 + 2)] are w_k = W @ [...],
     the motor torques U @ [...]; y = [theta_m, tau_j, theta] measured (theta: joint encoders), r a
     desired joint torque added to the impedance law's (reference 0). The observer (dob_hz > 0):
@@ -513,7 +523,7 @@ def _controller(lm_kin, K_cable: np.ndarray, c: ImpedanceLoop) -> tuple[np.ndarr
     stages = _sections(c.shaping)
     nw = N_W + 4 * len(stages)
     e = np.eye(nw + 8)
-    th_prev, v_prev, f_prev, i_prev, d_prev, u_prev, r_prev = (e[2 * j:2 * j + 2] for j in range(7))
+    th_prev, v_prev, f_prev, i_prev, d_prev, u_prev, r_prev, j_prev = (e[2 * j:2 * j + 2] for j in range(8))
     th, tau, joint, r = e[nw:nw + 2], e[nw + 2:nw + 4], e[nw + 4:nw + 6], e[nw + 6:nw + 8]
     a_v = 1.0 - math.exp(-2.0 * math.pi * c.velocity_cutoff_hz * c.dt)
     a_f = np.diag([1.0 - math.exp(-2.0 * math.pi * f * c.dt) for f in
@@ -522,7 +532,14 @@ def _controller(lm_kin, K_cable: np.ndarray, c: ImpedanceLoop) -> tuple[np.ndarr
     v = (1.0 - a_v) * v_prev + (a_v / c.dt) * (th - th_prev)
     f = f_prev - a_f @ f_prev + a_f @ tau
     Ri = lm_kin.R_inv
-    ankle = joint if c.joint_encoders else Ri @ th - np.linalg.inv(K_cable) @ tau
+    # the estimate through the cables divides by the configured cable, whatever the plant's (a slack or stiff one)
+    K_est = K_cable if c.estimate_cable is None else np.diag(c.estimate_cable)
+    estimate = Ri @ th - np.linalg.inv(K_est) @ tau
+    # the joint encoders below the crossover (ankle_rt.joint_blend)
+    if c.joint_encoders:
+        ankle, lead = blended_angle(estimate, joint, j_prev, crossover_alpha(c.joint_crossover_hz, c.dt))
+    else:    # no lead state (held at zero, not a marginal mode at z = 1)
+        ankle, lead = estimate, 0.0 * j_prev
     rate = Ri @ v
     # the law's damping on the loop's lag (JointTorqueLoop.lag_s) and the configured cable (ankle_rt.lead)
     damping = [law_damping(c.stiffness[a], c.damping[a], loop_lag(c.kp[a], c.torque_rate_gain[a], a_f[a, a], c.dt),
@@ -551,7 +568,7 @@ def _controller(lm_kin, K_cable: np.ndarray, c: ImpedanceLoop) -> tuple[np.ndarr
         u_ankle = u_ankle + d
     else:
         d = 0.0 * d_prev
-    return np.vstack([th, v, f, integ, d, u_ankle, low, *shaped]), lm_kin.R_inv_T @ u_ankle + c.ff_viscous * v
+    return np.vstack([th, v, f, integ, d, u_ankle, low, lead, *shaped]), lm_kin.R_inv_T @ u_ankle + c.ff_viscous * v
 
 
 def closed_loop(p: PlantParams, c: ImpedanceLoop, *, foot: str = "free", load_slope: float = 0.0,

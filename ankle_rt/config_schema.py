@@ -167,6 +167,11 @@ IMPEDANCE = Section({
                                "cable slack), auto = joint encoders when configured (simulator, or "
                                "joint_encoders.counts_per_rev)", default="auto",
                           choices=("auto", "joint_encoders", "estimated")),
+    "joint_crossover_hz": non_negative("Hz: under the joint-torque loop with joint encoders in the law, their angle "
+                                       "below this and the estimate through the cables above it (no hunting on a "
+                                       "slack cable, but not passive on a cable 30 % softer than configured: "
+                                       "ankle_rt.joint_blend, docs/daemon.md); 0 = the joint encoders alone",
+                                       default=0.0, high=50.0),
 }, optional=True)
 
 GAIN_LIMITS = Section({

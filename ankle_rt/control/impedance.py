@@ -26,6 +26,7 @@ from ankle_rt.control.torque_loop import ImpedanceLimits, JointTorqueLoop, Torqu
 from ankle_rt.config_schema import IMPEDANCE_GAINS, LOOP_GAINS
 from ankle_rt.elementwise import Value, any_true, minimum, select
 from ankle_rt.estimation import Estimate
+from ankle_rt.joint_blend import blended_angle, crossover_alpha, law_crossover_hz
 from ankle_rt.kinematics import Kinematics
 from ankle_rt.lead import law_damping
 from ankle_rt.loop_setup import ReflectedActuator, torque_feedback, uses_joint_encoders
@@ -41,10 +42,11 @@ class ImpedanceController(RampedGainController):
     def __init__(self, kin: Kinematics, ref: np.ndarray, gains: Mapping[str, float], *, dt: float,
                  ramp_s: float = 0.0, soft_start_s: float = 0.0, friction: FrictionFeedForward | None = None,
                  torque_loop: JointTorqueLoop | None = None, limits: ImpedanceLimits | None = None,
-                 joint_encoders: bool = False, margin_cfg: Mapping | None = None):
+                 joint_encoders: bool = False, joint_crossover_hz: float = 0.0, margin_cfg: Mapping | None = None):
         """``gains``: stiffness_dp/ie (N m/rad), damping_dp/ie (N m s/rad). ``ref``: rad [DP, IE].
         ``torque_loop``: closes the joint-torque loop on the strain gauges; None: open loop.
-        ``joint_encoders``: the stiffness acts on the joint encoders' angles (else the estimated ones).
+        ``joint_encoders``: the stiffness acts on the joint encoders' angles (else the estimated ones), below
+        ``joint_crossover_hz`` (above it on the estimate: :mod:`ankle_rt.joint_blend`; 0: at every frequency).
         ``limits``: gains outside them are refused (GainError), here and in :meth:`set_gains`.
         ``margin_cfg``: the config whose plant and torque-loop gains every gain set (and every point of
         a ramp) must keep the required gain margin with (:func:`gain_set_refusal`); None: not checked."""
@@ -58,6 +60,8 @@ class ImpedanceController(RampedGainController):
         self.ref = ref
         self.torque_loop = torque_loop
         self.joint_encoders = joint_encoders
+        self.joint_alpha = crossover_alpha(law_crossover_hz(joint_crossover_hz, torque_loop is not None), dt)
+        self.jl0 = self.jl1 = 0.0      # rad [DP, IE]: the joint encoders' low-passed lead over the estimate
         self.lead0, self.lead1 = torque_loop.lag_s if torque_loop is not None else (0.0, 0.0)
         # the cable at the ankle the law's damping is scaled for (ankle_rt.lead); open loop: none
         self.cable0, self.cable1 = ((float(kin.K[0, 0]), float(kin.K[1, 1])) if torque_loop is not None
@@ -80,7 +84,7 @@ class ImpedanceController(RampedGainController):
         try:
             return cls(kin, ref, c["impedance"], dt=1.0 / c["rate_hz"], ramp_s=c["gain_ramp_s"],
                        soft_start_s=c["soft_start_s"], friction=friction, torque_loop=loop, limits=limits,
-                       joint_encoders=joint, margin_cfg=cfg)
+                       joint_encoders=joint, joint_crossover_hz=c["impedance"]["joint_crossover_hz"], margin_cfg=cfg)
         except GainError as exc:
             section = "torque_loop" if exc.gain in c["torque_loop"] else "impedance"
             raise ConfigError(str(exc), getattr(cfg, "source", None), f"controller.{section}.{exc.gain}") from None
@@ -92,6 +96,9 @@ class ImpedanceController(RampedGainController):
 
     def start(self, est: Estimate, where: bool | np.ndarray = True) -> None:
         super().start(est, where)
+        # the law starts on the joint encoders' angle (what angles() gave the hold)
+        self.jl0 = select(where, est.joint_dp - est.dp, self.jl0)
+        self.jl1 = select(where, est.joint_ie - est.ie, self.jl1)
         if self.torque_loop is not None:
             self.torque_loop.reset_state(est.sg_dp, est.sg_ie, est.dp_vel, est.ie_vel, where)
 
@@ -105,14 +112,25 @@ class ImpedanceController(RampedGainController):
         if ramping and loop is not None:      # the loop's gains ramp too, and the lead on its lag with them
             loop.set_gains(v[4], v[5], v[6], v[7], v[8], v[9])
             self.lead0, self.lead1 = loop.lag_s
-        a0, a1 = self.angles(est)
+        a0, a1 = self.law_angles(est)
         return self.actuate(est, k0 * (ref_dp - a0) - b0 * est.dp_vel, k1 * (ref_ie - a1) - b1 * est.ie_vel,
                             k0, k1, b0, b1)
 
     def angles(self, est: Estimate) -> tuple[Value, Value]:
-        """The joint encoders' angles when ``joint_encoders`` (angle_source), else the estimate."""
+        """The joint encoders' angles when ``joint_encoders`` (angle_source), else the estimate: where the
+        law holds the ankle at rest (its fast part, above the crossover, on the estimate: :meth:`law_angles`)."""
         joint = self.joint_encoders
         return select(joint, est.joint_dp, est.dp), select(joint, est.joint_ie, est.ie)
+
+    def law_angles(self, est: Estimate) -> tuple[Value, Value]:
+        """The law's angles this cycle (advances the crossover's state): with ``joint_encoders``, theirs below
+        the crossover and the estimate above (:func:`ankle_rt.joint_blend.blended_angle`), else the estimate."""
+        joint = self.joint_encoders
+        if joint is False:
+            return est.dp, est.ie
+        a0, self.jl0 = blended_angle(est.dp, est.joint_dp, self.jl0, self.joint_alpha)
+        a1, self.jl1 = blended_angle(est.ie, est.joint_ie, self.jl1, self.joint_alpha)
+        return select(joint, a0, est.dp), select(joint, a1, est.ie)
 
     def actuate(self, est: Estimate, t0: Value, t1: Value, k0: Value, k1: Value, b0: Value, b1: Value
                 ) -> tuple[Value, Value]:
