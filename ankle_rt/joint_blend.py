@@ -39,5 +39,6 @@ def crossover_alpha(crossover_hz: float, dt: float) -> float:
 def blended_angle(estimate: V, joint: V, lead: V, alpha: float) -> tuple[V, V]:
     """(angle, lead) rad: the law's angle from the ``estimate`` through the cables and the ``joint``
     encoders' angle, and the new ``lead`` (the low-passed joint-minus-estimate, the state kept per cycle)."""
-    lead = lead + alpha * (joint - estimate - lead)
-    return estimate + lead, lead
+    # lead + alpha (joint - estimate - lead), written so that alpha 1 gives the joint encoders' angle exactly
+    angle = joint - (1.0 - alpha) * (joint - estimate - lead)
+    return angle, angle - estimate
