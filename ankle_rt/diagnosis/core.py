@@ -33,7 +33,7 @@ from ankle_rt.diagnosis.resample import repair_stale_rows, to_uniform_grid
 from ankle_rt.diagnosis.screening import Screening, screen, strain_gauge_drift, strain_gauge_offset
 from ankle_rt.diagnosis.selection import (IC_THRESHOLD, LARGE_REDUCTION, MIN_REDUCTION, MIN_SIZE, MIN_SIZE_UNKNOWN,
                                           MIN_UNKNOWN_REDUCTION, AMBIGUOUS_IC, ChannelModels, ChannelResult, Score,
-                                          replicates, select_channel, share_beside_remainder, significant)
+                                          replicates, select_channel, significant)
 from ankle_rt.diagnosis.signals import CableChannel, Geometry, LoadChannel, MotorChannel, require_length
 from ankle_rt.interchange import InterchangeError, Recording
 
@@ -354,8 +354,6 @@ def _named_sets(results: list[ChannelResult], notes: list[str], unusable: bool, 
         specs = [(ts.term.candidate, ts.term.nl) for ts in res.terms]
         if res.unexplained:
             explained = res.named_share / max(res.catch_all_total, 1e-12)
-            if specs and explained < MIN_EXPLAINED:
-                explained = max(explained, share_beside_remainder(res, catch_alls[res.name]))
             if specs and explained < MIN_EXPLAINED:
                 notes.append(f"{res.name} channel: {', '.join(c.cause for c, _ in specs)} explain only "
                              f"{100 * explained:.0f} % of what the catch-all removes: not named")

@@ -566,24 +566,6 @@ def _catch_all_on_top(out: ChannelResult, models: ChannelModels, chosen: list[Te
         out.correlates = sorted(shares, key=lambda p: -p[1])
 
 
-def share_beside_remainder(res: ChannelResult, catch_all) -> float:
-    """The named set's share of what the catch-all removes, measured with the remainder's own shapes
-    (the catch-all group that explains most of it alone) in the baseline of both. A named effect that is
-    a partial proxy for something outside the vocabulary loses its share to those shapes; one beside a
-    separate, unnamed mechanism keeps it (generator D seed 106: a 5 ms delay beside friction rippling
-    with the motor angle explained 33 % of the catch-all's gain, the ripple's own shapes the rest)."""
-    if not res.correlates or res.model is None:
-        return 0.0
-    C, groups = catch_all(res.channel)
-    G = C[:, [j for j, g in enumerate(groups) if g == res.correlates[0][0]]]
-    models = res.models
-    y, X = models.system([ts.term for ts in res.terms])
-    base = rss_only(models.y0, np.hstack([models.Xb, G]))
-    total = base - rss_only(models.y0, np.hstack([models.Xb, C]))
-    named = base - rss_only(y, np.hstack([X, G]))
-    return named / max(total, 1e-300)
-
-
 def replicates(vmodels: ChannelModels, specs: list[tuple[Candidate, float]], catch_all) -> tuple[bool, float, float]:
     """(whether, criterion gain, residual share): does the catch-all find a remainder beyond the named
     ``specs`` on the held-out (validation) data too, each refitted there? A remainder left beside named
