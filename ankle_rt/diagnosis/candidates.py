@@ -13,6 +13,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+from ankle_rt.diagnosis.regression import fit
 from ankle_rt.diagnosis.signals import RELAXATION_S, CableChannel, MotorChannel, lagged
 
 Channel = MotorChannel | CableChannel
@@ -245,37 +246,7 @@ class Cogging(Candidate):
         """Integer counts worth a regression: the angle-domain spectrum's strongest peaks (see the class
         docstring) with their neighbours, and the config's prior when it gives one."""
         n_min, n_max = self.count_range(ch)
-        full = np.zeros((ch.n_samples, ch.m))
-        full[ch.rows] = residual.reshape(ch.m, -1).T
-        back = ch.sm.smooth(full)                                # adjoint of "filter, keep rows"
-        turn = np.mod(ch.pos, 2.0 * np.pi) / (2.0 * np.pi)      # fraction of a revolution, 0..1
-        speed = np.abs(ch.vel)
-        moving = ~ch.resting
-        # speed bands, within which the taper of a count's ripple is nearly one number
-        edges = np.unique(np.quantile(speed, np.linspace(0.0, 1.0, SPEED_BANDS + 1)))
-        band = np.clip(np.searchsorted(edges, speed, side="right") - 1, 0, len(edges) - 2)
-        counts = np.arange(n_max + 1, dtype=float)
-        power = np.zeros(n_max + 1)
-        for i in range(ch.m):
-            spectrum = np.zeros(n_max + 1, dtype=complex)
-            variance = np.zeros(n_max + 1)
-            for b in range(len(edges) - 1):
-                sel = band[:, i] == b
-                if not sel.any():
-                    continue
-                v_b = float(np.sqrt(max(edges[b], 1e-12) * max(edges[b + 1], 1e-12)))
-                w = self.taper(ch, counts * v_b)
-                r = back[sel, i] * moving[sel, i]
-                # the taper is zero beyond n_b: this band's grid need only resolve counts up to n_b
-                # (a fast band's transform is short; only the slowest bands need the full grid)
-                if not w.any():
-                    continue
-                n_b = int(np.flatnonzero(w)[-1])
-                bins = 1 << int(math.ceil(math.log2(8 * max(n_b, 1))))
-                idx = np.minimum((turn[sel, i] * bins).astype(np.int64), bins - 1)
-                spectrum[: n_b + 1] += w[: n_b + 1] * np.fft.rfft(np.bincount(idx, weights=r, minlength=bins))[: n_b + 1]
-                variance += 0.5 * w ** 2 * float(r @ r)
-            power += np.abs(spectrum) ** 2 / np.maximum(variance, 1e-300)
+        power = self.angle_power(ch, residual, n_max, ~ch.resting)
         power[:n_min] = 0.0
         peaks = np.flatnonzero((power[1:-1] > power[:-2]) & (power[1:-1] >= power[2:])) + 1
         screened = peaks[np.argsort(power[peaks])[::-1][:COGGING_SCREENED]]
@@ -290,6 +261,43 @@ class Cogging(Candidate):
         if ch.cogging_prior:
             picks.add(int(round(ch.cogging_prior)))
         return [float(n) for n in sorted(picks)]
+
+    @classmethod
+    def angle_power(cls, ch, residual: np.ndarray, n_max: int, weight: np.ndarray) -> np.ndarray:
+        """Per integer count 0..n_max: the power of the stacked ``residual``'s projection on the tapered
+        ``weight x sin / cos(n theta)`` of each motor (``weight``: samples x motors), normalised by its
+        variance were the residual noise, the motors' powers added (see the class docstring)."""
+        full = np.zeros((ch.n_samples, ch.m))
+        full[ch.rows] = residual.reshape(ch.m, -1).T
+        back = ch.sm.smooth(full)                                # adjoint of "filter, keep rows"
+        turn = np.mod(ch.pos, 2.0 * np.pi) / (2.0 * np.pi)      # fraction of a revolution, 0..1
+        speed = np.abs(ch.vel)
+        # speed bands, within which the taper of a count's ripple is nearly one number
+        edges = np.unique(np.quantile(speed, np.linspace(0.0, 1.0, SPEED_BANDS + 1)))
+        band = np.clip(np.searchsorted(edges, speed, side="right") - 1, 0, len(edges) - 2)
+        counts = np.arange(n_max + 1, dtype=float)
+        power = np.zeros(n_max + 1)
+        for i in range(ch.m):
+            spectrum = np.zeros(n_max + 1, dtype=complex)
+            variance = np.zeros(n_max + 1)
+            for b in range(len(edges) - 1):
+                sel = band[:, i] == b
+                if not sel.any():
+                    continue
+                v_b = float(np.sqrt(max(edges[b], 1e-12) * max(edges[b + 1], 1e-12)))
+                w = cls.taper(ch, counts * v_b)
+                r = back[sel, i] * weight[sel, i]
+                # the taper is zero beyond n_b: this band's grid need only resolve counts up to n_b
+                # (a fast band's transform is short; only the slowest bands need the full grid)
+                if not w.any():
+                    continue
+                n_b = int(np.flatnonzero(w)[-1])
+                bins = 1 << int(math.ceil(math.log2(8 * max(n_b, 1))))
+                idx = np.minimum((turn[sel, i] * bins).astype(np.int64), bins - 1)
+                spectrum[: n_b + 1] += w[: n_b + 1] * np.fft.rfft(np.bincount(idx, weights=r, minlength=bins))[: n_b + 1]
+                variance += 0.5 * w ** 2 * float(r @ r)
+            power += np.abs(spectrum) ** 2 / np.maximum(variance, 1e-300)
+        return power
 
     @staticmethod
     def taper(ch, angular_rate: np.ndarray) -> np.ndarray:
@@ -708,6 +716,30 @@ def time_columns(ch: Channel) -> np.ndarray:
     return np.hstack([ch.per_column(ch.sm.smooth(u)) for u in _time_shapes(ch)])
 
 
+#: the motor catch-all's friction rippling with the motor angle (:func:`periodic_friction`)
+PERIODIC_FRICTION_GROUP = "position (periodic friction)"
+
+
+def periodic_friction(ch: MotorChannel) -> np.ndarray:
+    """Friction rippling along the travel (an eccentric pulley, a sheath or bearing that drags more at
+    some angles): ``sign(w_i) (a_i sin(n theta_i) + b_i cos(n theta_i))`` per motor, its sign following
+    the motion, so not cogging. The count is the peak of the direction-weighted angle spectrum of the
+    baseline residual over cogging's counts (:meth:`Cogging.angle_power`); two columns per motor at one
+    count. Without them such a ripple (20-60 periods per output turn, generator D) was `none`: the
+    catch-all's slow position shapes span only 1-3 periods of the travel."""
+    cogging = Cogging()
+    if not cogging.applies(ch):
+        return np.zeros((ch.n_rows * ch.m, 0))
+    n_min, n_max = cogging.count_range(ch)
+    moving = ~ch.resting
+    residual = fit(ch.target(), ch.baseline_design()).residual
+    power = Cogging.angle_power(ch, residual, n_max, moving * ch.sign)
+    n = n_min + int(np.argmax(power[n_min:]))
+    w = Cogging.taper(ch, n * ch.vel) * moving * ch.sign
+    filtered = ch.sm.smooth(np.hstack([w * np.sin(n * ch.pos), w * np.cos(n * ch.pos)]))
+    return np.hstack([ch.per_column(filtered[:, :ch.m]), ch.per_column(filtered[:, ch.m:])])
+
+
 def catch_all_motor(ch: MotorChannel) -> tuple[np.ndarray, list[str]]:
     """Generic columns for the motor channel and what each correlates with: a torque FIR (latency,
     dynamics), torque-constant nonlinearity, velocity and cable-torque shapes, slow position dependence
@@ -741,7 +773,9 @@ def catch_all_motor(ch: MotorChannel) -> tuple[np.ndarray, list[str]]:
     raw.append((np.ones_like(ch.pos), "offset"))
     cols += [ch.filt(r) for r, _ in raw]
     groups += [g for _, g in raw]
-    return np.column_stack(cols), groups
+    ripple = periodic_friction(ch)
+    groups += [PERIODIC_FRICTION_GROUP] * ripple.shape[1]
+    return np.column_stack(cols + [ripple]), groups
 
 
 def without_groups(catch_all, dropped: set[str]):
