@@ -29,7 +29,31 @@ def uses_joint_encoders(cfg: Mapping[str, Any]) -> bool:
     mode = cfg["controller"]["impedance"]["angle_source"]
     if mode != "auto":
         return mode == "joint_encoders"
+    return has_joint_encoders(cfg)
+
+
+def has_joint_encoders(cfg: Mapping[str, Any]) -> bool:
+    """Whether the device reads its ankle angles: the simulator always does (the true joint angle), hardware
+    with ``joint_encoders.counts_per_rev``."""
     return cfg["backend"] == "sim" or cfg["joint_encoders"]["counts_per_rev"] is not None
+
+
+SIM_JOINT_COUNTS_PER_REV = 2 ** 19   # the simulator's joint encoders unless configured: the bench's (19 bit, 12 urad)
+
+
+def joint_encoder_counts(cfg: Mapping[str, Any]) -> int | None:
+    """Counts per revolution of the joint encoders: ``joint_encoders.counts_per_rev``, on the simulator
+    without it the bench's 19 bit; None: the device has none."""
+    counts = cfg["joint_encoders"]["counts_per_rev"]
+    if counts is None and cfg["backend"] == "sim":
+        return SIM_JOINT_COUNTS_PER_REV
+    return counts
+
+
+def rate_from_encoders(cfg: Mapping[str, Any]) -> bool:
+    """Whether the joint-torque loop's rate terms differentiate the cables' stretch torque (motor and joint
+    encoders, ``controller.torque_loop.torque_rate_source: encoders``) rather than the strain gauges'."""
+    return cfg["controller"]["torque_loop"]["torque_rate_source"] == "encoders"
 
 
 @dataclass(frozen=True)

@@ -185,6 +185,7 @@ class BatchPlant:
         self.amps = [stack([p.amps[k] for p in plants]) for k in range(2)]   # numbers only
         self.kt = np.array([p.kt for p in plants])
         self.counts_per_rad = np.array([p.counts_per_rad for p in plants])
+        self.joint_counts_per_rad = np.array([p.joint_counts_per_rad for p in plants])
         self.quantize = np.array([p.quantize for p in plants])
         self.noise_rms = np.array([p.noise_rms for p in plants])
         self.sg_offset = np.array([p.sg_offset for p in plants]).T.copy()       # (2, plants)
@@ -225,9 +226,18 @@ class BatchPlant:
     def motor_positions(self) -> tuple[np.ndarray, np.ndarray]:
         """rad: what the encoders report (floor-quantised where configured)."""
         x, c = self.model.x, self.counts_per_rad
+        return self._quantized(x[2], c), self._quantized(x[3], c)
+
+    def ankle_positions(self) -> tuple[np.ndarray, np.ndarray]:
+        """rad [DP, IE]: the joint encoders' angles (the true ones, floor-quantised where configured)."""
+        x, c = self.model.x, self.joint_counts_per_rad
+        return self._quantized(x[0], c), self._quantized(x[1], c)
+
+    def _quantized(self, angle: np.ndarray, counts_per_rad: np.ndarray) -> np.ndarray:
+        """rad per plant: ``angle`` floored to its count where the plant quantises."""
         if self.quantize.all():
-            return np.floor(x[2] * c) / c, np.floor(x[3] * c) / c
-        return np.where(self.quantize, np.floor(x[2] * c) / c, x[2]), np.where(self.quantize, np.floor(x[3] * c) / c, x[3])
+            return np.floor(angle * counts_per_rad) / counts_per_rad
+        return np.where(self.quantize, np.floor(angle * counts_per_rad) / counts_per_rad, angle)
 
     def strain_gauge_torques(self, joint=None) -> tuple[np.ndarray, np.ndarray]:
         """N m [DP, IE]: joint torque (``joint``, if the caller has it already) plus each plant's

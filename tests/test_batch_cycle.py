@@ -150,7 +150,9 @@ def test_batched_cycle_with_effects_matches_the_daemon(sim_cfg):
                                {"type": "delay", "delay": delay},
                                {"type": "backlash", "half_width": half_width}]
         cfgs.append(c)
-    assert _compare(cfgs) == [0, 0]
+    # the dead zones magnify the last-bit differences between libm on floats and numpy on arrays, and the joint
+    # encoders' counts (12 urad) turn one now and then into a count's difference (~4e-6 of span)
+    assert _compare(cfgs, tolerance=1e-5) == [0, 0]
 
 
 @pytest.mark.parametrize("controller", ["pd", "impedance"])

@@ -48,7 +48,7 @@ class BatchTrace:
     """What a batch run recorded, per tick and plant (float32 where it is only for metrics)."""
 
     t: np.ndarray            # s (ticks,)
-    ankle: np.ndarray        # rad (ticks, 2, plants), true joint angles [DP, IE] (float32 unless asked)
+    ankle: np.ndarray        # rad (ticks, 2, plants), the joint encoders' angles [DP, IE] (float32 unless asked)
     reference: np.ndarray    # rad (ticks, 2, plants)
     current: np.ndarray      # A (ticks, 2, plants), the limited set values
     fault: np.ndarray        # Fault code per plant (0: none)
@@ -161,7 +161,6 @@ class BatchRun:
         ref_tables = self.ref_tables
         shared_ref = ref_tables.shape[2] == 1
         waiting = True       # some plant still waits for its activation
-        x = plant.model.x
         for k in range(T):
             if k:
                 plant.step(set1, set2)
@@ -169,7 +168,8 @@ class BatchRun:
             p1, p2 = plant.motor_positions()
             joint = plant.model.joint_torque()
             s0, s1 = plant.strain_gauge_torques(joint)
-            estimator.estimate(t, p1, p2, s0, s1, x[0], x[1], est)     # joint encoders: the true angles
+            j0, j1 = plant.ankle_positions()
+            estimator.estimate(t, p1, p2, s0, s1, j0, j1, est)
             # -- reference (a configured hold is ramped to from the ankle at activation)
             if shared_ref:                      # one profile for all: plain floats, broadcast
                 r0, r1 = float(ref_tables[k, 0, 0]), float(ref_tables[k, 1, 0])
@@ -211,7 +211,7 @@ class BatchRun:
             ok = safety.state == ACTIVE
             set1 = np.where(ok, safety.current[0], 0.0)
             set2 = np.where(ok, safety.current[1], 0.0)
-            trace.ankle[k] = x[0:2]
+            trace.ankle[k, 0], trace.ankle[k, 1] = j0, j1
             trace.reference[k, 0], trace.reference[k, 1] = r0, r1
             trace.current[k, 0], trace.current[k, 1] = set1, set2
             c = np.abs(plant.cable_torques(joint))

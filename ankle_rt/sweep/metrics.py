@@ -1,7 +1,8 @@
 """The metrics of one run, from a batch trace: faults, tracking, step response, currents, impedance, cables.
 
 Angles in degrees, times in seconds, currents in amperes (names say so). Tracking is measured from
-the activation on (before it the amplifiers are off by design), on the true joint angles.
+the activation on (before it the amplifiers are off by design), on the joint encoders' angles (the true
+ones to 12 urad).
 
 - ``stable``: no fault, and the tracking error RMS over the last 20 % of the run stays below
   ``criteria.max_final_rms_deg`` (default 2 deg): an oscillation that grows or persists fails it.
