@@ -344,6 +344,10 @@ class ImpedanceLoop:
     kp: tuple[float, float] = (0.0, 0.0)    # torque loop (all zero: open loop)
     ki: tuple[float, float] = (0.0, 0.0)    # 1/s
     torque_rate_gain: tuple[float, float] = (0.0, 0.0)   # s, on the filtered measured torque's rate
+    # per axis, the rate term's torque: the strain gauges', or (True) the cables' stretch from the motor and joint
+    # encoders times the configured cable (ankle_rt.control.torque_loop: controller.torque_loop.torque_rate_source)
+    rate_from_encoders: tuple[bool, bool] = (False, False)
+    rate_crossover_hz: tuple[float, float] = (0.0, 0.0)   # ... with the gauges' torque below this (0: none)
     cutoff_hz: float = 30.0                 # the shared key (a gain of GAINS) ...
     axis_cutoff_hz: tuple[float | None, float | None] = (None, None)   # ... unless an axis has its own
     dob_hz: float = 0.0                     # disturbance observer's low-pass (0: no observer)
@@ -375,7 +379,7 @@ class ImpedanceLoop:
         """The config's impedance gains and (``closed``) torque-loop gains; ``ff_viscous``: the friction
         feed-forward's viscous slope (FrictionFeedForward.viscous_slope), which the torque loop leaves
         out (ankle_rt.control.impedance.actuation_from_config)."""
-        from ankle_rt.loop_setup import ReflectedActuator, uses_joint_encoders
+        from ankle_rt.loop_setup import ReflectedActuator, rate_from_encoders, uses_joint_encoders
 
         c = cfg["controller"]
         imp, tl = c["impedance"], c["torque_loop"]
@@ -385,6 +389,8 @@ class ImpedanceLoop:
         dt = 1.0 / c["rate_hz"]
         return cls(stiffness=(imp["stiffness_dp"], imp["stiffness_ie"]), damping=(imp["damping_dp"], imp["damping_ie"]),
                    kp=pair(tl, "kp"), ki=pair(tl, "ki"), torque_rate_gain=pair(tl, "torque_rate"),
+                   rate_from_encoders=(closed and rate_from_encoders(cfg),) * 2,
+                   rate_crossover_hz=pair(tl, "torque_rate_crossover_hz"),
                    cutoff_hz=tl["cutoff_hz"], axis_cutoff_hz=(tl.get("cutoff_hz_dp"), tl.get("cutoff_hz_ie")),
                    dob_hz=float(tl["dob_hz"]) if closed else 0.0,
                    dob_inertia=(frac[0] * inertia[0], frac[1] * inertia[1]), joint_encoders=uses_joint_encoders(cfg),
@@ -500,8 +506,9 @@ def _plant(p: PlantParams, *, foot: str, load_slope: float,
     return A, Bm, C
 
 
-N_W = 16     # controller states of the model: theta_m prev, v, tau filter, integrator, observer, u, rate low-pass,
-             # the joint encoders' low-passed lead over the estimate
+N_W = 20     # controller states of the model: theta_m prev, v, tau filter, integrator, observer, u, rate low-pass,
+             # the joint encoders' low-passed lead over the estimate, the filtered stretch torque, the gauges' low-passed
+             # lead over the stretch torque
 
 
 def _sections(shaping: tuple[tuple[tuple[float, ...], ...], ...]) -> list[tuple[tuple[float, ...], ...]]:
@@ -512,10 +519,10 @@ def _sections(shaping: tuple[tuple[tuple[float, ...], ...], ...]) -> list[tuple[
 
 
 def _controller(lm_kin, K_cable: np.ndarray, c: ImpedanceLoop) -> tuple[np.ndarray, np.ndarray]:
-    """(W, U) over [w_{k-1} (16 + 4 per shaping stage); y_k (6); r (2)]: the controller states w =
+    """(W, U) over [w_{k-1} (18 + 4 per shaping stage); y_k (6); r (2)]: the controller states w =
     [theta_m prev (2), v (2), tau filter (2), integrator (2), observer low-pass (2), ankle-side output u
-    (2), the motor rates' low-pass (2), the joint encoders' low-passed lead over the estimate (2), then per
-    shaping stage its two direct-form-II-transposed states
+    (2), the motor rates' low-pass (2), the joint encoders' low-passed lead over the estimate (2), the
+    filtered stretch torque (2, ``rate_from_encoders``), then per shaping stage its two direct-form-II-transposed states
     (2 + 2)] are w_k = W @ [...],
     the motor torques U @ [...]; y = [theta_m, tau_j, theta] measured (theta: joint encoders), r a
     desired joint torque added to the impedance law's (reference 0). The observer (dob_hz > 0):
@@ -523,7 +530,8 @@ def _controller(lm_kin, K_cable: np.ndarray, c: ImpedanceLoop) -> tuple[np.ndarr
     stages = _sections(c.shaping)
     nw = N_W + 4 * len(stages)
     e = np.eye(nw + 8)
-    th_prev, v_prev, f_prev, i_prev, d_prev, u_prev, r_prev, j_prev = (e[2 * j:2 * j + 2] for j in range(8))
+    th_prev, v_prev, f_prev, i_prev, d_prev, u_prev, r_prev, j_prev, s_prev, b_prev = (e[2 * j:2 * j + 2]
+                                                                                    for j in range(10))
     th, tau, joint, r = e[nw:nw + 2], e[nw + 2:nw + 4], e[nw + 4:nw + 6], e[nw + 6:nw + 8]
     a_v = 1.0 - math.exp(-2.0 * math.pi * c.velocity_cutoff_hz * c.dt)
     a_f = np.diag([1.0 - math.exp(-2.0 * math.pi * f * c.dt) for f in
@@ -548,7 +556,15 @@ def _controller(lm_kin, K_cable: np.ndarray, c: ImpedanceLoop) -> tuple[np.ndarr
     err = tau_des - f
     # an axis without integral gain has no integrator (held at zero, not a marginal mode at z = 1)
     integ = np.diag([1.0 if k > 0.0 else 0.0 for k in c.ki]) @ i_prev + np.diag(c.ki) @ err * c.dt
-    pd = np.diag(c.kp) @ err - np.diag(c.torque_rate_gain) @ (f - f_prev) / c.dt
+    # the rate terms' torque, per axis: the stretch torque through the same filter (JointTorqueLoop.update), or
+    # the gauges' (no stretch state then: held at zero, not a marginal mode at z = 1)
+    on = np.diag([float(flag) for flag in c.rate_from_encoders])
+    stretch = K_est @ (Ri @ th - joint)
+    a_b = np.diag([1.0 - math.exp(-2.0 * math.pi * hz * c.dt) for hz in c.rate_crossover_hz])
+    b = on @ (b_prev + a_b @ (tau - stretch - b_prev))
+    s = on @ (s_prev + a_f @ (stretch + b - s_prev))
+    rate_of = (s - on @ s_prev) + (np.eye(2) - on) @ (f - f_prev)
+    pd = np.diag(c.kp) @ err - np.diag(c.torque_rate_gain) @ rate_of / c.dt
     shaped = []
     for j, pair in enumerate(stages):
         s1, s2 = e[N_W + 4 * j:N_W + 4 * j + 2], e[N_W + 4 * j + 2:N_W + 4 * j + 4]
@@ -568,7 +584,7 @@ def _controller(lm_kin, K_cable: np.ndarray, c: ImpedanceLoop) -> tuple[np.ndarr
         u_ankle = u_ankle + d
     else:
         d = 0.0 * d_prev
-    return np.vstack([th, v, f, integ, d, u_ankle, low, lead, *shaped]), lm_kin.R_inv_T @ u_ankle + c.ff_viscous * v
+    return np.vstack([th, v, f, integ, d, u_ankle, low, lead, s, b, *shaped]), lm_kin.R_inv_T @ u_ankle + c.ff_viscous * v
 
 
 def closed_loop(p: PlantParams, c: ImpedanceLoop, *, foot: str = "free", load_slope: float = 0.0,
@@ -656,20 +672,23 @@ def _discrete_lyapunov(T: np.ndarray, Q: np.ndarray, doublings: int = 40) -> np.
 
 
 @functools.lru_cache(maxsize=64)
-def gauge_noise_current_a(p: PlantParams, c: ImpedanceLoop, noise_nm: tuple[float, float],
-                          torque_constant: float) -> tuple[float, float]:
-    """A [motor 1, motor 2]: the set-value RMS that white strain-gauge noise (``noise_nm`` N m RMS per sample
-    [DP, IE], independent) makes through the closed loop, foot free, nominal plant; ``torque_constant`` N m/A
-    at the output. What the loop's gain on the measured torque (kp, torque_rate, the filter) costs at rest:
-    the daemon's current at rest is this and the encoders' share (issue 19, docs/daemon.md "Sixth pass")."""
+def sensor_noise_current_a(p: PlantParams, c: ImpedanceLoop, noise_nm: tuple[float, float], torque_constant: float,
+                           encoder_rad: tuple[float, float] = (0.0, 0.0)) -> tuple[float, float]:
+    """A [motor 1, motor 2]: the set-value RMS that white sensor noise makes through the closed loop, foot free,
+    nominal plant: the strain gauges' ``noise_nm`` (N m RMS per sample [DP, IE], independent) and the
+    quantisation of the motor and joint encoders, ``encoder_rad`` (rad RMS per sample [motor, joint]: a count
+    / sqrt(12)); ``torque_constant`` N m/A at the output. What the loop's gains on the measured torque (kp,
+    torque_rate, the filter) cost at rest: the daemon's current at rest (issue 19, docs/daemon.md "Sixth pass")."""
     Ad, Bd, Cy, kin = _sampled_plant(p, c.dt, foot="free", load_slope=0.0)
     W, U = c.rows(kin, kin.K)
     T = _assemble(Ad, Bd, Cy, W, U, c.delay_cycles)[0]
     nx, nw = N_X, W.shape[0]
-    g = np.zeros((T.shape[0], 2))
-    g[nx:nx + nw] = W[:, nw + 2:nw + 4]              # y = [theta_m (2), tau_j (2), theta (2)]
-    g[nx + nw:nx + nw + 2] = U[:, nw + 2:nw + 4]     # the newest command (the motor torques)
-    P = _discrete_lyapunov(T, g @ np.diag(np.square(noise_nm)) @ g.T)
+    g = np.zeros((T.shape[0], 6))
+    g[nx:nx + nw] = W[:, nw:nw + 6]                  # y = [theta_m (2), tau_j (2), theta (2)]
+    g[nx + nw:nx + nw + 2] = U[:, nw:nw + 6]         # the newest command (the motor torques)
+    motor, joint = encoder_rad
+    variance = np.square([motor, motor, *noise_nm, joint, joint])
+    P = _discrete_lyapunov(T, g @ np.diag(variance) @ g.T)
     rms = np.sqrt(np.diag(P)[nx + nw:nx + nw + 2]) / torque_constant
     return float(rms[0]), float(rms[1])
 
@@ -899,22 +918,32 @@ def gain_set_margin_db(cfg_like: Mapping[str, Any], gains: Mapping[str, float], 
     return margin, max(restored, key=restored.get)
 
 
+def encoder_noise_rad(cfg_like: Mapping[str, Any]) -> tuple[float, float]:
+    """rad RMS per sample [motor, joint]: the encoders' quantisation (a count / sqrt(12)) at the gearbox
+    output and at the joint (0: no joint encoders)."""
+    from ankle_rt.loop_setup import joint_encoder_counts
+
+    joint = joint_encoder_counts(cfg_like)
+    count = lambda n: 2.0 * math.pi / n / math.sqrt(12.0)  # noqa: E731
+    return count(cfg_like["actuator"]["encoder_counts_per_rev"]), count(joint) if joint else 0.0
+
+
 def gain_set_noise_a(cfg_like: Mapping[str, Any], gains: Mapping[str, float]) -> tuple[float, str]:
     """(A, gain): the larger motor's set-value RMS the strain gauges' noise (``sensors.strain_gauge_noise_rms``
-    per axis) makes through the joint-torque loop with ``gains`` in place of the config's
-    (:func:`gauge_noise_current_a`), and the gain to name for it: of the torque-loop gains in ``gains`` that
-    move, the one whose configured value takes the most noise away; none moved, the ``kp`` of the axis whose
-    gauge makes more. 0 without the loop."""
+    per axis) and the encoders' quantisation make through the joint-torque loop with ``gains`` in place of the
+    config's (:func:`sensor_noise_current_a`), and the gain to name for it: of the torque-loop gains in ``gains``
+    that move, the one whose configured value takes the most noise away; none moved, the ``kp`` of the axis
+    whose gauge makes more. 0 without the loop."""
     from ankle_rt.loop_setup import torque_feedback
 
     if cfg_like["controller"]["type"] == "pd" or not torque_feedback(_with_gains(cfg_like, gains)):
         return 0.0, "kp_dp"
     sigma, kt = cfg_like["sensors"]["strain_gauge_noise_rms"], cfg_like["actuator"]["torque_constant"]
-    p = PlantParams.from_config(cfg_like)
+    p, encoders = PlantParams.from_config(cfg_like), encoder_noise_rad(cfg_like)
 
     def noise(g: Mapping[str, float], axes: tuple[float, float] = (1.0, 1.0)) -> float:
         loop = ImpedanceLoop.from_config(_with_gains(cfg_like, g), closed=True)
-        return max(gauge_noise_current_a(p, loop, (sigma * axes[0], sigma * axes[1]), kt))
+        return max(sensor_noise_current_a(p, loop, (sigma * axes[0], sigma * axes[1]), kt, encoders))
 
     tl = cfg_like["controller"]["torque_loop"]
     moved = [k for k, v in gains.items() if k in tl and tl[k] != v]

@@ -138,6 +138,7 @@ assert tuple(NOTCH_ROLES) == tuple(NOTCH_DEFAULTS) == PREFIXES
 NOTCH_CABLE_STIFFNESS_DEFAULT = 218800.0
 MAX_NOTCH_HZ = 400.0   # below the 1 kHz loop's Nyquist frequency
 MAX_CUTOFF_HZ = 400.0  # the torque filter's, shared or per axis
+MAX_RATE_CROSSOVER_HZ = 50.0   # the encoder rate source's: above it the gauges' noise is back in the rate term
 # The high-passed motor-rate damping [DP, IE] (ankle_rt/control/torque_loop.py): a collocated damping of the motor
 # above a corner, for the held foot's mode (the motor on the cable and the ground, 10-30 Hz). Off by default.
 MAX_RATE_DAMPING, MAX_RATE_DAMPING_HZ = 500.0, 100.0
@@ -194,6 +195,19 @@ TORQUE_LOOP = Section({
                                    default=LOOP_DEFAULTS["torque_rate_dp"], high=MAX_TORQUE_RATE),
     "torque_rate_ie": non_negative("s, gain on the rate of the measured IE torque",
                                    default=LOOP_DEFAULTS["torque_rate_ie"], high=MAX_TORQUE_RATE),
+    "torque_rate_source": Field(str, "the torque the rate terms (torque_rate_dp/ie) differentiate: gauges (the strain "
+                                     "gauges), or encoders (the cables' stretch from the motor and joint encoders "
+                                     "times transmission.cable_stiffness: no gauge noise in the rate; needs joint "
+                                     "encoders)", default="gauges", choices=("gauges", "encoders")),
+    **{f"torque_rate_crossover_hz_{axis}": Field(
+        float, f"Hz, with torque_rate_source encoders: the {axis.upper()} gauge's torque below this, the stretch's "
+               f"above (the gauges are right about the torque's size, the encoders quiet); 0 = the stretch alone",
+        default=5.0, low=0.0, high=MAX_RATE_CROSSOVER_HZ)
+       for axis in ("dp", "ie")},
+    "torque_rate_agreement_nm": positive("N m, with torque_rate_source encoders: the stretch torque is used only "
+                                         "within this of the filtered gauge torque, the gauges' own rate beyond "
+                                         "(a slack cable or backlash shows a stretch with no torque behind it)",
+                                         default=0.1, high=10.0),
     "cutoff_hz": Field(float, "Hz, first-order low-pass of the measured joint torque (below the 77-98 Hz cable modes); "
                               "per axis: cutoff_hz_dp / cutoff_hz_ie", default=LOOP_DEFAULTS["cutoff_hz"], low=1.0,
                        high=MAX_CUTOFF_HZ),

@@ -48,7 +48,7 @@ def gain_set_refusal(cfg: Mapping[str, Any], gains: Mapping[str, float], ff_visc
 
 
 def noise_refusal(cfg: Mapping[str, Any], gains: Mapping[str, float]) -> tuple[str, str] | None:
-    """(gain name, reason) when the joint-torque loop with ``gains`` turns the strain gauges' noise into more
+    """(gain name, reason) when the joint-torque loop with ``gains`` turns the sensors' noise into more
     set-value RMS than MAX_NOISE_SHARE x ``safety.oscillation_rms_a`` (:func:`ankle_rt.analysis.gain_set_noise_a`,
     the larger motor, foot free); None when it does not."""
     import numpy as np
@@ -62,9 +62,10 @@ def noise_refusal(cfg: Mapping[str, Any], gains: Mapping[str, float]) -> tuple[s
         return None
     value = gains.get(name, cfg["controller"]["torque_loop"][name])
     return name, (f"{name} {value:g}: the joint-torque loop turns the strain gauges' noise (sensors.strain_gauge_noise_rms "
-                  f"{cfg['sensors']['strain_gauge_noise_rms']:g} N m) into {noise:.2f} A RMS of set value at rest, above "
-                  f"{most:.2f} A ({MAX_NOISE_SHARE:g} x safety.oscillation_rms_a: the oscillation detector would trip on "
-                  f"it); lower kp, torque_rate or the torque filter's cutoff (docs/daemon.md)")
+                  f"{cfg['sensors']['strain_gauge_noise_rms']:g} N m) and the encoders' counts into {noise:.2f} A RMS of "
+                  f"set value at rest, above {most:.2f} A ({MAX_NOISE_SHARE:g} x safety.oscillation_rms_a: the "
+                  f"oscillation detector would trip on it); lower kp, torque_rate or the torque filter's cutoff, or with "
+                  f"joint encoders take the rate from them (torque_rate_source: encoders; docs/daemon.md)")
 
 
 def ramp_refusal(cfg: Mapping[str, Any], start: Mapping[str, float], end: Mapping[str, float],

@@ -14,8 +14,12 @@ K_dp 50 and 200, K_ie half: the bench's), subject to
 - >= ``--margin`` dB over the 108 cases of :func:`ankle_rt.analysis.loop_margin_db` (stable down to -20 dB of
   the correction's gain too) and passivity (Re of the felt admittance >= 0, 0.1-50 Hz, free-foot cases);
 - the current noise: the RMS of the larger motor's set value that the axis's strain gauge's noise (0.02 N m
-  per sample, ``sensors.strain_gauge_noise_rms``) makes through the closed loop (a discrete Lyapunov equation;
-  :func:`ankle_rt.analysis.gauge_noise_current_a`), at most ``--noise`` A.
+  per sample, ``sensors.strain_gauge_noise_rms``) and the encoders' quantisation (motor 2 pi / 116640, joint
+  2 pi / 2^19 rad a count) make through the closed loop (a discrete Lyapunov equation;
+  :func:`ankle_rt.analysis.sensor_noise_current_a`), at most ``--noise`` A.
+
+``--rate-source encoders`` searches the loop whose rate terms differentiate the cables' stretch torque from the
+motor and joint encoders (``controller.torque_loop.torque_rate_source``) rather than the gauges'.
 
 The other axis keeps ``--config``'s loop (default: the shipped one). Run:
 ``PYTHONPATH=$PWD nice python3 benchmarks/study_torque_loop_step.py --axis dp [--noise 0.22] [--maxiter 20]``
@@ -46,17 +50,20 @@ PARAMS = (("kp", 15.0, 90.0), ("ki", 2.0, 30.0), ("torque_rate", 0.02, 0.6), ("c
           ("motor_rate_damping", 0.0, 300.0), ("motor_rate_damping_hz", 3.0, 80.0))
 GROUNDS = (((1000.0, 500.0), 1.0), ((300.0, 150.0), 1.0))    # the bench's rigid and soft grounds
 GAUGE_NOISE_NM = 0.02
+ENCODER_NOISE_RAD = (2.0 * math.pi / 116640 / math.sqrt(12.0), 2.0 * math.pi / 2 ** 19 / math.sqrt(12.0))
 
 
 def loops_for(setup: Setup, x: np.ndarray, axis: int) -> list[an.ImpedanceLoop]:
-    """The bench's loops with ``axis``'s parameters from ``x`` (PARAMS' order)."""
+    """The bench's loops with ``axis``'s parameters from ``x`` (PARAMS' order) and the setup's rate source."""
     kp, ki, kd, cut, f1, z1, d1, f2, z2, d2, rd, rf = (float(v) for v in x)
     pick = lambda pair, v: tuple(v if a == axis else pair[a] for a in (0, 1))  # noqa: E731
     dt = setup.loops[0].dt
     sections = tuple(s for s in (notch_section(f1, z1, d1, dt), notch_section(f2, z2, d2, dt)))
     return [dataclasses.replace(l, kp=pick(l.kp, kp), ki=pick(l.ki, ki), torque_rate_gain=pick(l.torque_rate_gain, kd),
                                 axis_cutoff_hz=pick(l.axis_cutoff_hz, cut), shaping=pick(l.shaping, sections),
-                                rate_damping=pick(l.rate_damping, rd), rate_damping_hz=pick(l.rate_damping_hz, rf))
+                                rate_damping=pick(l.rate_damping, rd), rate_damping_hz=pick(l.rate_damping_hz, rf),
+                                rate_from_encoders=pick(l.rate_from_encoders, setup.rate_from_encoders),
+                                rate_crossover_hz=pick(l.rate_crossover_hz, setup.rate_crossover_hz))
             for l in setup.loops]
 
 
@@ -72,9 +79,10 @@ def step_overshoots(setup: Setup, loops: list[an.ImpedanceLoop], axis: int) -> l
 
 
 def current_noise_a(p: an.PlantParams, loop: an.ImpedanceLoop, axis: int, kt: float = 1.66) -> float:
-    """A: the larger motor's set-value RMS from ``axis``'s gauge noise alone (GAUGE_NOISE_NM white per
-    sample), foot free, nominal plant (:func:`ankle_rt.analysis.gauge_noise_current_a`)."""
-    return max(an.gauge_noise_current_a(p, loop, (GAUGE_NOISE_NM * (axis == 0), GAUGE_NOISE_NM * (axis == 1)), kt))
+    """A: the larger motor's set-value RMS from ``axis``'s gauge noise (GAUGE_NOISE_NM white per sample) and the
+    encoders' quantisation, foot free, nominal plant (:func:`ankle_rt.analysis.sensor_noise_current_a`)."""
+    gauge = (GAUGE_NOISE_NM * (axis == 0), GAUGE_NOISE_NM * (axis == 1))
+    return max(an.sensor_noise_current_a(p, loop, gauge, kt, ENCODER_NOISE_RAD))
 
 
 def figures(setup: Setup, x: np.ndarray, axis: int) -> dict:
@@ -126,13 +134,18 @@ def main() -> None:
     ap.add_argument("--dynamic", type=float, default=11.0, help="%%, the dynamic stiffness error allowed")
     ap.add_argument("--damping", type=float, default=18.0, help="%%, the rendered damping error allowed")
     ap.add_argument("--margin", type=float, default=6.5, help="dB")
+    ap.add_argument("--rate-source", choices=("gauges", "encoders"), default="gauges",
+                    help="what the rate terms differentiate (controller.torque_loop.torque_rate_source)")
+    ap.add_argument("--rate-crossover-hz", type=float, default=5.0,
+                    help="with encoders, the gauges' torque below this (controller.torque_loop.torque_rate_crossover_hz_*)")
     ap.add_argument("--maxiter", type=int, default=20)
     ap.add_argument("--popsize", type=int, default=6)
     ap.add_argument("--seed", type=int, default=11)
     args = ap.parse_args()
     axis = AXES.index(args.axis)
     full = Setup.build(args.config)
-    setup = Setup(full.plants[:2], full.loops[:2], full.free)      # the bench's two impedances
+    setup = Setup(full.plants[:2], full.loops[:2], full.free,      # the bench's two impedances
+                  rate_from_encoders=args.rate_source == "encoders", rate_crossover_hz=(args.rate_crossover_hz,) * 2)
     tl = load_config(args.config or default_config_path())["controller"]["torque_loop"]
     start = np.array([float(tl[f"{n}_{args.axis}"] if n != "cutoff_hz" else torque_loop_cutoffs(tl)[axis])
                       for n, *_ in PARAMS])

@@ -7,7 +7,7 @@ from __future__ import annotations
 import pytest
 import yaml
 
-from ankle_rt.analysis import ImpedanceLoop, PlantParams, gauge_noise_current_a
+from ankle_rt.analysis import ImpedanceLoop, PlantParams, encoder_noise_rad, sensor_noise_current_a
 from ankle_rt.bench.impedance import bench_config
 from ankle_rt.config import ConfigError, load_config
 from ankle_rt.daemon import run_lockstep
@@ -31,13 +31,14 @@ def base():
 
 def test_the_model_predicts_the_current_noise_at_rest(base):
     """Lockstep, foot free at rest under the shipped loop: each motor's set-value RMS is the model's
-    prediction from the gauges' noise within 25 % (the encoders' quantisation adds a little), and without
-    the gauges' noise it is a fraction of it."""
+    prediction from the gauges' noise and the encoders' quantisation within 25 %, and without the gauges'
+    noise it is a fraction of it."""
     cfg = bench_config(base, stiffness=(50.0, 25.0), damping=(0.5, 0.25), torque_feedback="auto",
                        friction_ff=None, effects=[])
     p, loop = PlantParams.from_config(cfg), ImpedanceLoop.from_config(cfg, closed=True)
     sigma = cfg["sensors"]["strain_gauge_noise_rms"]
-    predicted = gauge_noise_current_a(p, loop, (sigma, sigma), cfg["actuator"]["torque_constant"])
+    predicted = sensor_noise_current_a(p, loop, (sigma, sigma), cfg["actuator"]["torque_constant"],
+                                       encoder_noise_rad(cfg))
     run = run_lockstep(cfg, 1.5)
     rest = run["t"] > 0.7
     for motor, want in zip(("current_cmd_1", "current_cmd_2"), predicted):

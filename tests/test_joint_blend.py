@@ -94,12 +94,12 @@ def test_the_model_estimates_the_angle_with_the_configured_cable_as_the_daemon_d
     assert slack_margin_db(cfg, estimate_cable=None) == -math.inf
 
 
-def hunt_after_release(cfg) -> tuple[str, float, float]:
-    """(fault, deg, A): the run's fault, the DP ankle's spread and motor 1's set-value spread over the last
-    second of a run in which a 3 N m DP push is held for 1.2 s and released 1.8 s before the end."""
+def hunt_after_release(cfg, window: tuple[float, float] = (3.0, 4.0)) -> tuple[str, float, float]:
+    """(fault, deg, A): the run's fault, the DP ankle's spread and motor 1's set-value spread over ``window``
+    (s; default the last second) of a 4 s run in which a 3 N m DP push is held from 1 s to 2.2 s."""
     push = lambda t, x: (3.0 if 1.0 <= t < 2.2 else 0.0, 0.0)   # noqa: E731
     run = run_lockstep(cfg, 4.0, backend=TorqueProgramBackend(open_backend(cfg, SimClock()), push))
-    last = run["t"] >= 3.0
+    last = (run["t"] >= window[0]) & (run["t"] < window[1])
     return (run.summary["fault"], float(np.degrees(np.std(run["ankle_dp"][last]))),
             float(np.std(run["current_cmd_1"][last])))
 

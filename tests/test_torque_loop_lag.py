@@ -174,16 +174,20 @@ def test_the_opt_in_lag_notch_loop_is_accepted_where_shipped_and_runs_its_lag(tm
     assert loop.gains.cutoff_hz == (290.0, 80.0)
 
 
-def test_the_daemon_loop_and_the_model_controller_give_the_same_torques(base):
+@pytest.mark.parametrize("rate_source", [{"torque_rate_source": "gauges"},
+                                         {"torque_rate_source": "encoders", "torque_rate_crossover_hz_dp": 5.0,
+                                          "torque_rate_crossover_hz_ie": 20.0, "torque_rate_agreement_nm": 10.0}])
+def test_the_daemon_loop_and_the_model_controller_give_the_same_torques(base, rate_source):
     """The daemon's JointTorqueLoop and the linear model's controller rows (ImpedanceLoop: the rows the margin
-    check closes the loop with) driven by the same measured torques, motor angles and desired torques (the law
-    at K = B = 0, so the desired torque is the model's r), with a DP lag and two notches, an IE notch,
-    per-axis cutoffs and the high-passed motor-rate damping on both axes: the same ankle-side torque every
-    cycle (the correction inside its clamp)."""
+    check closes the loop with) driven by the same measured torques, motor and joint angles and desired torques
+    (the law at K = B = 0, so the desired torque is the model's r), with a DP lag and two notches, an IE notch,
+    per-axis cutoffs and the high-passed motor-rate damping on both axes, the rate terms on the gauges or on the
+    cables' stretch (within its agreement with the gauges: the model is the small-signal loop): the same
+    ankle-side torque every cycle (the correction inside its clamp)."""
     tl = dict(base["controller"]["torque_loop"], **LAG_NOTCH, lag_boost_dp=1.8, cutoff_hz_ie=120.0, notch_hz_ie=72.3,
               notch_zeta_ie=0.5, notch_depth_ie=0.58, notch2_hz_dp=140.0, notch2_zeta_dp=0.5, notch2_depth_dp=0.5,
               motor_rate_damping_dp=40.0, motor_rate_damping_hz_dp=30.0, motor_rate_damping_ie=15.0,
-              motor_rate_damping_hz_ie=15.0, max_correction_dp=100.0, max_correction_ie=100.0)
+              motor_rate_damping_hz_ie=15.0, max_correction_dp=100.0, max_correction_ie=100.0, **rate_source)
     cfg = walk_loop_config({"controller": {"type": "impedance"}})
     cfg["controller"]["torque_loop"].update(tl)
     model = dataclasses.replace(an.ImpedanceLoop.from_config(cfg, closed=True), stiffness=(0.0, 0.0), damping=(0.0, 0.0))
@@ -192,17 +196,20 @@ def test_the_daemon_loop_and_the_model_controller_give_the_same_torques(base):
     W, _ = model.rows(kin, kin.K)
     loop = JointTorqueLoop(TorqueLoopGains.from_config(tl, cfg["transmission"]["cable_stiffness"]), DT)
     a_v = 1.0 - math.exp(-2.0 * math.pi * model.velocity_cutoff_hz * DT)     # the estimator's velocity filter
+    assert model.rate_from_encoders == (loop.encoder_rate,) * 2
     rng = np.random.default_rng(19)
-    freqs, phases = rng.uniform(0.5, 30.0, (6, 2)), rng.uniform(0.0, 2.0 * math.pi, (6, 2))
+    freqs, phases = rng.uniform(0.5, 30.0, (8, 2)), rng.uniform(0.0, 2.0 * math.pi, (8, 2))
     w, v, th_prev, largest = np.zeros(W.shape[0]), np.zeros(2), np.zeros(2), 0.0
     for k in range(1500):
-        tau, r, th = (a * np.sin(2.0 * math.pi * freqs[j:j + 2] * k * DT + phases[j:j + 2]).sum(axis=0)
-                      for a, j in ((0.2, 0), (1.0, 2), (0.005, 4)))
-        w = W @ np.concatenate([w, th, tau, np.zeros(2), r])
+        tau, r, th, slack = (a * np.sin(2.0 * math.pi * freqs[j:j + 2] * k * DT + phases[j:j + 2]).sum(axis=0)
+                             for a, j in ((0.2, 0), (1.0, 2), (0.005, 4), (1e-4, 6)))
+        joint = kin.R_inv @ th - slack        # the cables stretched by slack (rad at the ankle)
+        w = W @ np.concatenate([w, th, tau, joint, r])
         v = v + a_v * ((th - th_prev) / DT - v)
         th_prev = th
         rate = kin.R_inv @ v
-        got = loop.update(r[0], r[1], tau[0], tau[1], rate[0], rate[1], True)
+        stretch = kin.K @ (kin.R_inv @ th - joint)
+        got = loop.update(r[0], r[1], tau[0], tau[1], rate[0], rate[1], True, stretch[0], stretch[1])
         assert np.allclose(got, w[10:12], rtol=0.0, atol=1e-9)
         largest = max(largest, *(abs(g - x) for g, x in zip(got, r)))
     assert 1.0 < largest < 100.0          # the correction did work, inside its clamp

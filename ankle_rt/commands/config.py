@@ -120,8 +120,11 @@ def _torque_loop_lines(cfg) -> list[str]:
     lines = [f"torque loop: kp {tl['kp_dp']:g} / {tl['kp_ie']:g}; {notches}: placed for notch_cable_stiffness "
              f"{tl['notch_cable_stiffness']:g} N/m, x{cable_scale(tl, k):.4g} for transmission.cable_stiffness {k:g}",
              f"             max correction DP {tl['max_correction_dp']:g} / IE {tl['max_correction_ie']:g} N m; "
-             f"gauge noise at rest {gain_set_noise_a(cfg, {})[0]:.2f} A RMS per motor (model; at most "
-             f"{MAX_NOISE_SHARE * cfg['safety']['oscillation_rms_a']:.2f})"]
+             f"sensor noise at rest {gain_set_noise_a(cfg, {})[0]:.2f} A RMS per motor (model; at most "
+             f"{MAX_NOISE_SHARE * cfg['safety']['oscillation_rms_a']:.2f})",
+             f"             torque rate from the {tl['torque_rate_source']}"
+             + (f" (the gauges below DP {tl['torque_rate_crossover_hz_dp']:g} / IE {tl['torque_rate_crossover_hz_ie']:g} Hz)"
+                if tl["torque_rate_source"] == "encoders" else "")]
     lag, cutoffs = Lag.from_config(tl), torque_loop_cutoffs(tl)
     lags = ", ".join(f"{a.upper()} {hz:g} Hz x{b:g}" if on else f"{a.upper()} none"
                      for a, hz, b, on in zip(AXES, lag.hz, lag.boost, lag.on))

@@ -29,7 +29,8 @@ from ankle_rt.estimation import Estimate
 from ankle_rt.joint_blend import blended_angle, crossover_alpha, law_crossover_hz
 from ankle_rt.kinematics import Kinematics
 from ankle_rt.lead import law_damping
-from ankle_rt.loop_setup import ReflectedActuator, torque_feedback, uses_joint_encoders
+from ankle_rt.loop_setup import (ReflectedActuator, has_joint_encoders, rate_from_encoders, torque_feedback,
+                                 uses_joint_encoders)
 
 if TYPE_CHECKING:
     from ankle_rt.config import Config
@@ -80,6 +81,9 @@ class ImpedanceController(RampedGainController):
         if joint and cfg["backend"] != "sim" and cfg["joint_encoders"]["counts_per_rev"] is None:
             raise ConfigError("angle_source joint_encoders needs joint encoders (joint_encoders.counts_per_rev)",
                               getattr(cfg, "source", None), "controller.impedance.angle_source")
+        if torque_feedback(cfg) and rate_from_encoders(cfg) and not has_joint_encoders(cfg):
+            raise ConfigError("torque_rate_source encoders needs joint encoders (joint_encoders.counts_per_rev)",
+                              getattr(cfg, "source", None), "controller.torque_loop.torque_rate_source")
         loop, limits, friction = actuation_from_config(cfg, friction)
         try:
             return cls(kin, ref, c["impedance"], dt=1.0 / c["rate_hz"], ramp_s=c["gain_ramp_s"],
@@ -100,7 +104,15 @@ class ImpedanceController(RampedGainController):
         self.jl0 = select(where, est.joint_dp - est.dp, self.jl0)
         self.jl1 = select(where, est.joint_ie - est.ie, self.jl1)
         if self.torque_loop is not None:
-            self.torque_loop.reset_state(est.sg_dp, est.sg_ie, est.dp_vel, est.ie_vel, where)
+            st0, st1 = self.stretch_torques(est)
+            self.torque_loop.reset_state(est.sg_dp, est.sg_ie, est.dp_vel, est.ie_vel, where, st0, st1)
+
+    def stretch_torques(self, est: Estimate) -> tuple[Value, Value]:
+        """N m [DP, IE]: the cables' stretch K (R^-1 theta_m - theta_joint) on the configured cable, what the
+        loop's rate terms differentiate with ``torque_rate_source: encoders``; 0 without that source."""
+        if self.torque_loop is None or self.torque_loop.encoder_rate is False:
+            return 0.0, 0.0
+        return (est.sg_dp + self.cable0 * (est.dp - est.joint_dp), est.sg_ie + self.cable1 * (est.ie - est.joint_ie))
 
     def law(self, est: Estimate, ref_dp: Value, ref_ie: Value) -> tuple[Value, Value]:
         g = self.gains
@@ -150,7 +162,8 @@ class ImpedanceController(RampedGainController):
         e0 = e1 = 0.0
         if loop is not None:
             d0, d1 = t0, t1
-            t0, t1 = loop.update(t0, t1, j0, j1, est.dp_vel, est.ie_vel, s >= 1.0)
+            st0, st1 = self.stretch_torques(est)
+            t0, t1 = loop.update(t0, t1, j0, j1, est.dp_vel, est.ie_vel, s >= 1.0, st0, st1)
             e0, e1 = d0 - loop.f0, d1 - loop.f1     # the loop's error, for the feed-forward's direction
         RiT = self.RiT
         ff = self.friction

@@ -22,6 +22,17 @@ deliver, so per ankle axis this loop drives the measured torque to the desired o
 - The measured torque is low-passed (first order at ``cutoff_hz``, or per axis ``cutoff_hz_dp`` /
   ``cutoff_hz_ie``) so the loop rolls off well below the 77-98 Hz cable modes, whose damping ratio
   (~0.02) it must not eat.
+- The rate term differentiates the strain gauges' torque, or (``torque_rate_source: encoders``, with joint
+  encoders) the cables' stretch torque K (R^-1 theta_m - theta_joint) on the configured cable, complemented
+  below ``torque_rate_crossover_hz_dp/ie`` by the gauges' (which are right about the torque, not only its shape):
+  the rate term is what turns the gauges' noise into current (its gain is ``torque_rate / dt`` on a white
+  noise), and the encoders' counts are ~3x quieter in torque and not white at rest. A cable stiffer or softer
+  than configured scales the term above the crossover, which the margin check's cable range covers. The
+  stretch is believed only within ``torque_rate_agreement_nm`` of the filtered gauge torque: a slack cable
+  or backlash shows a stretch with no torque behind it (0.2 mm of play: ~5 N m at the DP ankle), and a rate
+  term on that phantom is a velocity feedback on the bare motor inertia far beyond the sampled loop's
+  stability (kd K dt / J ~ 3); clipped there, the term follows the gauges' own rate (the gauge loop's
+  behaviour). The linear model has the unclipped term (small signals).
 - A **lag** (``lag_hz`` > 0, ``lag_boost`` > 1: (s + wz) / (s + wz / lag_boost), :class:`ankle_rt.lag.Lag`)
   before the notch raises the P and rate terms' gain below ``lag_hz`` only. A large boost makes the
   loop conditionally stable (stable at its gain, not at a smaller one, which the correction's clamp
@@ -103,6 +114,9 @@ class TorqueLoopGains:
     rate_damping: tuple[float, float]        # N m s/rad, on the high-passed ankle-side motor rate
     rate_damping_hz: tuple[float, float]     # Hz, that high-pass's corner
     lag: Lag                                 # low-frequency boosts on the P and rate terms, before the notch
+    rate_from_encoders: bool                 # the rate terms on the cables' stretch torque (else the gauges')
+    rate_crossover_hz: tuple[float, float]   # ... with the gauges' below this (0: the stretch alone)
+    rate_agreement_nm: float                 # ... and within this of the filtered gauge torque
 
     @classmethod
     def from_config(cls, c: Mapping[str, Any], cable_stiffness: float) -> "TorqueLoopGains":
@@ -115,7 +129,9 @@ class TorqueLoopGains:
                    tank_j=float(c["tank_j"]), tank_friction_credit=float(c["tank_friction_credit"]),
                    notch=Notch.from_config(c, cable_stiffness), notch2=Notch.from_config(c, cable_stiffness, "notch2"),
                    rate_damping=pair("motor_rate_damping"), rate_damping_hz=pair("motor_rate_damping_hz"),
-                   lag=Lag.from_config(c))
+                   lag=Lag.from_config(c), rate_from_encoders=c["torque_rate_source"] == "encoders",
+                   rate_crossover_hz=pair("torque_rate_crossover_hz"),
+                   rate_agreement_nm=float(c["torque_rate_agreement_nm"]))
 
 
 class JointTorqueLoop:
@@ -138,6 +154,10 @@ class JointTorqueLoop:
         self.rd0, self.rd1 = gains.rate_damping
         self.ar0, self.ar1 = (1.0 - math.exp(-2.0 * math.pi * f * dt) for f in gains.rate_damping_hz)
         self.lag0, self.lag1 = gains.lag.sections(dt)            # (b0, b1, b2, a1, a2) per axis
+        # a bool (a bool array over a batch that mixes sources): the rate terms on the cables' stretch
+        self.encoder_rate = gains.rate_from_encoders
+        self.ab0, self.ab1 = (1.0 - math.exp(-2.0 * math.pi * f * dt) for f in gains.rate_crossover_hz)
+        self.agree = gains.rate_agreement_nm
         # a bool (a bool array over a batch that mixes lags): the cycle runs the lag only where one is on
         self.lagged = any(gains.lag.on)
         self.notch0, self.notch1 = gains.notch.sections(dt)
@@ -157,6 +177,7 @@ class JointTorqueLoop:
         self.f0 = self.f1 = self.i0 = self.i1 = 0.0
         self.d0 = self.d1 = self.u0 = self.u1 = self.w0 = self.w1 = 0.0
         self.e0 = self.e1 = 0.0
+        self.s0 = self.s1 = self.b0 = self.b1 = 0.0     # the filtered rate torque, the gauges' lead over the stretch
         self.n01 = self.n02 = self.n11 = self.n12 = 0.0
         self.m01 = self.m02 = self.m11 = self.m12 = 0.0
         self.g01 = self.g11 = 0.0
@@ -189,13 +210,18 @@ class JointTorqueLoop:
         return stack(loops, shared=("gains",), columns=("lag0", "lag1", "notch0", "notch1", "second0", "second1"))
 
     def reset_state(self, tau_dp: Value, tau_ie: Value, w_dp: Value = 0.0, w_ie: Value = 0.0,
-                    where: bool | np.ndarray = True) -> None:
-        """Start from the measured torques (N m) and the ankle-side motor rates ``w`` (rad/s, what
-        :meth:`update` is given) with an empty integrator (on activation); for a batch, only where
-        ``where`` (bool per device) holds. The observer differences the rate from the last cycle: a
-        rate left from before a deactivation would read as a disturbance J_n dw/dt on activation."""
+                    where: bool | np.ndarray = True, stretch_dp: Value = 0.0, stretch_ie: Value = 0.0) -> None:
+        """Start from the measured torques (N m), the ankle-side motor rates ``w`` (rad/s, what
+        :meth:`update` is given) and the stretch torques (N m, with the encoder rate source) with an empty
+        integrator (on activation); for a batch, only where ``where`` (bool per device) holds. The observer
+        differences the rate from the last cycle: a rate left from before a deactivation would read as a
+        disturbance J_n dw/dt on activation."""
         self.f0 = select(where, tau_dp, self.f0)
         self.f1 = select(where, tau_ie, self.f1)
+        self.s0 = select(where, tau_dp, self.s0)
+        self.s1 = select(where, tau_ie, self.s1)
+        self.b0 = select(where, tau_dp - stretch_dp, self.b0)      # the stretch's offset: no rate on activation
+        self.b1 = select(where, tau_ie - stretch_ie, self.b1)
         self.i0 = select(where, 0.0, self.i0)
         self.i1 = select(where, 0.0, self.i1)
         self.d0 = select(where, 0.0, self.d0)
@@ -220,17 +246,27 @@ class JointTorqueLoop:
         self.g11 = select(where, 0.0, self.g11)
 
     def update(self, tau_dp: Value, tau_ie: Value, sg_dp: Value, sg_ie: Value, w_dp: Value, w_ie: Value,
-               integrate: bool | np.ndarray) -> tuple[Value, Value]:
+               integrate: bool | np.ndarray, stretch_dp: Value = 0.0, stretch_ie: Value = 0.0) -> tuple[Value, Value]:
         """Desired joint torques and tared strain-gauge torques (N m, [DP, IE]) and the ankle-side
         motor rates R^-1 motor_vel (rad/s) in, the ankle-side motor torques (N m, [DP, IE]) out.
-        ``integrate`` False holds the integrator and keeps the observer out (soft start)."""
+        ``integrate`` False holds the integrator and keeps the observer out (soft start). ``stretch``: N m,
+        the cables' stretch torques K (R^-1 theta_m - theta_joint), read with the encoder rate source only."""
         p0, p1 = self.f0, self.f1
         f0 = p0 + self.alpha0 * (sg_dp - p0)
         f1 = p1 + self.alpha1 * (sg_ie - p1)
         self.f0, self.f1 = f0, f1
         e0, e1 = tau_dp - f0, tau_ie - f1
+        step0, step1 = f0 - p0, f1 - p1    # the rate terms' torque step this cycle
+        encoders = self.encoder_rate
+        if encoders is not False:          # the stretch, complemented below the crossover by the gauges
+            self.b0 = b0 = self.b0 + self.ab0 * (sg_dp - stretch_dp - self.b0)
+            self.b1 = b1 = self.b1 + self.ab1 * (sg_ie - stretch_ie - self.b1)
+            q0, q1, agree = self.s0, self.s1, self.agree
+            self.s0 = s0 = clip(q0 + self.alpha0 * (stretch_dp + b0 - q0), f0 - agree, f0 + agree)
+            self.s1 = s1 = clip(q1 + self.alpha1 * (stretch_ie + b1 - q1), f1 - agree, f1 + agree)
+            step0, step1 = select(encoders, s0 - q0, step0), select(encoders, s1 - q1, step1)
         # the lag, then the notches on the P and rate terms (the identity without one)
-        x0, x1 = self.kp0 * e0 - self.kdr0 * (f0 - p0), self.kp1 * e1 - self.kdr1 * (f1 - p1)
+        x0, x1 = self.kp0 * e0 - self.kdr0 * step0, self.kp1 * e1 - self.kdr1 * step1
         lagged = self.lagged is not False
         if lagged:
             x0, g01, _ = _section(self.lag0, x0, self.g01, 0.0)

@@ -1,0 +1,94 @@
+"""The joint-torque loop's rate terms on the cables' stretch from the encoders (``controller.torque_loop.
+torque_rate_source: encoders``, config/torque-loop-encoders.yaml; docs/daemon.md "Seventh pass"): the torque
+step the gauges' noise kept from its goal, at a fraction of the noise; refused without joint encoders; and the
+stretch believed only where the gauges agree, so cable play does not turn the rate term on the bare motor."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import yaml
+
+from ankle_rt.analysis import ImpedanceLoop, encoder_noise_rad, sensor_noise_current_a
+from ankle_rt.bench.impedance import Experiment, bench_config, run_torque_step
+from ankle_rt.config import ConfigError, load_config
+from ankle_rt.control import build_controller
+from ankle_rt.daemon import run_lockstep
+from ankle_rt.kinematics import Kinematics
+from ankle_rt.params import PlantParams, TransmissionParams
+from ankle_rt.paths import CONFIG_DIR, default_config_path
+from tests.test_joint_blend import BACKLASH, CROSSOVER, PLANT, hunt_after_release
+
+ENCODER_LOOP = yaml.safe_load((CONFIG_DIR / "torque-loop-encoders.yaml").read_text())
+
+
+@pytest.fixture(scope="module")
+def gauge_base():
+    return load_config(default_config_path())
+
+
+@pytest.fixture(scope="module")
+def encoder_base():
+    return load_config(default_config_path(), ENCODER_LOOP)
+
+
+def bench(base, stiffness=(50.0, 25.0), effects=PLANT, **impedance):
+    cfg = bench_config(base, stiffness=stiffness, damping=(0.5, 0.25), torque_feedback="auto",
+                       friction_ff="identified", effects=effects)
+    cfg["controller"]["impedance"].update(impedance)
+    return cfg
+
+
+def test_the_held_foot_step_meets_its_goal_on_the_encoders_rate(gauge_base, encoder_base):
+    """The bench's worst step (K_ie 25, 3 N m IE on the rigid ground, the issue's plant): over 40 % with the
+    default loop (the gauges' noise bounds its rate gain), at most 20 % on the encoder rate; no fault."""
+    exp = Experiment()
+    gauges = run_torque_step(bench(gauge_base), exp, "rigid")
+    encoders = run_torque_step(bench(encoder_base), exp, "rigid")
+    assert gauges["fault"] == encoders["fault"] == "NONE"
+    assert gauges["overshoot_pct"] > 40.0
+    assert encoders["overshoot_pct"] <= 20.0, encoders
+
+
+def test_its_current_noise_at_rest_is_near_half_the_default_loops_and_within_the_model(gauge_base, encoder_base):
+    """Lockstep, foot free at rest: each motor's set-value RMS under the encoder-rate loop is under 0.6 of the
+    default loop's, and at most the model's prediction (the gauges' noise and the encoders' counts as white
+    noise; a count at rest is not, so the model is the upper side)."""
+    def noise(base):
+        cfg = bench(base, effects=[])
+        run = run_lockstep(cfg, 1.5)
+        rest = run["t"] > 0.7
+        return cfg, [run[m][rest].std() for m in ("current_cmd_1", "current_cmd_2")]
+
+    cfg, encoders = noise(encoder_base)
+    _, gauges = noise(gauge_base)
+    sigma = cfg["sensors"]["strain_gauge_noise_rms"]
+    predicted = sensor_noise_current_a(PlantParams.from_config(cfg), ImpedanceLoop.from_config(cfg, closed=True),
+                                       (sigma, sigma), cfg["actuator"]["torque_constant"], encoder_noise_rad(cfg))
+    for got, default, model in zip(encoders, gauges, predicted):
+        assert got < 0.6 * default and 0.4 * model < got <= model, (got, default, model)
+
+
+def test_without_joint_encoders_the_encoder_rate_is_refused_naming_the_key():
+    cfg = load_config(CONFIG_DIR / "hw-serial.yaml", {**ENCODER_LOOP, "controller": {
+        **ENCODER_LOOP["controller"], "type": "impedance"}})
+    with pytest.raises(ConfigError) as err:
+        build_controller(cfg, Kinematics.from_params(TransmissionParams(**cfg["transmission"])), np.zeros(2))
+    assert err.value.key == "controller.torque_loop.torque_rate_source"
+
+
+def test_cable_play_does_not_turn_the_rate_on_the_bare_motor(encoder_base):
+    """0.2 mm of cable backlash, K 200 / 100, released after a 3 N m push: with the stretch believed however far
+    it is from the gauges (agreement 10 N m) the rate term acts on the phantom torque of the gap, a velocity
+    feedback on the bare motor inertia, and the ankle swings by degrees (4.3 deg spread) before the oscillation
+    detector faults; within 0.1 N m of the gauges the ankle hunts much as the default loop does (0.44 against
+    0.24 deg; the detector faults too), and with the joint crossover (2 Hz) it comes to rest."""
+    effects = PLANT + [BACKLASH]
+    cfg = bench(encoder_base, (200.0, 100.0), effects)
+    cfg["controller"]["torque_loop"]["torque_rate_agreement_nm"] = 10.0
+    fault, deg, _ = hunt_after_release(cfg, window=(2.3, 3.0))
+    assert fault == "OSCILLATION" and deg > 2.0, (fault, deg)
+    fault, deg, _ = hunt_after_release(bench(encoder_base, (200.0, 100.0), effects), window=(2.3, 3.0))
+    assert deg < 1.0, (fault, deg)
+    fault, deg, amps = hunt_after_release(bench(encoder_base, (200.0, 100.0), effects, **CROSSOVER))
+    assert fault == "NONE" and deg < 0.02 and amps < 0.6, (fault, deg, amps)
