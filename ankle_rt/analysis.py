@@ -347,7 +347,7 @@ class ImpedanceLoop:
     # per axis, the rate term's torque: the strain gauges', or (True) the cables' stretch from the motor and joint
     # encoders times the configured cable (ankle_rt.control.torque_loop: controller.torque_loop.torque_rate_source)
     rate_from_encoders: tuple[bool, bool] = (False, False)
-    rate_crossover_hz: tuple[float, float] = (0.0, 0.0)   # ... with the gauges' torque below this (0: none)
+    rate_crossover_hz: tuple[float, float] = (5.0, 5.0)   # Hz, ... with the gauges' torque below this
     cutoff_hz: float = 30.0                 # the shared key (a gain of GAINS) ...
     axis_cutoff_hz: tuple[float | None, float | None] = (None, None)   # ... unless an axis has its own
     dob_hz: float = 0.0                     # disturbance observer's low-pass (0: no observer)
@@ -519,10 +519,11 @@ def _sections(shaping: tuple[tuple[tuple[float, ...], ...], ...]) -> list[tuple[
 
 
 def _controller(lm_kin, K_cable: np.ndarray, c: ImpedanceLoop) -> tuple[np.ndarray, np.ndarray]:
-    """(W, U) over [w_{k-1} (18 + 4 per shaping stage); y_k (6); r (2)]: the controller states w =
+    """(W, U) over [w_{k-1} (20 + 4 per shaping stage); y_k (6); r (2)]: the controller states w =
     [theta_m prev (2), v (2), tau filter (2), integrator (2), observer low-pass (2), ankle-side output u
     (2), the motor rates' low-pass (2), the joint encoders' low-passed lead over the estimate (2), the
-    filtered stretch torque (2, ``rate_from_encoders``), then per shaping stage its two direct-form-II-transposed states
+    filtered stretch torque and the gauges' low-passed lead over the stretch (2 + 2, ``rate_from_encoders``),
+    then per shaping stage its two direct-form-II-transposed states
     (2 + 2)] are w_k = W @ [...],
     the motor torques U @ [...]; y = [theta_m, tau_j, theta] measured (theta: joint encoders), r a
     desired joint torque added to the impedance law's (reference 0). The observer (dob_hz > 0):
@@ -920,12 +921,13 @@ def gain_set_margin_db(cfg_like: Mapping[str, Any], gains: Mapping[str, float], 
 
 def encoder_noise_rad(cfg_like: Mapping[str, Any]) -> tuple[float, float]:
     """rad RMS per sample [motor, joint]: the encoders' quantisation (a count / sqrt(12)) at the gearbox
-    output and at the joint (0: no joint encoders)."""
+    output, and at the joint with the stated jitter (``sensors.joint_encoder_noise_rms``; 0: no joint encoders)."""
     from ankle_rt.loop_setup import joint_encoder_counts
 
     joint = joint_encoder_counts(cfg_like)
     count = lambda n: 2.0 * math.pi / n / math.sqrt(12.0)  # noqa: E731
-    return count(cfg_like["actuator"]["encoder_counts_per_rev"]), count(joint) if joint else 0.0
+    jitter = cfg_like["sensors"]["joint_encoder_noise_rms"]
+    return count(cfg_like["actuator"]["encoder_counts_per_rev"]), math.hypot(count(joint), jitter) if joint else 0.0
 
 
 def gain_set_noise_a(cfg_like: Mapping[str, Any], gains: Mapping[str, float]) -> tuple[float, str]:

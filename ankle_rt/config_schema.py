@@ -139,6 +139,7 @@ NOTCH_CABLE_STIFFNESS_DEFAULT = 218800.0
 MAX_NOTCH_HZ = 400.0   # below the 1 kHz loop's Nyquist frequency
 MAX_CUTOFF_HZ = 400.0  # the torque filter's, shared or per axis
 MAX_RATE_CROSSOVER_HZ = 50.0   # the encoder rate source's: above it the gauges' noise is back in the rate term
+MAX_RATE_AGREEMENT_NM = 0.5    # ... its stretch believed this far from the gauges at most (25x their noise)
 # The high-passed motor-rate damping [DP, IE] (ankle_rt/control/torque_loop.py): a collocated damping of the motor
 # above a corner, for the held foot's mode (the motor on the cable and the ground, 10-30 Hz). Off by default.
 MAX_RATE_DAMPING, MAX_RATE_DAMPING_HZ = 500.0, 100.0
@@ -201,13 +202,14 @@ TORQUE_LOOP = Section({
                                      "encoders)", default="gauges", choices=("gauges", "encoders")),
     **{f"torque_rate_crossover_hz_{axis}": Field(
         float, f"Hz, with torque_rate_source encoders: the {axis.upper()} gauge's torque below this, the stretch's "
-               f"above (the gauges are right about the torque's size, the encoders quiet); 0 = the stretch alone",
-        default=5.0, low=0.0, high=MAX_RATE_CROSSOVER_HZ)
+               f"above (the gauges are right about the torque's size and offset, the encoders quiet)",
+        default=5.0, low=0.1, high=MAX_RATE_CROSSOVER_HZ)
        for axis in ("dp", "ie")},
     "torque_rate_agreement_nm": positive("N m, with torque_rate_source encoders: the stretch torque is used only "
                                          "within this of the filtered gauge torque, the gauges' own rate beyond "
-                                         "(a slack cable or backlash shows a stretch with no torque behind it)",
-                                         default=0.1, high=10.0),
+                                         "(a slack cable or backlash shows a stretch with no torque behind it; "
+                                         "believed up to 10 N m, 0.2 mm of play swings the ankle by degrees)",
+                                         default=0.1, high=MAX_RATE_AGREEMENT_NM),
     "cutoff_hz": Field(float, "Hz, first-order low-pass of the measured joint torque (below the 77-98 Hz cable modes); "
                               "per axis: cutoff_hz_dp / cutoff_hz_ie", default=LOOP_DEFAULTS["cutoff_hz"], low=1.0,
                        high=MAX_CUTOFF_HZ),
@@ -451,6 +453,9 @@ LIMITS = Section({
 
 SENSORS = Section({
     "strain_gauge_noise_rms": non_negative("N m per ankle axis", high=10.0),
+    "joint_encoder_noise_rms": non_negative("rad per sample, the joint encoders' jitter beyond their count (the "
+                                            "noise check counts it with torque_rate_source encoders; measure it)",
+                                            default=0.0, high=0.01),
     "strain_gauge_range_nm": positive("N m at the ankle: the strain gauges' full scale (a reading there is a "
                                       "sensor at its rail); safety.sg_rail_nm lies below it", default=250.0,
                                       high=1000.0),

@@ -61,11 +61,13 @@ def noise_refusal(cfg: Mapping[str, Any], gains: Mapping[str, float]) -> tuple[s
     if noise <= most or not math.isfinite(noise):   # an unstable loop has no noise figure: the margin checks name it
         return None
     value = gains.get(name, cfg["controller"]["torque_loop"][name])
+    advice = (", or with joint encoders take the rate from them (torque_rate_source: encoders)"
+              if cfg["controller"]["torque_loop"]["torque_rate_source"] == "gauges" else "")
     return name, (f"{name} {value:g}: the joint-torque loop turns the strain gauges' noise (sensors.strain_gauge_noise_rms "
                   f"{cfg['sensors']['strain_gauge_noise_rms']:g} N m) and the encoders' counts into {noise:.2f} A RMS of "
                   f"set value at rest, above {most:.2f} A ({MAX_NOISE_SHARE:g} x safety.oscillation_rms_a: the "
-                  f"oscillation detector would trip on it); lower kp, torque_rate or the torque filter's cutoff, or with "
-                  f"joint encoders take the rate from them (torque_rate_source: encoders; docs/daemon.md)")
+                  f"oscillation detector would trip on it); lower kp, torque_rate or the torque filter's cutoff{advice} "
+                  f"(docs/daemon.md)")
 
 
 def ramp_refusal(cfg: Mapping[str, Any], start: Mapping[str, float], end: Mapping[str, float],

@@ -33,9 +33,10 @@ def uses_joint_encoders(cfg: Mapping[str, Any]) -> bool:
 
 
 def has_joint_encoders(cfg: Mapping[str, Any]) -> bool:
-    """Whether the device reads its ankle angles: the simulator always does (the true joint angle), hardware
-    with ``joint_encoders.counts_per_rev``."""
-    return cfg["backend"] == "sim" or cfg["joint_encoders"]["counts_per_rev"] is not None
+    """Whether the device reads its ankle angles: the simulator always does (the true joint angles, quantised),
+    the serial bridge with ``joint_encoders.counts_per_rev``; the CANopen backend reads none."""
+    backend = cfg["backend"]
+    return backend == "sim" or (backend != "canopen" and cfg["joint_encoders"]["counts_per_rev"] is not None)
 
 
 SIM_JOINT_COUNTS_PER_REV = 2 ** 19   # the simulator's joint encoders unless configured: the bench's (19 bit, 12 urad)

@@ -118,8 +118,6 @@ class Setup:
     plants: list[PlantParams]
     loops: list[an.ImpedanceLoop]
     free: list[tuple]         # per bench stiffness: (Ad, Bd_motor, Bd_ankle, Cy, kin) of each free-foot plant case
-    rate_from_encoders: bool = False   # the loops' rate terms on the cables' stretch (study_torque_loop_step.py) ...
-    rate_crossover_hz: tuple[float, float] = (0.0, 0.0)     # ... with the gauges' below this
 
     @classmethod
     def build(cls, config: str | None = None) -> "Setup":

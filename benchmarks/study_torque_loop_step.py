@@ -50,20 +50,18 @@ PARAMS = (("kp", 15.0, 90.0), ("ki", 2.0, 30.0), ("torque_rate", 0.02, 0.6), ("c
           ("motor_rate_damping", 0.0, 300.0), ("motor_rate_damping_hz", 3.0, 80.0))
 GROUNDS = (((1000.0, 500.0), 1.0), ((300.0, 150.0), 1.0))    # the bench's rigid and soft grounds
 GAUGE_NOISE_NM = 0.02
-ENCODER_NOISE_RAD = (2.0 * math.pi / 116640 / math.sqrt(12.0), 2.0 * math.pi / 2 ** 19 / math.sqrt(12.0))
+ENCODER_NOISE_RAD = an.encoder_noise_rad(load_config(default_config_path()))   # rad [motor, joint]: a count / sqrt(12)
 
 
 def loops_for(setup: Setup, x: np.ndarray, axis: int) -> list[an.ImpedanceLoop]:
-    """The bench's loops with ``axis``'s parameters from ``x`` (PARAMS' order) and the setup's rate source."""
+    """The bench's loops with ``axis``'s parameters from ``x`` (PARAMS' order)."""
     kp, ki, kd, cut, f1, z1, d1, f2, z2, d2, rd, rf = (float(v) for v in x)
     pick = lambda pair, v: tuple(v if a == axis else pair[a] for a in (0, 1))  # noqa: E731
     dt = setup.loops[0].dt
     sections = tuple(s for s in (notch_section(f1, z1, d1, dt), notch_section(f2, z2, d2, dt)))
     return [dataclasses.replace(l, kp=pick(l.kp, kp), ki=pick(l.ki, ki), torque_rate_gain=pick(l.torque_rate_gain, kd),
                                 axis_cutoff_hz=pick(l.axis_cutoff_hz, cut), shaping=pick(l.shaping, sections),
-                                rate_damping=pick(l.rate_damping, rd), rate_damping_hz=pick(l.rate_damping_hz, rf),
-                                rate_from_encoders=pick(l.rate_from_encoders, setup.rate_from_encoders),
-                                rate_crossover_hz=pick(l.rate_crossover_hz, setup.rate_crossover_hz))
+                                rate_damping=pick(l.rate_damping, rd), rate_damping_hz=pick(l.rate_damping_hz, rf))
             for l in setup.loops]
 
 
@@ -144,8 +142,12 @@ def main() -> None:
     args = ap.parse_args()
     axis = AXES.index(args.axis)
     full = Setup.build(args.config)
-    setup = Setup(full.plants[:2], full.loops[:2], full.free,      # the bench's two impedances
-                  rate_from_encoders=args.rate_source == "encoders", rate_crossover_hz=(args.rate_crossover_hz,) * 2)
+    encoders = args.rate_source == "encoders"     # the searched axis's rate source, the other axis's as configured
+    pick = lambda pair, v: tuple(v if a == axis else pair[a] for a in (0, 1))  # noqa: E731
+    loops = [dataclasses.replace(l, rate_from_encoders=pick(l.rate_from_encoders, encoders),
+                                 rate_crossover_hz=pick(l.rate_crossover_hz, args.rate_crossover_hz))
+             for l in full.loops[:2]]
+    setup = Setup(full.plants[:2], loops, full.free)      # the bench's two impedances
     tl = load_config(args.config or default_config_path())["controller"]["torque_loop"]
     start = np.array([float(tl[f"{n}_{args.axis}"] if n != "cutoff_hz" else torque_loop_cutoffs(tl)[axis])
                       for n, *_ in PARAMS])

@@ -78,12 +78,9 @@ class ImpedanceController(RampedGainController):
 
         c = cfg["controller"]
         joint = uses_joint_encoders(cfg)
-        if joint and cfg["backend"] != "sim" and cfg["joint_encoders"]["counts_per_rev"] is None:
+        if joint and not has_joint_encoders(cfg):
             raise ConfigError("angle_source joint_encoders needs joint encoders (joint_encoders.counts_per_rev)",
                               getattr(cfg, "source", None), "controller.impedance.angle_source")
-        if torque_feedback(cfg) and rate_from_encoders(cfg) and not has_joint_encoders(cfg):
-            raise ConfigError("torque_rate_source encoders needs joint encoders (joint_encoders.counts_per_rev)",
-                              getattr(cfg, "source", None), "controller.torque_loop.torque_rate_source")
         loop, limits, friction = actuation_from_config(cfg, friction)
         try:
             return cls(kin, ref, c["impedance"], dt=1.0 / c["rate_hz"], ramp_s=c["gain_ramp_s"],
@@ -184,9 +181,16 @@ def actuation_from_config(cfg: "Config", friction: FrictionFeedForward | None
                           ) -> tuple[JointTorqueLoop | None, ImpedanceLimits | None, FrictionFeedForward | None]:
     """The impedance actuation's pieces from ``cfg``: the joint-torque loop and its stable set when
     :func:`torque_feedback` says so (the feed-forward's viscous terms then left out), else None, None
-    and ``friction`` as given."""
+    and ``friction`` as given. Raises ConfigError naming ``torque_rate_source`` for a rate on joint encoders
+    the device does not have (every controller on this actuation: impedance, gait phase)."""
+    from ankle_rt.config import ConfigError
+
     if not torque_feedback(cfg):
         return None, None, friction
+    if rate_from_encoders(cfg) and not has_joint_encoders(cfg):
+        raise ConfigError("torque_rate_source encoders needs joint encoders (joint_encoders.counts_per_rev on the "
+                          "serial bridge; the simulator has them, the CANopen backend does not)",
+                          getattr(cfg, "source", None), "controller.torque_loop.torque_rate_source")
     c = cfg["controller"]
     loop = JointTorqueLoop(TorqueLoopGains.from_config(c["torque_loop"], cfg["transmission"]["cable_stiffness"]),
                            1.0 / c["rate_hz"], ReflectedActuator.from_config(cfg),

@@ -115,7 +115,7 @@ class TorqueLoopGains:
     rate_damping_hz: tuple[float, float]     # Hz, that high-pass's corner
     lag: Lag                                 # low-frequency boosts on the P and rate terms, before the notch
     rate_from_encoders: bool                 # the rate terms on the cables' stretch torque (else the gauges')
-    rate_crossover_hz: tuple[float, float]   # ... with the gauges' below this (0: the stretch alone)
+    rate_crossover_hz: tuple[float, float]   # ... with the gauges' below this (Hz)
     rate_agreement_nm: float                 # ... and within this of the filtered gauge torque
 
     @classmethod
