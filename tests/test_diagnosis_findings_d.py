@@ -307,10 +307,35 @@ def test_the_catch_all_finds_friction_rippling_with_the_motor_angle(depth, least
     from ankle_rt.diagnosis.regression import fit, rss_only
     ch = MotorChannel(_ripple_record(depth), None, None, 0.01)
     y, Xb = ch.target(), ch.baseline_design()
-    X = periodic_friction(ch)
+    base = fit(y, Xb)
+    X = periodic_friction(ch, base.residual)
     assert X.shape[1] == 4                                   # sin and cos per motor
-    share = 1.0 - rss_only(y, np.hstack([Xb, X])) / fit(y, Xb).rss
+    share = 1.0 - rss_only(y, np.hstack([Xb, X])) / base.rss
     assert least <= share <= most, share
+
+
+def test_the_catch_all_searches_the_baseline_its_models_fitted():
+    """The motor catch-all's periodic friction searches the baseline residual of the channel's models,
+    fitted once per channel state (:attr:`ChannelModels.baseline`) rather than on every catch-all call:
+    the same columns as from the channel's baseline fitted afresh; a channel weighed anew (its rests
+    judged again, as the second stuck test does) gets the baseline of its new state from its new models."""
+    from ankle_rt.diagnosis.candidates import PERIODIC_FRICTION_GROUP, catch_all_motor, periodic_friction
+    from ankle_rt.diagnosis.regression import fit
+    from ankle_rt.diagnosis.selection import ChannelModels
+    case = make_case_d(113, ["torque_offset"], motion="steps", controller="impedance", ident_s=4, valid_s=2)
+    ch = MotorChannel(case.ident, 1.66, None, 0.01, counts_per_rev=COUNTS, coulomb=0.28)
+    models = ChannelModels(ch)
+    assert models.baseline is models.baseline
+    fresh = fit(ch.target(), ch.baseline_design())
+    np.testing.assert_array_equal(models.baseline.residual, fresh.residual)
+    X, groups = catch_all_motor(models)
+    ripple = X[:, [j for j, g in enumerate(groups) if g == PERIODIC_FRICTION_GROUP]]
+    assert ripple.shape[1] == 4
+    np.testing.assert_array_equal(ripple, periodic_friction(ch, fresh.residual))
+    assert ch.weigh_rests(0.0)                               # every rest stuck now: the signals weighed anew
+    again = ChannelModels(ch).baseline.residual
+    np.testing.assert_array_equal(again, fit(ch.target(), ch.baseline_design()).residual)
+    assert not np.array_equal(again, fresh.residual)
 
 
 @pytest.mark.slow

@@ -11,12 +11,17 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-from ankle_rt.diagnosis.regression import fit
 from ankle_rt.diagnosis.signals import RELAXATION_S, CableChannel, MotorChannel, lagged
 
+if TYPE_CHECKING:
+    from ankle_rt.diagnosis.selection import ChannelModels
+
 Channel = MotorChannel | CableChannel
+#: a catch-all: the generic columns of a channel's models and the group each column correlates with
+CatchAll = Callable[["ChannelModels"], tuple[np.ndarray, list[str]]]
 
 
 @dataclass
@@ -720,19 +725,19 @@ def time_columns(ch: Channel) -> np.ndarray:
 PERIODIC_FRICTION_GROUP = "position (periodic friction)"
 
 
-def periodic_friction(ch: MotorChannel) -> np.ndarray:
+def periodic_friction(ch: MotorChannel, residual: np.ndarray) -> np.ndarray:
     """Friction rippling along the travel (an eccentric pulley, a sheath or bearing that drags more at
     some angles): ``sign(w_i) (a_i sin(n theta_i) + b_i cos(n theta_i))`` per motor, its sign following
     the motion, so not cogging. The count is the peak of the direction-weighted angle spectrum of the
-    baseline residual over cogging's counts (:meth:`Cogging.angle_power`); two columns per motor at one
-    count. Without them such a ripple (20-60 periods per output turn, generator D) was `none`: the
-    catch-all's slow position shapes span only 1-3 periods of the travel."""
+    baseline ``residual`` (stacked, the channel's baseline fit's: :attr:`ChannelModels.baseline`) over
+    cogging's counts (:meth:`Cogging.angle_power`); two columns per motor at one count. Without them such
+    a ripple (20-60 periods per output turn, generator D) was `none`: the catch-all's slow position shapes
+    span only 1-3 periods of the travel."""
     cogging = Cogging()
     if not cogging.applies(ch):
         return np.zeros((ch.n_rows * ch.m, 0))
     n_min, n_max = cogging.count_range(ch)
     moving = ~ch.resting
-    residual = fit(ch.target(), ch.baseline_design()).residual
     power = Cogging.angle_power(ch, residual, n_max, moving * ch.sign)
     n = n_min + int(np.argmax(power[n_min:]))
     w = Cogging.taper(ch, n * ch.vel) * moving * ch.sign
@@ -740,13 +745,14 @@ def periodic_friction(ch: MotorChannel) -> np.ndarray:
     return np.hstack([ch.per_column(filtered[:, :ch.m]), ch.per_column(filtered[:, ch.m:])])
 
 
-def catch_all_motor(ch: MotorChannel) -> tuple[np.ndarray, list[str]]:
-    """Generic columns for the motor channel and what each correlates with: a torque FIR (latency,
-    dynamics), torque-constant nonlinearity, velocity and cable-torque shapes, slow position dependence
-    (spring, preload, slow harmonics, friction varying along the travel), slow drift in time (also of the
-    friction: temperature) and an offset. No low-speed shapes beyond the named Stribeck block: near zero
-    speed the residual carries the friction-transition error of any velocity estimate, which must not
-    read as an unnamed effect."""
+def catch_all_motor(models: ChannelModels) -> tuple[np.ndarray, list[str]]:
+    """Generic columns for the motor channel (``models.ch``) and what each correlates with: a torque FIR
+    (latency, dynamics), torque-constant nonlinearity, velocity and cable-torque shapes, slow position
+    dependence (spring, preload, slow harmonics, friction varying along the travel), slow drift in time
+    (also of the friction: temperature) and an offset. No low-speed shapes beyond the named Stribeck
+    block: near zero speed the residual carries the friction-transition error of any velocity estimate,
+    which must not read as an unnamed effect."""
+    ch = models.ch
     now = ch.torque()
     cols = [ch.torque(lag) - now for lag in DELAY_LAGS_S]
     groups = ["latency (torque history)"] * len(cols)
@@ -773,15 +779,15 @@ def catch_all_motor(ch: MotorChannel) -> tuple[np.ndarray, list[str]]:
     raw.append((np.ones_like(ch.pos), "offset"))
     cols += [ch.filt(r) for r, _ in raw]
     groups += [g for _, g in raw]
-    ripple = periodic_friction(ch)
+    ripple = periodic_friction(ch, models.baseline.residual)
     groups += [PERIODIC_FRICTION_GROUP] * ripple.shape[1]
     return np.column_stack(cols + [ripple]), groups
 
 
-def without_groups(catch_all, dropped: set[str]):
+def without_groups(catch_all: CatchAll, dropped: set[str]) -> CatchAll:
     """``catch_all`` without the columns of the ``dropped`` groups."""
-    def restricted(ch: Channel) -> tuple[np.ndarray, list[str]]:
-        X, groups = catch_all(ch)
+    def restricted(models: ChannelModels) -> tuple[np.ndarray, list[str]]:
+        X, groups = catch_all(models)
         keep = [j for j, g in enumerate(groups) if g not in dropped]
         return X[:, keep], [groups[j] for j in keep]
     return restricted
@@ -796,9 +802,10 @@ INPUT_GROUPS = {"torque level", "latency (torque history)"}
 RELAXATION_GROUP = "stretch history (relaxation)"
 
 
-def catch_all_cable(ch: CableChannel) -> tuple[np.ndarray, list[str]]:
-    """Generic columns for the cable channel (per axis) and what each correlates with: even and odd
-    stretch shapes, rate-dependent terms, soft dead zones, and a slow drift in time."""
+def catch_all_cable(models: ChannelModels) -> tuple[np.ndarray, list[str]]:
+    """Generic columns for the cable channel (``models.ch``, per axis) and what each correlates with: even
+    and odd stretch shapes, rate-dependent terms, soft dead zones, and a slow drift in time."""
+    ch = models.ch
     scale = np.maximum(np.percentile(np.abs(ch.phi), 99, axis=0), 1e-12)
     p = ch.phi / scale
     d = ch.L_dphi / np.maximum(np.percentile(np.abs(ch.L_dphi), 99, axis=0), 1e-12)

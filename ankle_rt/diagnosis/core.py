@@ -25,7 +25,7 @@ import numpy as np
 
 from ankle_rt.config import Config
 from ankle_rt.diagnosis.candidates import (CABLE_CANDIDATES, INPUT_GROUPS, LOAD_CANDIDATES, MOTOR_CANDIDATES,
-                                           RELAXATION_GROUP, Candidate, Channel,
+                                           RELAXATION_GROUP, Candidate, CatchAll, Channel,
                                            catch_all_cable, catch_all_motor, folded_coulomb, time_columns,
                                            without_groups)
 from ankle_rt.diagnosis.regression import rss_only
@@ -341,7 +341,7 @@ def _remove_gauge_offsets(chans: dict[str, Channel], label: str, warnings: list[
 
 
 def _named_sets(results: list[ChannelResult], notes: list[str], unusable: bool, vmodels: dict[str, ChannelModels],
-                catch_alls: dict[str, Any]) -> tuple[dict[str, list[tuple[Candidate, float]]], dict[str, Any]]:
+                catch_alls: dict[str, CatchAll]) -> tuple[dict[str, list[tuple[Candidate, float]]], dict[str, Any]]:
     """Per channel the effects to name, and the channels with an unexplained remainder. A named set that
     explains less than MIN_EXPLAINED of the catch-all's gain is a partial proxy: not named. What the set
     explains is measured jointly (:attr:`ChannelResult.named_share`), not as the sum of each effect's
@@ -471,8 +471,8 @@ def _holding(res: ChannelResult, ch: MotorChannel) -> np.ndarray:
     return np.maximum(h, 0.0)
 
 
-def _select_motor(chans: dict[str, Channel], vchans: dict[str, Channel], pool: tuple[Candidate, ...], catch_all,
-                  drift: bool) -> ChannelResult:
+def _select_motor(chans: dict[str, Channel], vchans: dict[str, Channel], pool: tuple[Candidate, ...],
+                  catch_all: CatchAll, drift: bool) -> ChannelResult:
     """The motor channel's selection with the stuck rests judged twice: first against the nominal Coulomb
     level alone (the channels as built), then against what the chosen model's friction holds near zero
     speed (:func:`_holding`: a Stribeck excess and a load-dependent term hold more than Coulomb alone, and

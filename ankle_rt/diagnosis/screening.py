@@ -226,8 +226,9 @@ def strain_gauge_drift(cable) -> list[float] | None:
     residual that follows time is the gauges', not the cables'."""
     from ankle_rt.diagnosis.candidates import EncoderScale, catch_all_cable, time_columns
     from ankle_rt.diagnosis.regression import fit
+    from ankle_rt.diagnosis.selection import ChannelModels
 
-    C, groups = catch_all_cable(cable)
+    C, groups = catch_all_cable(ChannelModels(cable))
     shapes = C[:, [j for j, g in enumerate(groups) if g != "time (drift)"]]
     # the joint-angle columns of an encoder scale mismatch too: slow motion would read as a drift
     y, Xb = cable.target(), np.hstack([cable.baseline_design(), shapes, EncoderScale().design(cable, 0.0).X])

@@ -11,10 +11,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
-from ankle_rt.diagnosis.candidates import Candidate, Channel, Design
+from ankle_rt.diagnosis.candidates import Candidate, CatchAll, Channel, Design
 from ankle_rt.diagnosis.regression import Fit, block_cv_mse, effective_samples, fit, information_criterion, rss_only
 
 #: a block must beat the model without it by this much in the information criterion (nats x 2) ...
@@ -150,6 +151,12 @@ class ChannelModels:
         self._cv: dict[tuple, np.ndarray] = {}
         self._fits: dict[tuple, Fit] = {}
 
+    @cached_property
+    def baseline(self) -> Fit:
+        """The baseline alone fitted (its residual is what the candidates and the catch-all's periodic
+        friction search; fitted once per channel state, as the models are built on one)."""
+        return fit(self.y0, self.Xb)
+
     def design(self, cand: Candidate, nl: float) -> Design:
         """``cand``'s columns at ``nl``, from a cache of the MAX_DESIGNS most recently used (the cogging
         search screens dozens of counts per step, each a few hundred kB on a long record)."""
@@ -244,10 +251,10 @@ def cv_wins(models: ChannelModels, without: list[Term], with_: list[Term]) -> tu
     return bool(np.median(b / a) < 1.0 - 0.5 * MIN_REDUCTION and wins >= CV_FOLDS - 1), wins
 
 
-def select_channel(name: str, ch: Channel, candidates: tuple[Candidate, ...], catch_all) -> ChannelResult:
+def select_channel(name: str, ch: Channel, candidates: tuple[Candidate, ...], catch_all: CatchAll) -> ChannelResult:
     """Forward selection, drop-one pruning, re-gridding of the chosen blocks, and the catch-all on top."""
     models = ChannelModels(ch)
-    base = fit(models.y0, models.Xb)
+    base = models.baseline
     if not base.rss > 0.0:
         # a silent or constant signal (gauges that read exactly zero, motors that never move): every
         # share and criterion below is relative to this residual, and there is nothing to explain
@@ -256,7 +263,7 @@ def select_channel(name: str, ch: Channel, candidates: tuple[Candidate, ...], ca
         return out
     pool = [c for c in candidates if c.applies(ch)]
     first = [models.best_of(c, [], base.residual) for c in pool]
-    C, groups = catch_all(ch)
+    C, groups = catch_all(models)
     best_blocks = [models.term(s.candidate, s.nl).design.X for s in first]
     full = fit(models.y0, np.hstack([models.Xb, C] + best_blocks))
     n_eff = effective_samples(full.residual, ch.m)
@@ -566,13 +573,14 @@ def _catch_all_on_top(out: ChannelResult, models: ChannelModels, chosen: list[Te
         out.correlates = sorted(shares, key=lambda p: -p[1])
 
 
-def replicates(vmodels: ChannelModels, specs: list[tuple[Candidate, float]], catch_all) -> tuple[bool, float, float]:
+def replicates(vmodels: ChannelModels, specs: list[tuple[Candidate, float]],
+               catch_all: CatchAll) -> tuple[bool, float, float]:
     """(whether, criterion gain, residual share): does the catch-all find a remainder beyond the named
     ``specs`` on the held-out (validation) data too, each refitted there? A remainder left beside named
     effects must show on data the selection never saw before it is called ``unknown``: a form a little
     off the true one leaves a remainder in-sample the catch-all's many columns fit (issue 21)."""
     y, X = vmodels.system(vmodels.terms(specs))
-    C, _ = catch_all(vmodels.ch)
+    C, _ = catch_all(vmodels)
     Xc = np.hstack([X, C])
     model, full = fit(y, X), fit(y, Xc)
     n_eff = effective_samples(full.residual, vmodels.ch.m)
