@@ -389,7 +389,7 @@ class ImpedanceLoop:
         dt = 1.0 / c["rate_hz"]
         return cls(stiffness=(imp["stiffness_dp"], imp["stiffness_ie"]), damping=(imp["damping_dp"], imp["damping_ie"]),
                    kp=pair(tl, "kp"), ki=pair(tl, "ki"), torque_rate_gain=pair(tl, "torque_rate"),
-                   rate_from_encoders=(closed and rate_from_encoders(cfg),) * 2,
+                   rate_from_encoders=(closed and rate_from_encoders(tl),) * 2,
                    rate_crossover_hz=pair(tl, "torque_rate_crossover_hz"),
                    cutoff_hz=tl["cutoff_hz"], axis_cutoff_hz=(tl.get("cutoff_hz_dp"), tl.get("cutoff_hz_ie")),
                    dob_hz=float(tl["dob_hz"]) if closed else 0.0,
@@ -922,12 +922,12 @@ def gain_set_margin_db(cfg_like: Mapping[str, Any], gains: Mapping[str, float], 
 def encoder_noise_rad(cfg_like: Mapping[str, Any]) -> tuple[float, float]:
     """rad RMS per sample [motor, joint]: the encoders' quantisation (a count / sqrt(12)) at the gearbox
     output, and at the joint with the stated jitter (``sensors.joint_encoder_noise_rms``; 0: no joint encoders)."""
-    from ankle_rt.loop_setup import joint_encoder_counts
+    from ankle_rt.loop_setup import has_joint_encoders, joint_encoder_counts
 
-    joint = joint_encoder_counts(cfg_like)
     count = lambda n: 2.0 * math.pi / n / math.sqrt(12.0)  # noqa: E731
-    jitter = cfg_like["sensors"]["joint_encoder_noise_rms"]
-    return count(cfg_like["actuator"]["encoder_counts_per_rev"]), math.hypot(count(joint), jitter) if joint else 0.0
+    joint = (math.hypot(count(joint_encoder_counts(cfg_like)), cfg_like["sensors"]["joint_encoder_noise_rms"])
+             if has_joint_encoders(cfg_like) else 0.0)
+    return count(cfg_like["actuator"]["encoder_counts_per_rev"]), joint
 
 
 def gain_set_noise_a(cfg_like: Mapping[str, Any], gains: Mapping[str, float]) -> tuple[float, str]:

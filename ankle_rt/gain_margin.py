@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 from typing import Any, Mapping
 
+from ankle_rt.loop_setup import rate_from_encoders
 
 RAMP_CHECK_POINTS = 8    # a gain ramp is checked at this many evenly spaced points, its end included
 # The most of safety.oscillation_rms_a the strain gauges' noise may make of a set value at rest: the detector
@@ -62,7 +63,7 @@ def noise_refusal(cfg: Mapping[str, Any], gains: Mapping[str, float]) -> tuple[s
         return None
     value = gains.get(name, cfg["controller"]["torque_loop"][name])
     advice = (", or with joint encoders take the rate from them (torque_rate_source: encoders)"
-              if cfg["controller"]["torque_loop"]["torque_rate_source"] == "gauges" else "")
+              if not rate_from_encoders(cfg["controller"]["torque_loop"]) else "")
     return name, (f"{name} {value:g}: the joint-torque loop turns the strain gauges' noise (sensors.strain_gauge_noise_rms "
                   f"{cfg['sensors']['strain_gauge_noise_rms']:g} N m) and the encoders' counts into {noise:.2f} A RMS of "
                   f"set value at rest, above {most:.2f} A ({MAX_NOISE_SHARE:g} x safety.oscillation_rms_a: the "

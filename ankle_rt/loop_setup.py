@@ -42,19 +42,16 @@ def has_joint_encoders(cfg: Mapping[str, Any]) -> bool:
 SIM_JOINT_COUNTS_PER_REV = 2 ** 19   # the simulator's joint encoders unless configured: the bench's (19 bit, 12 urad)
 
 
-def joint_encoder_counts(cfg: Mapping[str, Any]) -> int | None:
-    """Counts per revolution of the joint encoders: ``joint_encoders.counts_per_rev``, on the simulator
-    without it the bench's 19 bit; None: the device has none."""
-    counts = cfg["joint_encoders"]["counts_per_rev"]
-    if counts is None and cfg["backend"] == "sim":
-        return SIM_JOINT_COUNTS_PER_REV
-    return counts
+def joint_encoder_counts(cfg: Mapping[str, Any]) -> int:
+    """Counts per revolution of the joint encoders: ``joint_encoders.counts_per_rev``, unset the bench's 19 bit
+    (what the simulated plant reads; whether the device has any: :func:`has_joint_encoders`)."""
+    return cfg["joint_encoders"]["counts_per_rev"] or SIM_JOINT_COUNTS_PER_REV
 
 
-def rate_from_encoders(cfg: Mapping[str, Any]) -> bool:
-    """Whether the joint-torque loop's rate terms differentiate the cables' stretch torque (motor and joint
-    encoders, ``controller.torque_loop.torque_rate_source: encoders``) rather than the strain gauges'."""
-    return cfg["controller"]["torque_loop"]["torque_rate_source"] == "encoders"
+def rate_from_encoders(torque_loop: Mapping[str, Any]) -> bool:
+    """Whether the joint-torque loop (``controller.torque_loop``) differentiates the cables' stretch torque in
+    its rate terms (motor and joint encoders, ``torque_rate_source: encoders``) rather than the strain gauges'."""
+    return torque_loop["torque_rate_source"] == "encoders"
 
 
 @dataclass(frozen=True)

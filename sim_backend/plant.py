@@ -13,7 +13,7 @@ import numpy as np
 
 from ankle_rt.config import ConfigError
 from ankle_rt.float_buffer import float_buffer
-from ankle_rt.loop_setup import SIM_JOINT_COUNTS_PER_REV
+from ankle_rt.loop_setup import joint_encoder_counts
 from ankle_rt.params import PlantParams
 from sim_backend.amplifier import EsconCurrentLimit
 from sim_backend.effects import build_effects
@@ -46,8 +46,7 @@ class SimulatedPlant:
         self.kt = p.actuator.torque_constant
         self.counts_per_rad = p.actuator.encoder_counts_per_rev / (2.0 * math.pi)
         # the joint encoders' (the bench's 19 bit unless configured): what a stretch from the encoders is read to
-        joint_counts = cfg["joint_encoders"]["counts_per_rev"] or SIM_JOINT_COUNTS_PER_REV
-        self.joint_counts_per_rad = joint_counts / (2.0 * math.pi)
+        self.joint_counts_per_rad = joint_encoder_counts(cfg) / (2.0 * math.pi)
         self.quantize = sim["quantization"]
         self.noise_rms = p.strain_gauge_noise_rms if sim["sensor_noise"] else 0.0
         self.sg_offset = list(sim["strain_gauge_offset"])

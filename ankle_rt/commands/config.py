@@ -106,7 +106,7 @@ def _torque_loop_lines(cfg) -> list[str]:
     from ankle_rt.config_schema import torque_loop_cutoffs
     from ankle_rt.gain_margin import MAX_NOISE_SHARE
     from ankle_rt.lag import Lag
-    from ankle_rt.loop_setup import torque_feedback
+    from ankle_rt.loop_setup import rate_from_encoders, torque_feedback
     from ankle_rt.notch import AXES, PREFIXES, Notch, cable_scale
 
     c = cfg["controller"]
@@ -124,7 +124,7 @@ def _torque_loop_lines(cfg) -> list[str]:
              f"{MAX_NOISE_SHARE * cfg['safety']['oscillation_rms_a']:.2f})",
              f"             torque rate from the {tl['torque_rate_source']}"
              + (f" (the gauges below DP {tl['torque_rate_crossover_hz_dp']:g} / IE {tl['torque_rate_crossover_hz_ie']:g} Hz)"
-                if tl["torque_rate_source"] == "encoders" else "")]
+                if rate_from_encoders(tl) else "")]
     lag, cutoffs = Lag.from_config(tl), torque_loop_cutoffs(tl)
     lags = ", ".join(f"{a.upper()} {hz:g} Hz x{b:g}" if on else f"{a.upper()} none"
                      for a, hz, b, on in zip(AXES, lag.hz, lag.boost, lag.on))

@@ -187,7 +187,7 @@ def actuation_from_config(cfg: "Config", friction: FrictionFeedForward | None
 
     if not torque_feedback(cfg):
         return None, None, friction
-    if rate_from_encoders(cfg) and not has_joint_encoders(cfg):
+    if rate_from_encoders(cfg["controller"]["torque_loop"]) and not has_joint_encoders(cfg):
         raise ConfigError("torque_rate_source encoders needs joint encoders (joint_encoders.counts_per_rev on the "
                           "serial bridge; the simulator has them, the CANopen backend does not)",
                           getattr(cfg, "source", None), "controller.torque_loop.torque_rate_source")

@@ -79,7 +79,7 @@ from ankle_rt.config_schema import torque_loop_cutoffs
 from ankle_rt.elementwise import Value, clip, minimum, positive_part, select, stack
 from ankle_rt.lag import Lag
 from ankle_rt.lead import loop_lag
-from ankle_rt.loop_setup import ReflectedActuator
+from ankle_rt.loop_setup import ReflectedActuator, rate_from_encoders
 from ankle_rt.notch import Notch
 
 if TYPE_CHECKING:
@@ -129,7 +129,7 @@ class TorqueLoopGains:
                    tank_j=float(c["tank_j"]), tank_friction_credit=float(c["tank_friction_credit"]),
                    notch=Notch.from_config(c, cable_stiffness), notch2=Notch.from_config(c, cable_stiffness, "notch2"),
                    rate_damping=pair("motor_rate_damping"), rate_damping_hz=pair("motor_rate_damping_hz"),
-                   lag=Lag.from_config(c), rate_from_encoders=c["torque_rate_source"] == "encoders",
+                   lag=Lag.from_config(c), rate_from_encoders=rate_from_encoders(c),
                    rate_crossover_hz=pair("torque_rate_crossover_hz"),
                    rate_agreement_nm=float(c["torque_rate_agreement_nm"]))
 
