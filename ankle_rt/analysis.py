@@ -869,6 +869,24 @@ def _load_coefficient(cfg: Mapping[str, Any]) -> float:
 SHAPING_KEYS = ("lag_boost_dp", "lag_boost_ie", "lag_hz_dp", "lag_hz_ie", "cutoff_hz_dp", "cutoff_hz_ie")
 
 
+def gain_set_loop(cfg_like: Mapping[str, Any], gains: Mapping[str, float], *,
+                  ff_viscous: float = 0.0) -> "ImpedanceLoop | MotorPDLoop":
+    """The loop the daemon runs with ``gains`` in place of the config's: for ``controller.type`` pd the
+    motor-side PD (``gains``: kp, kd over the active set), else the impedance law with the joint-torque
+    loop when it is on (``gains``: keys of ``controller.impedance`` / ``controller.torque_loop``);
+    ValueError naming a key that is neither."""
+    from ankle_rt.loop_setup import torque_feedback
+
+    ctl = cfg_like["controller"]
+    if ctl["type"] == "pd":
+        unknown = [k for k in gains if k not in MotorPDLoop.GAINS]
+        if unknown:
+            raise ValueError(f"gain_set_margin_db: {unknown[0]!r} is not a motor-side PD gain (kp, kd)")
+        return MotorPDLoop.from_config(cfg_like, {**ctl[ctl["pd_gains"] + "_gains"], **gains}, ff_viscous=ff_viscous)
+    cfg = _with_gains(cfg_like, gains)
+    return ImpedanceLoop.from_config(cfg, closed=torque_feedback(cfg), ff_viscous=ff_viscous)
+
+
 def gain_set_margin_db(cfg_like: Mapping[str, Any], gains: Mapping[str, float], *,
                        ff_viscous: float = 0.0) -> tuple[float, str | None]:
     """The smallest gain margin (dB, at most 12; -inf: unstable) of the impedance controller's closed
@@ -887,18 +905,12 @@ def gain_set_margin_db(cfg_like: Mapping[str, Any], gains: Mapping[str, float], 
     joint-torque loop)."""
     from ankle_rt.loop_setup import torque_feedback
 
-    ctl = cfg_like["controller"]
-    if ctl["type"] == "pd":
-        unknown = [k for k in gains if k not in MotorPDLoop.GAINS]
-        if unknown:
-            raise ValueError(f"gain_set_margin_db: {unknown[0]!r} is not a motor-side PD gain (kp, kd)")
-        pd = {**ctl[ctl["pd_gains"] + "_gains"], **gains}
-        return _margin_and_limit(PlantParams.from_config(cfg_like),
-                                 MotorPDLoop.from_config(cfg_like, pd, ff_viscous=ff_viscous),
-                                 _load_coefficient(cfg_like), tuple(SHIPPED_PD_GAINS.values()))
+    loop = gain_set_loop(cfg_like, gains, ff_viscous=ff_viscous)
+    if isinstance(loop, MotorPDLoop):
+        return _margin_and_limit(PlantParams.from_config(cfg_like), loop, _load_coefficient(cfg_like),
+                                 tuple(SHIPPED_PD_GAINS.values()))
     cfg = _with_gains(cfg_like, gains)
     closed = torque_feedback(cfg)
-    loop = ImpedanceLoop.from_config(cfg, closed=closed, ff_viscous=ff_viscous)
     # open loop: only the impedance gains can limit it (the torque loop's stay at their zeros)
     shipped = tuple(SHIPPED_GAINS[k] if closed or k in IMPEDANCE_GAINS else v
                     for k, v in zip(loop.GAINS, loop.gain_values()))

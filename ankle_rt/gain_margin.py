@@ -1,7 +1,8 @@
 """Accepting a gain set of the impedance controller with the joint-torque loop: the closed loop must
 keep :data:`ankle_rt.analysis.REQUIRED_GAIN_MARGIN_DB` over cable stiffness +-30 %, the friction
-range and foot free and held (:func:`ankle_rt.analysis.gain_set_margin_db`), at load (the config
-loader) and at run time (``set_gains``: the target and every checked point of the ramp to it).
+range and foot free and held (:func:`ankle_rt.analysis.gain_set_margin_db`), render a passive impedance
+(:mod:`ankle_rt.passivity`) and not ring on the sensors' noise, at load (the config loader) and at run
+time (``set_gains``: the target and every checked point of the ramp to it).
 Outside :mod:`ankle_rt.control` so the config loader can use it without an import circle.
 """
 
@@ -23,8 +24,9 @@ def gain_set_refusal(cfg: Mapping[str, Any], gains: Mapping[str, float], ff_visc
                      noise: bool = True) -> tuple[str, str] | None:
     """(gain name, reason) when the closed loop with ``gains`` in place of the config's (and the friction
     feed-forward's viscous slope ``ff_viscous``, N m s/rad) keeps less than the required gain margin
-    over the plant range (:func:`ankle_rt.analysis.gain_set_margin_db`) or, with ``noise``, makes too much
-    current of the gauges' noise (:func:`noise_refusal`); None when it keeps both."""
+    over the plant range (:func:`ankle_rt.analysis.gain_set_margin_db`), renders an impedance that is not
+    passive (:func:`passivity_refusal`) or, with ``noise``, makes too much current of the gauges' noise
+    (:func:`noise_refusal`); None when it keeps all three."""
     import numpy as np
 
     from ankle_rt.analysis import REQUIRED_GAIN_MARGIN_DB, gain_set_margin_db
@@ -38,7 +40,7 @@ def gain_set_refusal(cfg: Mapping[str, Any], gains: Mapping[str, float], ff_visc
         return name, (f"{name}: the gain set cannot be shown stable: the closed-loop model of this plant "
                       f"fails ({type(exc).__name__}: {exc}); check the physical parameters")
     if name is None:
-        return noise_refusal(cfg, gains) if noise else None
+        return passivity_refusal(cfg, gains, ff_viscous) or (noise_refusal(cfg, gains) if noise else None)
     c = cfg["controller"]
     value = gains.get(name, c["torque_loop"].get(name, c["impedance"].get(name)))
     how = ("is unstable in some case (at its gains, or with its correction clamped by max_correction)"
@@ -46,6 +48,51 @@ def gain_set_refusal(cfg: Mapping[str, Any], gains: Mapping[str, float], ff_visc
     ff = f" with the friction feed-forward's viscous {ff_viscous:g} N m s/rad" if ff_viscous > 0.0 else ""
     return name, (f"{name} {value:g}: the closed loop{ff} {how} over cable stiffness +/-30 %, the friction range "
                   f"and foot free and held (at least {REQUIRED_GAIN_MARGIN_DB:g} dB required; docs/daemon.md)")
+
+
+def passivity_refusal(cfg: Mapping[str, Any], gains: Mapping[str, float],
+                      ff_viscous: float = 0.0) -> tuple[str, str] | None:
+    """(gain name, reason) when the impedance the loop with ``gains`` renders gives energy back to the foot
+    on an axis (:func:`ankle_rt.passivity.least_rendered_damping`); None when it is passive. Named: a
+    torque-loop gain ``gains`` moves whose configured value makes it passive, else the axis's damping
+    (``kd`` for the motor-side PD) with the least that makes it passive up to its ``controller.gain_limits``."""
+    from ankle_rt.analysis import AXES, MotorPDLoop, gain_set_loop
+    from ankle_rt.params import PlantParams
+    from ankle_rt.passivity import least_rendered_damping
+
+    p = PlantParams.from_config(cfg)
+
+    def least(g: Mapping[str, float], axis: int):
+        return least_rendered_damping(p, gain_set_loop(cfg, g, ff_viscous=ff_viscous))[axis]
+
+    axis = next((a for a in (0, 1) if not least(gains, a).passive), None)
+    if axis is None:
+        return None
+    ctl = cfg["controller"]
+    found = least(gains, axis).where()
+    tl = ctl["torque_loop"] if ctl["type"] != "pd" else {}
+    moved = next((k for k, v in gains.items() if k in tl and tl[k] != v and least({**gains, k: tl[k]}, axis).passive),
+                 None)
+    if moved is not None:
+        return moved, (f"{moved} {gains[moved]:g}: the impedance the loop renders with it is not passive on "
+                       f"{AXES[axis].upper()} ({found}: it gives energy back to the foot); with the configured "
+                       f"{tl[moved]:g} it is (docs/daemon.md \"Passivity\")")
+    pd = isinstance(gain_set_loop(cfg, gains), MotorPDLoop)
+    name = "kd" if pd else f"damping_{AXES[axis]}"
+    section = ctl[ctl["pd_gains"] + "_gains"] if pd else ctl["impedance"]
+    value, ceiling = float(gains.get(name, section[name])), float(ctl["gain_limits"]["kd" if pd else "damping"])
+    what = "the motor-side PD" if pd else f"the impedance (stiffness_{AXES[axis]} " \
+        f"{float(gains.get('stiffness_' + AXES[axis], section['stiffness_' + AXES[axis]])):g})"
+    head = (f"{name} {value:g}: {what} as the loop renders it is not passive on {AXES[axis].upper()} ({found}: "
+            f"it gives energy back to the foot)")
+    if value >= ceiling or not least({**gains, name: ceiling}, axis).passive:
+        return name, (f"{head}, and no {name} up to controller.gain_limits ({ceiling:g}) makes it so: lower the "
+                      f"stiffness or change the torque loop (docs/daemon.md \"Passivity\")")
+    lo, hi = value, ceiling
+    while hi - lo > max(1e-3, 0.01 * hi):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if least({**gains, name: mid}, axis).passive else (mid, hi)
+    return name, f"{head}; passive from {name} {hi:.3g} (docs/daemon.md \"Passivity\")"
 
 
 def noise_refusal(cfg: Mapping[str, Any], gains: Mapping[str, float]) -> tuple[str, str] | None:

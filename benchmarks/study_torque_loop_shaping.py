@@ -45,6 +45,7 @@ from ankle_rt.lag import lag_section
 from ankle_rt.linear_model import LinearModel
 from ankle_rt.notch import notch_section
 from ankle_rt.params import PlantParams
+from ankle_rt.passivity import free_plant_with_ankle_input, least_rendered_damping, receptance
 from ankle_rt.paths import default_config_path
 
 PLANT = [{"type": "load_dependent_friction", "coefficient": 0.12},
@@ -55,7 +56,6 @@ DAMPING = (0.5, 0.25)                         # N m s/rad, the bench's
 MARGIN_ONLY = tuple(((k_dp, k_ie), (b_dp, b_ie)) for k_dp, b_dp, _, k_ie, b_ie, _ in GAIT_PHASE_DEFAULTS.values())
 JUDGED_HZ = (0.5, 1.0, 2.0)                   # the dynamic-stiffness goal's frequencies
 INERTIA_HZ = 5.0                              # where the apparent inertia is read (the bench's)
-PASSIVE_HZ = np.logspace(-1.0, math.log10(50.0), 40)
 AXES = ("dp", "ie")
 MARGIN_DB = 7.0                               # the search's constraint (6 required, 1 dB for robustness)
 Section = tuple[float, float, float, float, float]
@@ -132,43 +132,15 @@ class Setup:
             plants.append(p)
             loops.append(loop)
             if i < len(bench):
-                free.append([_free_plant(pp, slope, loop.dt) for kf, vf, slope, foot, pp in an._plant_cases(p, 0.12)
-                             if foot == "free"])
+                free.append([free_plant_with_ankle_input(pp, loop.dt, slope)
+                             for kf, vf, slope, foot, pp in an._plant_cases(p, 0.12) if foot == "free"])
         return cls(plants, loops, free)
 
 
-def _free_plant(p: PlantParams, slope: float, dt: float) -> tuple:
-    """The foot-free sampled plant with the ankle torque as a second input."""
-    A, Bm, Cy = an._plant(p, foot="free", load_slope=slope)
-    lm = LinearModel.from_params(p)
-    Ad, Bd = zoh(A, np.hstack([Bm, lm.B[:, 0:2]]), dt)
-    return Ad, Bd[:, 0:2], Bd[:, 2:4], Cy, lm.kin
-
-
-def receptance(sampled: tuple, loop: an.ImpedanceLoop, freqs_hz: np.ndarray) -> np.ndarray:
-    """(len(freqs), 2, 2): ankle angle per ankle torque of the closed loop, foot free."""
-    Ad, Bm, Ba, Cy, kin = sampled
-    W, U = loop.rows(kin, kin.K)
-    T = an._assemble(Ad, Bm, Cy, W, U, loop.delay_cycles)[0]
-    G = np.zeros((T.shape[0], 2))
-    G[:an.N_X] = Ba
-    z = np.exp(2j * math.pi * np.asarray(freqs_hz) * loop.dt)
-    M = z[:, None, None] * np.eye(T.shape[0]) - T
-    X = np.linalg.solve(M, np.broadcast_to(G, (len(z), *G.shape)))
-    return X[:, 0:2, :]
-
-
 def passive(setup: Setup, loops: list[an.ImpedanceLoop], axis: int = 0) -> float:
-    """The least Re of the felt admittance s Theta / T (rad/s per N m) on ``axis`` (0 DP) over the
-    free-foot cases without load slope (its +-mu linearisation is not a passive element: the real
-    friction only dissipates) and 0.1-50 Hz, both stiffnesses (>= 0: passive)."""
-    s = 2j * math.pi * PASSIVE_HZ
-    worst = math.inf
-    for cases, loop in zip(setup.free, loops):
-        for sampled in cases[1::3]:               # load slope 0
-            Y = s * receptance(sampled, loop, PASSIVE_HZ)[:, axis, axis]
-            worst = min(worst, float(Y.real.min()))
-    return worst
+    """N m s/rad: the least damping the loops render on ``axis`` (0 DP) at the bench's stiffnesses, over
+    the acceptance check's plant range (:func:`ankle_rt.passivity.least_rendered_damping`; >= 0: passive)."""
+    return min(least_rendered_damping(p, loop)[axis].damping for p, loop in zip(setup.plants[:len(setup.free)], loops))
 
 
 def felt(setup: Setup, loops: list[an.ImpedanceLoop], axis: int = 0) -> dict:

@@ -99,7 +99,9 @@ def test_cable_play_does_not_turn_the_rate_on_the_bare_motor(encoder_base):
     it is from the gauges (agreement 10 N m) the rate term acts on the phantom torque of the gap, a velocity
     feedback on the bare motor inertia, and the ankle swings by degrees (4.3 deg spread) before the oscillation
     detector faults; within 0.1 N m of the gauges the ankle hunts much as the default loop does (0.44 against
-    0.24 deg; the detector faults too), and with the joint crossover (2 Hz) it comes to rest."""
+    0.24 deg; the detector faults too). The joint crossover (2 Hz) brought it to rest, but at K 200 it is not
+    passive on a cable x0.7 (docs/daemon.md "Passivity": damped enough, DP 1.0 / IE 2.6, this loop loses its
+    margin): refused."""
     effects = PLANT + [BACKLASH]
     cfg = bench(encoder_base, (200.0, 100.0), effects)
     cfg["controller"]["torque_loop"]["torque_rate_agreement_nm"] = 10.0
@@ -107,5 +109,5 @@ def test_cable_play_does_not_turn_the_rate_on_the_bare_motor(encoder_base):
     assert fault == "OSCILLATION" and deg > 2.0, (fault, deg)
     fault, deg, _ = hunt_after_release(bench(encoder_base, (200.0, 100.0), effects), window=(2.3, 3.0))
     assert deg < 1.0, (fault, deg)
-    fault, deg, amps = hunt_after_release(bench(encoder_base, (200.0, 100.0), effects, **CROSSOVER))
-    assert fault == "NONE" and deg < 0.02 and amps < 0.6, (fault, deg, amps)
+    with pytest.raises(ConfigError, match="not passive on DP"):
+        hunt_after_release(bench(encoder_base, (200.0, 100.0), effects, **CROSSOVER))
