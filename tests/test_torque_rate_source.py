@@ -11,9 +11,7 @@ import pytest
 import yaml
 
 from ankle_rt.analysis import ImpedanceLoop, encoder_noise_rad, sensor_noise_current_a
-from ankle_rt.backend import open_backend
-from ankle_rt.bench.impedance import Experiment, TorqueProgramBackend, bench_config, run_torque_step
-from ankle_rt.clock import SimClock
+from ankle_rt.bench.impedance import Experiment, bench_config, run_torque_step
 from ankle_rt.config import ConfigError, load_config
 from ankle_rt.control import build_controller
 from ankle_rt.control.impedance import actuation_from_config
@@ -21,7 +19,8 @@ from ankle_rt.daemon import run_lockstep
 from ankle_rt.kinematics import Kinematics
 from ankle_rt.params import PlantParams, TransmissionParams
 from ankle_rt.paths import CONFIG_DIR, default_config_path
-from tests.test_joint_blend import BACKLASH, CROSSOVER, PLANT, hunt_after_release
+from tests.daemon_helpers import mutated_run
+from tests.test_joint_blend import BACKLASH, CROSSOVER, PLANT, hunt_after_release, with_play
 
 ENCODER_LOOP = yaml.safe_load((CONFIG_DIR / "torque-loop-encoders.yaml").read_text())
 
@@ -40,7 +39,7 @@ def bench(base, stiffness=(50.0, 25.0), effects=PLANT, **impedance):
     cfg = bench_config(base, stiffness=stiffness, damping=(0.5, 0.25), torque_feedback="auto",
                        friction_ff="identified", effects=effects)
     cfg["controller"]["impedance"].update(impedance)
-    return cfg
+    return with_play(cfg)
 
 
 def test_the_held_foot_step_meets_its_goal_on_the_encoders_rate(gauge_base, encoder_base):
@@ -114,24 +113,13 @@ def test_cable_play_does_not_turn_the_rate_on_the_bare_motor(encoder_base):
     assert fault == "NONE" and deg < 0.02 and amps < 0.6, (fault, deg, amps)
 
 
-class JointGlitch(TorqueProgramBackend):
-    """The simulator under the torque ``push(t)`` (N m [DP, IE]), its joint encoder on ``axis`` off by
-    ``size`` rad in the samples of the cycles ``glitched(k)`` says."""
-
-    def __init__(self, cfg, push, axis, size, glitched):
-        super().__init__(open_backend(cfg, SimClock()), lambda t, x: push(t))
-        self.axis, self.size, self.glitched, self.k = axis, size, glitched, -1
-
-    def read(self, frame):
-        super().read(frame)
-        self.k += 1
-        if self.glitched(self.k):
-            frame.values[4 + self.axis] += self.size
-
-
 def peak_current(cfg, duration, window, push=lambda t: (0.0, 0.0), axis=0, size=0.0, glitched=lambda k: False):
-    """A, the larger motor's peak |set value| over ``window`` (s) of a lockstep run with the joint glitches."""
-    run = run_lockstep(cfg, duration, backend=JointGlitch(cfg, push, axis, size, glitched))
+    """A, the larger motor's peak |set value| over ``window`` (s) of a lockstep run under the torque ``push(t)``
+    whose joint encoder on ``axis`` reads ``size`` rad off in the cycles ``glitched(k)`` says."""
+    def glitch(frame, k):
+        if glitched(k):
+            frame.values[4 + axis] += size
+    run = mutated_run(cfg, duration, glitch, push)
     assert run.summary["fault"] == "NONE"
     sel = (run["t"] >= window[0]) & (run["t"] < window[1])
     return max(float(np.abs(run[m][sel]).max()) for m in ("current_cmd_1", "current_cmd_2"))
