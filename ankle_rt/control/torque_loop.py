@@ -92,7 +92,7 @@ if TYPE_CHECKING:
 
 # of torque_rate_agreement_nm: how far one sample of the cables' stretch may lead the gauges beyond its low-passed
 # offset and be believed (the encoder rate source). The lead is the gauges' noise at rest (0.02 N m RMS): half
-# the shipped agreement is 2.5 of it, ~1 % of the samples skipped at rest; a skipped sample holds the state.
+# the shipped agreement is 2.5 of it, 1.5-1.8 % of the samples skipped; a skipped sample holds the state.
 SAMPLE_GATE = 0.5
 MIN_DAMPING_RATIO = 0.05        # of the rendered impedance against the reflected inertia / (1 + kp)
 # [DP, IE] of the cable stiffness at the ankle: a series-elastic loop cannot render a stiffness near
