@@ -69,7 +69,7 @@ class Fault(enum.IntEnum):
     LOG_FAILED = 17          # a run log write failed (disk full) and logging.fault_on_error is set
     OSCILLATION = 18         # a set value oscillated above 20 Hz beyond safety.oscillation_rms_a for oscillation_hold_s
     SG_MISMATCH = 19         # strain-gauge torque disagrees with the torque the motors deliver (ankle_rt.gauge_check)
-    JOINT_INVALID = 20       # a joint-encoder angle is NaN/inf (the serial bridge's invalid bit) where there are joint encoders
+    JOINT_INVALID = 20       # a joint-encoder angle is NaN/inf (the serial bridge's invalid bit) on a device with them
     JOINT_MISMATCH = 21      # joint-encoder angle disagrees with the motors and gauges (ankle_rt.joint_check)
 
     @property
