@@ -423,6 +423,10 @@ SAFETY = Section({
     "max_actuation_delay_s": non_negative("s between a set value and the motor torque it makes (amplifier, bus, "
                                           "bridge) that the strain-gauge cross-check allows for", default=0.012,
                                           high=0.05),
+    "joint_mismatch_rad": positive("rad at the ankle the cables' stretch from the motor and joint encoders may change "
+                                   "by beyond twice the gauges' torque (JOINT_MISMATCH): counts, creep and the "
+                                   "cables' play (0.2 mm of backlash: 3.5 mrad DP, 8.9 IE); larger lets a flipped sign "
+                                   "drive the ankle further first", default=3e-4, high=0.05),
 }, optional=True)
 
 LOGGING = Section({

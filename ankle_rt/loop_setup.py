@@ -39,6 +39,18 @@ def has_joint_encoders(cfg: Mapping[str, Any]) -> bool:
     return backend == "sim" or (backend != "canopen" and cfg["joint_encoders"]["counts_per_rev"] is not None)
 
 
+def reads_joint_encoders(cfg: Mapping[str, Any]) -> bool:
+    """Whether the configured controller acts on the joint encoders: the impedance law's angle
+    (:func:`uses_joint_encoders`) or the joint-torque loop's rate (``torque_rate_source: encoders``) of the
+    impedance or gait-phase controller; what the safety layer cross-checks them for (the motor PD and a
+    plugin leave them to the range check)."""
+    c = cfg["controller"]
+    if c["type"] not in ("impedance", "gait_phase") or not has_joint_encoders(cfg):
+        return False
+    return (c["type"] == "impedance" and uses_joint_encoders(cfg)) or (torque_feedback(cfg) and
+                                                                        rate_from_encoders(c["torque_loop"]))
+
+
 SIM_JOINT_COUNTS_PER_REV = 2 ** 19   # the simulator's joint encoders unless configured: the bench's (19 bit, 12 urad)
 
 

@@ -33,7 +33,9 @@ from ankle_rt.config_schema import SCHEMA
 from ankle_rt.elementwise import Value, any_true, clip, positive_part, select, stack
 from ankle_rt.estimation import Estimate
 from ankle_rt.gauge_check import GaugeCrossCheck
-from ankle_rt.kinematics import motor_ratio
+from ankle_rt.joint_check import JointCrossCheck
+from ankle_rt.kinematics import Kinematics, motor_ratio
+from ankle_rt.loop_setup import has_joint_encoders, reads_joint_encoders
 from ankle_rt.oscillation import OscillationDetector
 from ankle_rt.params import TransmissionParams
 from ankle_rt.schema import ConfigError
@@ -67,6 +69,8 @@ class Fault(enum.IntEnum):
     LOG_FAILED = 17          # a run log write failed (disk full) and logging.fault_on_error is set
     OSCILLATION = 18         # a set value oscillated above 20 Hz beyond safety.oscillation_rms_a for oscillation_hold_s
     SG_MISMATCH = 19         # strain-gauge torque disagrees with the torque the motors deliver (ankle_rt.gauge_check)
+    JOINT_INVALID = 20       # a joint-encoder angle is NaN/inf (the serial bridge's invalid bit) on a device with them
+    JOINT_MISMATCH = 21      # joint-encoder angle disagrees with the motors and gauges (ankle_rt.joint_check)
 
     @property
     def description(self) -> str:
@@ -100,6 +104,8 @@ _DESCRIPTIONS = {
     Fault.LOG_FAILED: "run log write failed (logging.fault_on_error)",
     Fault.OSCILLATION: "sustained current oscillation above 20 Hz (an unstable loop)",
     Fault.SG_MISMATCH: "strain-gauge torque disagrees with the motors (stuck, drifting, sign-flipped or stepped gauge)",
+    Fault.JOINT_INVALID: "joint encoder reading not finite (invalid sample)",
+    Fault.JOINT_MISMATCH: "joint encoder disagrees with the motors and strain gauges (sign-flipped, mis-scaled or stuck)",
 }
 
 # BackendFault bits that stop the device, in priority order. CRC errors and sequence gaps are
@@ -123,6 +129,7 @@ _AMP_NOT_READY, _SENSOR_INVALID, _SG_RAIL = int(Fault.AMP_NOT_READY), int(Fault.
 _SENSOR_STALE, _MOTOR_JUMP, _SG_JUMP = int(Fault.SENSOR_STALE), int(Fault.MOTOR_JUMP), int(Fault.SG_JUMP)
 _ANKLE_RANGE, _OVERCURRENT, _OUTPUT_INVALID = int(Fault.ANKLE_RANGE), int(Fault.OVERCURRENT), int(Fault.OUTPUT_INVALID)
 _REFERENCE_INVALID, _OSCILLATION, _SG_MISMATCH = int(Fault.REFERENCE_INVALID), int(Fault.OSCILLATION), int(Fault.SG_MISMATCH)
+_JOINT_INVALID, _JOINT_MISMATCH = int(Fault.JOINT_INVALID), int(Fault.JOINT_MISMATCH)
 
 
 def _limit(value: Any, key: str, low: float, high: float | None, low_open: bool = True) -> float:
@@ -174,12 +181,19 @@ class Safety:
         # The gauges are cross-checked where there are gauges and cables between motors and ankle.
         a = cfg["actuator"]
         self.kt = float(a["torque_constant"])
-        self.gauges = None
+        self.gauges = self.joints = None
+        # a device with joint encoders: a non-finite angle is a fault (NaN means none); where the controller acts
+        # on them and there are gauges, they are cross-checked against the motors and gauges too
+        self.joint_encoders = has_joint_encoders(cfg)
         if self.check_estimated_ankle and (cfg["backend"] == "sim" or cfg["strain_gauges"]["matrix"] is not None):
             R = motor_ratio(TransmissionParams(**cfg["transmission"]))
             self.gauges = GaugeCrossCheck(self.dt, R.tolist(), a["inertia"], a["damping"], a["coulomb"],
                                           cfg["estimation"]["velocity_cutoff_hz"],
                                           max_delay_s=_configured(cfg, "safety.max_actuation_delay_s"))
+            if self.joint_encoders:
+                K = Kinematics.from_params(TransmissionParams(**cfg["transmission"])).K
+                self.joints = JointCrossCheck(self.dt, float(K[0, 0]), float(K[1, 1]),
+                                              _configured(cfg, "safety.joint_mismatch_rad"), reads_joint_encoders(cfg))
         self.state = State.CONFIGURED
         self.fault = Fault.NONE
         self.fault_time = math.nan
@@ -222,6 +236,8 @@ class Safety:
         self.oscillation.reset(where)
         if self.gauges is not None:
             self.gauges.reset(est.mv1, est.mv2, where)
+        if self.joints is not None:
+            self.joints.activated(where)
         self.state = select(where, State.ACTIVE, self.state)
 
     def check_gauges(self, est: Estimate) -> Value:
@@ -264,13 +280,16 @@ class Safety:
         return 0
 
     def check_values(self, t: float, p1: Value, p2: Value, s0: Value, s1: Value, est: Estimate) -> Value:
-        """The first fault the sensor values show (0 if none): not finite, strain gauge at its rail,
-        motor or strain-gauge jump since the last sample, ankle (estimated or joint encoder) beyond
-        the range. ``t`` s (one for a batch), motor angles rad, raw strain-gauge torques N m; the
-        ankle from ``est``. Element-wise: a code per device on a :meth:`stack`."""
+        """The first fault the sensor values show (0 if none): not finite (a joint encoder's named), strain
+        gauge at its rail, motor or strain-gauge jump since the last sample, ankle (estimated or joint encoder)
+        beyond the range, joint encoders against the motors and gauges while active. ``t`` s (one for a batch),
+        motor angles rad, raw strain-gauge torques N m; the ankle from ``est``. Element-wise: a code per device
+        on a :meth:`stack`."""
         rail, lim = self.sg_rail, self.ankle_limit
         a0, a1, j0, j1 = est.dp, est.ie, est.joint_dp, est.joint_ie
         invalid = (p1 + p2 + s0 + s1 + t) * 0.0 != 0.0     # NaN or inf anywhere
+        joint_invalid = self.joint_encoders & ((j0 + j1) * 0.0 != 0.0)
+        joints, mismatch = self.joints, False
         railed = (abs(s0) >= rail) | (abs(s1) >= rail)
         ranged = (self.check_estimated_ankle & ((abs(a0) > lim) | (abs(a1) > lim))) \
             | (abs(j0) > lim) | (abs(j1) > lim)           # NaN (no joint encoders) compares False
@@ -289,14 +308,19 @@ class Safety:
                 motor_jump = False
             step = self.max_sg_step
             sg_jump = (abs(s0 - self._s0) > step) | (abs(s1 - self._s1) > step)
+            if joints is not None:
+                mismatch = joints.update(a0, a1, j0, j1, est.sg_dp, est.sg_ie, self.state == _ACTIVE)
         else:
             motor_jump = sg_jump = self._governed = False
+            if joints is not None:
+                joints.start(a0, a1, j0, j1, est.sg_dp, est.sg_ie)
         self._have_last = True
         self._p1, self._p2, self._s0, self._s1, self._t = p1, p2, s0, s1, t
-        if not any_true(invalid | railed | motor_jump | sg_jump | ranged):
+        if not any_true(invalid | joint_invalid | railed | motor_jump | sg_jump | ranged | mismatch):
             return 0 * invalid
-        return select(invalid, _SENSOR_INVALID, select(railed, _SG_RAIL, select(
-            motor_jump, _MOTOR_JUMP, select(sg_jump, _SG_JUMP, select(ranged, _ANKLE_RANGE, 0)))))
+        return select(invalid, _SENSOR_INVALID, select(joint_invalid, _JOINT_INVALID, select(railed, _SG_RAIL, select(
+            motor_jump, _MOTOR_JUMP, select(sg_jump, _SG_JUMP, select(ranged, _ANKLE_RANGE, select(
+                mismatch, _JOINT_MISMATCH, 0)))))))
 
     def check_reference(self, dp: Value, ie: Value) -> Value:
         """REFERENCE_INVALID when the ankle reference (rad) is NaN or inf. (Commands that would take it

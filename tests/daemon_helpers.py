@@ -110,3 +110,22 @@ def reply(result, guard_s: float = 30.0):
             return data
         time.sleep(0.001)
     raise AssertionError("the pending reply never became ready")
+
+
+def mutated_run(cfg: Config, duration_s: float, mutate: Callable[[SensorFrame, int], None],
+                push: Callable[[float], tuple[float, float]] = lambda t: (0.0, 0.0)):
+    """``run_lockstep`` of ``cfg`` on the simulator under the ankle torque ``push(t)`` (N m [DP, IE]), every
+    sample then changed by ``mutate(frame, cycle)`` (a sensor going bad)."""
+    from ankle_rt.backend import open_backend
+    from ankle_rt.bench.impedance import TorqueProgramBackend
+    from ankle_rt.daemon import run_lockstep
+
+    class Mutated(TorqueProgramBackend):
+        cycle = -1
+
+        def read(self, frame: SensorFrame) -> None:
+            super().read(frame)
+            self.cycle += 1
+            mutate(frame, self.cycle)
+
+    return run_lockstep(cfg, duration_s, backend=Mutated(open_backend(cfg, SimClock()), lambda t, x: push(t)))

@@ -46,6 +46,7 @@ CASES = [
     ("strain-gauge jump", _add("sg_torque", 1, 25.0), Fault.SG_JUMP, 0),
     ("strain gauge at rail", _set("sg_torque", 0, 300.0), Fault.SG_RAIL, 0),   # beyond safety.sg_rail_nm (225)
     ("NaN encoder", _set("motor_pos", 1, math.nan), Fault.SENSOR_INVALID, 0),
+    ("NaN joint encoder", _set("ankle_pos", 0, math.nan), Fault.JOINT_INVALID, 0),   # the bridge's invalid bit
     ("amplifier not ready", _set("amp_ready", 0, False), Fault.AMP_NOT_READY, 0),
     ("joint encoder beyond range", _set("ankle_pos", 1, math.radians(45)), Fault.ANKLE_RANGE, 0),
     ("stale samples", _seq, Fault.SENSOR_STALE, 5),
@@ -280,11 +281,14 @@ def test_the_governor_takes_only_the_current_that_would_speed_a_fast_motor_up(si
 
     from ankle_rt.estimation import Estimate
 
+    est = Estimate()
+    est.joint_dp = est.joint_ie = 0.0      # the simulator's joint encoders read
+
     def moving(safety, v1, v2):
         """``safety`` after two samples 1 ms apart with the motors at v1, v2 (rad/s)."""
         safety.state = State.ACTIVE
-        assert safety.check_values(0.0, 0.0 * v1, 0.0 * v2, 0.0, 0.0, Estimate()) is not None
-        assert np.all(safety.check_values(1e-3, 1e-3 * v1, 1e-3 * v2, 0.0, 0.0, Estimate()) == 0)
+        assert safety.check_values(0.0, 0.0 * v1, 0.0 * v2, 0.0, 0.0, est) is not None
+        assert np.all(safety.check_values(1e-3, 1e-3 * v1, 1e-3 * v2, 0.0, 0.0, est) == 0)
         return safety
 
     g = Safety(sim_cfg, 1e-3).governor_speed

@@ -13,6 +13,7 @@ from ankle_rt.control.torque_loop import JointTorqueLoop, TorqueLoopGains
 from ankle_rt.loop_setup import ReflectedActuator
 from ankle_rt.bench.impedance import Experiment, bench_config, run_impedance
 from ankle_rt.paths import default_config_path
+from tests.test_joint_blend import BACKLASH, with_play
 
 PLANT = [{"type": "load_dependent_friction", "coefficient": 0.12},
          {"type": "stribeck", "static_excess": 0.15, "stribeck_velocity": 0.1}]
@@ -70,13 +71,13 @@ def test_joint_encoders_see_the_cable_backlash(base):
     rendered stiffness is far too soft for small pushes (the estimated angle cannot see slack); with the
     joint encoders in the law it is within the issue's 15 %. (With the simulator bench's clamps, 150 / 60
     N m, the slack's limit cycle grows into OSCILLATION at the 6 N m pulse: docs/daemon.md "Sixth pass".)"""
-    effects = PLANT + [{"type": "backlash", "half_width": 0.0002}]
+    effects = PLANT + [BACKLASH]
     exp = Experiment(pulses_nm=((3.0, -3.0, 6.0), ()), pulse_s=1.2, rest_s=0.5, sine_hz=(), axes=("dp",),
                      step_nm=NO_STEP)
 
-    def device(cfg):
+    def device(cfg):        # its clamps, and its play stated to the joint cross-check
         cfg["controller"]["torque_loop"].update(zip(("max_correction_dp", "max_correction_ie"), MAX_CORRECTION_WALKED))
-        return cfg
+        return with_play(cfg)
 
     encoders = run_impedance(device(impedance_cfg(base, 200.0, effects, angle_source="joint_encoders")), exp)
     cables = run_impedance(device(impedance_cfg(base, 200.0, effects, angle_source="estimated")), exp)

@@ -26,6 +26,9 @@ from ankle_rt.paths import default_config_path
 PLANT = [{"type": "load_dependent_friction", "coefficient": 0.12},
          {"type": "stribeck", "static_excess": 0.15, "stribeck_velocity": 0.1}]
 BACKLASH = {"type": "backlash", "half_width": 0.0002}     # m of cable each way
+# rad the joint encoders part from the motors' estimate by with that play (IE's shorter lever: 8.9 mrad each way),
+# stated for the joint cross-check (safety.joint_mismatch_rad) as a device with play states it
+BACKLASH_PLAY_RAD = 0.01
 CROSSOVER = {"joint_crossover_hz": 2.0}
 # N m s/rad [DP, IE]: at K 200 / 100 the crossover renders negative damping on a cable 30 % softer than
 # configured (the estimate above it mis-scaled, the joint encoders below) unless damped by this much: the
@@ -43,6 +46,13 @@ def impedance_cfg(base, effects=PLANT, friction_ff="identified", **impedance):
     cfg = bench_config(base, stiffness=(200.0, 100.0), damping=(0.5, 0.25), torque_feedback="auto",
                        friction_ff=friction_ff, effects=effects)
     cfg["controller"]["impedance"].update(impedance)
+    return with_play(cfg)
+
+
+def with_play(cfg):
+    """``cfg`` stating its plant's cable play, if it has BACKLASH, to the joint cross-check."""
+    if BACKLASH in cfg["sim"]["effects"]:
+        cfg["safety"]["joint_mismatch_rad"] = BACKLASH_PLAY_RAD
     return cfg
 
 

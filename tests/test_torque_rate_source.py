@@ -1,7 +1,8 @@
 """The joint-torque loop's rate terms on the cables' stretch from the encoders (``controller.torque_loop.
 torque_rate_source: encoders``, config/torque-loop-encoders.yaml; docs/daemon.md "Seventh pass"): the torque
 step the gauges' noise kept from its goal, at a fraction of the noise; refused without joint encoders; and the
-stretch believed only where the gauges agree, so cable play does not turn the rate term on the bare motor."""
+stretch believed only where the gauges agree, so cable play does not turn the rate term on the bare motor; and one
+bad joint-encoder sample skipped, so it does not kick the set values."""
 
 from __future__ import annotations
 
@@ -18,7 +19,8 @@ from ankle_rt.daemon import run_lockstep
 from ankle_rt.kinematics import Kinematics
 from ankle_rt.params import PlantParams, TransmissionParams
 from ankle_rt.paths import CONFIG_DIR, default_config_path
-from tests.test_joint_blend import BACKLASH, CROSSOVER, PLANT, hunt_after_release
+from tests.daemon_helpers import mutated_run
+from tests.test_joint_blend import BACKLASH, CROSSOVER, PLANT, hunt_after_release, with_play
 
 ENCODER_LOOP = yaml.safe_load((CONFIG_DIR / "torque-loop-encoders.yaml").read_text())
 
@@ -37,7 +39,7 @@ def bench(base, stiffness=(50.0, 25.0), effects=PLANT, **impedance):
     cfg = bench_config(base, stiffness=stiffness, damping=(0.5, 0.25), torque_feedback="auto",
                        friction_ff="identified", effects=effects)
     cfg["controller"]["impedance"].update(impedance)
-    return cfg
+    return with_play(cfg)
 
 
 def test_the_held_foot_step_meets_its_goal_on_the_encoders_rate(gauge_base, encoder_base):
@@ -111,3 +113,37 @@ def test_cable_play_does_not_turn_the_rate_on_the_bare_motor(encoder_base):
     assert deg < 1.0, (fault, deg)
     with pytest.raises(ConfigError, match="not passive on DP"):
         hunt_after_release(bench(encoder_base, (200.0, 100.0), effects, **CROSSOVER))
+
+
+def peak_current(cfg, duration, window, push=lambda t: (0.0, 0.0), axis=0, size=0.0, glitched=lambda k: False):
+    """A, the larger motor's peak |set value| over ``window`` (s) of a lockstep run under the torque ``push(t)``
+    whose joint encoder on ``axis`` reads ``size`` rad off in the cycles ``glitched(k)`` says."""
+    def glitch(frame, k):
+        if glitched(k):
+            frame.values[4 + axis] += size
+    run = mutated_run(cfg, duration, glitch, push)
+    assert run.summary["fault"] == "NONE"
+    sel = (run["t"] >= window[0]) & (run["t"] < window[1])
+    return max(float(np.abs(run[m][sel]).max()) for m in ("current_cmd_1", "current_cmd_2"))
+
+
+@pytest.mark.parametrize("axis, size", [(0, 1e-4), (0, -1e-3), (1, 1e-3)])
+def test_one_bad_joint_sample_at_rest_kicks_no_more_than_on_the_gauges_rate(gauge_base, encoder_base, axis, size):
+    """One joint-encoder sample off by 0.1-1 mrad at rest (K 50 / 25, the issue's plant): the stretch then leads
+    the gauges by far more than their noise, the sample is skipped, and the set values peak no higher than the
+    default loop's under the same sample (its law reads the joint encoders too); believed, the rate term turned
+    it into 4-6 A."""
+    once = lambda k: k == 1000     # noqa: E731  (t = 1.0 s)
+    encoders = peak_current(bench(encoder_base), 1.5, (0.99, 1.3), axis=axis, size=size, glitched=once)
+    gauges = peak_current(bench(gauge_base), 1.5, (0.99, 1.3), axis=axis, size=size, glitched=once)
+    assert encoders <= gauges, (encoders, gauges)
+
+
+def test_a_glitch_every_100_ms_under_a_push_adds_no_current(encoder_base):
+    """A 2 mrad DP joint glitch every 100 ms under a 6 N m 2 Hz DP push: the set values peak as the push alone
+    makes them (within 5 %); each glitch believed, they peaked at 10 A against 6."""
+    push = lambda t: (6.0 * np.sin(2.0 * np.pi * 2.0 * t) if t > 0.5 else 0.0, 0.0)   # noqa: E731
+    cfg = bench(encoder_base)
+    alone = peak_current(cfg, 3.0, (0.5, 3.0), push)
+    glitched = peak_current(cfg, 3.0, (0.5, 3.0), push, size=2e-3, glitched=lambda k: k >= 500 and k % 100 == 0)
+    assert glitched <= 1.05 * alone, (glitched, alone)

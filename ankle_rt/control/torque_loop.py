@@ -32,7 +32,10 @@ deliver, so per ankle axis this loop drives the measured torque to the desired o
   or backlash shows a stretch with no torque behind it (0.2 mm of play: ~5 N m at the DP ankle), and a rate
   term on that phantom is a velocity feedback on the bare motor inertia far beyond the sampled loop's
   stability (kd K dt / J ~ 3); clipped there, the term follows the gauges' own rate (the gauge loop's
-  behaviour). The linear model has the unclipped term (small signals).
+  behaviour). The clip bounds the state, not its step (``torque_rate / dt`` times up to twice the agreement),
+  so a sample whose stretch leads the gauges by more than half the agreement beyond their low-passed offset
+  (one bad joint-encoder sample: 0.1 mrad is 0.14 N m at the DP ankle) is skipped, the state held: at rest
+  the lead is the gauges' noise. The linear model has the unclipped, ungated term (small signals).
 - A **lag** (``lag_hz`` > 0, ``lag_boost`` > 1: (s + wz) / (s + wz / lag_boost), :class:`ankle_rt.lag.Lag`)
   before the notch raises the P and rate terms' gain below ``lag_hz`` only. A large boost makes the
   loop conditionally stable (stable at its gain, not at a smaller one, which the correction's clamp
@@ -87,6 +90,10 @@ if TYPE_CHECKING:
 
     from ankle_rt.config import Config
 
+# of torque_rate_agreement_nm: how far one sample of the cables' stretch may lead the gauges beyond its low-passed
+# offset and be believed (the encoder rate source). The lead is the gauges' noise at rest (0.02 N m RMS): half
+# the shipped agreement is 2.5 of it, 1.5-1.8 % of the samples skipped; a skipped sample holds the state.
+SAMPLE_GATE = 0.5
 MIN_DAMPING_RATIO = 0.05        # of the rendered impedance against the reflected inertia / (1 + kp)
 # [DP, IE] of the cable stiffness at the ankle: a series-elastic loop cannot render a stiffness near
 # its spring's and stay stable. Where the linear margin checks hold with MIN_DAMPING_RATIO (DP: the
@@ -158,6 +165,7 @@ class JointTorqueLoop:
         self.encoder_rate = gains.rate_from_encoders
         self.ab0, self.ab1 = (1.0 - math.exp(-2.0 * math.pi * f * dt) for f in gains.rate_crossover_hz)
         self.agree = gains.rate_agreement_nm
+        self.gate = SAMPLE_GATE * gains.rate_agreement_nm
         # a bool (a bool array over a batch that mixes lags): the cycle runs the lag only where one is on
         self.lagged = any(gains.lag.on)
         self.notch0, self.notch1 = gains.notch.sections(dt)
@@ -259,11 +267,18 @@ class JointTorqueLoop:
         step0, step1 = f0 - p0, f1 - p1    # the rate terms' torque step this cycle
         encoders = self.encoder_rate
         if encoders is not False:          # the stretch, complemented below the crossover by the gauges
-            self.b0 = b0 = self.b0 + self.ab0 * (sg_dp - stretch_dp - self.b0)
-            self.b1 = b1 = self.b1 + self.ab1 * (sg_ie - stretch_ie - self.b1)
-            q0, q1, agree = self.s0, self.s1, self.agree
-            self.s0 = s0 = clip(q0 + self.alpha0 * (stretch_dp + b0 - q0), f0 - agree, f0 + agree)
-            self.s1 = s1 = clip(q1 + self.alpha1 * (stretch_ie + b1 - q1), f1 - agree, f1 + agree)
+            # its lead over the gauges beyond the low-passed offset b: a sample leading by more than the gate
+            # (one bad joint sample) is skipped, the state held, and moves b by the gate's worth at most
+            gate, agree = self.gate, self.agree
+            lead0 = stretch_dp - sg_dp + self.b0
+            lead1 = stretch_ie - sg_ie + self.b1
+            self.b0 = b0 = self.b0 - self.ab0 * clip(lead0, -gate, gate)
+            self.b1 = b1 = self.b1 - self.ab1 * clip(lead1, -gate, gate)
+            q0, q1 = self.s0, self.s1
+            s0 = select(abs(lead0) <= gate, q0 + self.alpha0 * (stretch_dp + b0 - q0), q0)
+            s1 = select(abs(lead1) <= gate, q1 + self.alpha1 * (stretch_ie + b1 - q1), q1)
+            self.s0 = s0 = clip(s0, f0 - agree, f0 + agree)
+            self.s1 = s1 = clip(s1, f1 - agree, f1 + agree)
             step0, step1 = select(encoders, s0 - q0, step0), select(encoders, s1 - q1, step1)
         # the lag, then the notches on the P and rate terms (the identity without one)
         x0, x1 = self.kp0 * e0 - self.kdr0 * step0, self.kp1 * e1 - self.kdr1 * step1
