@@ -108,3 +108,18 @@ def test_the_encoder_rate_crossover_is_checked_for_passivity(tmp_path, crossover
     with pytest.raises(ConfigError, match="not passive on DP") as err:
         load_config(path)
     assert err.value.key == "controller.impedance.damping_dp"
+
+
+def test_config_check_prints_the_least_damping_the_impedance_renders(tmp_path, capsys):
+    """`config check` shows how far from giving energy back the configured impedance is: the model's least
+    rendered damping per axis, the same figures the check judges."""
+    from ankle_rt.cli import main
+
+    path = _config(tmp_path, f"{BENCH_K200}, damping_ie: 0.15")
+    assert main(["config", "check", str(path)]) == 0
+    line = next(s for s in capsys.readouterr().out.splitlines() if "least damping rendered" in s)
+    cfg = load_config(path)
+    least = least_rendered_damping(PlantParams.from_config(cfg), gain_set_loop(cfg, {}))
+    dp, ie = (float(v) for v in re.findall(r"[+-][0-9.e-]+", line)[:2])
+    assert (dp, ie) == pytest.approx((least[0].damping, least[1].damping), rel=1e-2)
+    assert 0.0 <= ie < 0.05          # just passive: damping_ie 0.15 is near its boundary, 0.111

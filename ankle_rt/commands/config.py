@@ -101,13 +101,16 @@ def describe(cfg) -> list[str]:
 def _torque_loop_lines(cfg) -> list[str]:
     """The joint-torque loop under the impedance or gait-phase controller, its notches where the loop runs
     them: moved from the cable they are placed for (``notch_cable_stiffness``) to the configured one; its
-    clamps, the set-value noise it makes of the gauges' noise, per-axis torque filters, lags and motor-rate damping."""
-    from ankle_rt.analysis import gain_set_noise_a
+    clamps, the set-value noise it makes of the gauges' noise, the least damping the impedance controller renders
+    (passivity), per-axis torque filters, lags and motor-rate damping."""
+    from ankle_rt.analysis import gain_set_loop, gain_set_noise_a
     from ankle_rt.config_schema import torque_loop_cutoffs
     from ankle_rt.gain_margin import MAX_NOISE_SHARE
     from ankle_rt.lag import Lag
     from ankle_rt.loop_setup import rate_from_encoders, torque_feedback
     from ankle_rt.notch import AXES, PREFIXES, Notch, cable_scale
+    from ankle_rt.params import PlantParams
+    from ankle_rt.passivity import least_rendered_damping
 
     c = cfg["controller"]
     if c["type"] not in ("impedance", "gait_phase") or not torque_feedback(cfg):
@@ -125,6 +128,10 @@ def _torque_loop_lines(cfg) -> list[str]:
              f"             torque rate from the {tl['torque_rate_source']}"
              + (f" (the gauges below DP {tl['torque_rate_crossover_hz_dp']:g} / IE {tl['torque_rate_crossover_hz_ie']:g} Hz)"
                 if rate_from_encoders(tl) else "")]
+    if c["type"] == "impedance":      # the gait phases' impedances are each checked when the controller is built
+        least = least_rendered_damping(PlantParams.from_config(cfg), gain_set_loop(cfg, {}))
+        lines.append("             least damping rendered DP {:+.3g} / IE {:+.3g} N m s/rad over cable x0.7-1.3 "
+                     "(model; >= 0: passive)".format(*(a.damping for a in least)))
     lag, cutoffs = Lag.from_config(tl), torque_loop_cutoffs(tl)
     lags = ", ".join(f"{a.upper()} {hz:g} Hz x{b:g}" if on else f"{a.upper()} none"
                      for a, hz, b, on in zip(AXES, lag.hz, lag.boost, lag.on))
