@@ -123,3 +123,14 @@ def test_config_check_prints_the_least_damping_the_impedance_renders(tmp_path, c
     dp, ie = (float(v) for v in re.findall(r"[+-][0-9.e-]+", line)[:2])
     assert (dp, ie) == pytest.approx((least[0].damping, least[1].damping), rel=1e-2)
     assert 0.0 <= ie < 0.05          # just passive: damping_ie 0.15 is near its boundary, 0.111
+
+
+def test_the_motor_side_pd_is_held_to_passivity_naming_kd():
+    """The PD (the simulator's default controller) on the same check: kp 20 with kd 0.09 against the friction
+    feed-forward's viscous 0.112 N m s/rad renders negative damping on a stiffer cable; refused naming kd with
+    the least kd that is passive, which passes. (Through the loader the margin, 0.7 dB there, refuses it first.)"""
+    cfg = load_config(default_config_path())
+    name, reason = gain_margin.passivity_refusal(cfg, {"kp": 20.0, "kd": 0.09}, 0.112)
+    assert name == "kd" and "motor-side PD" in reason and "cable x1.3" in reason
+    need = _needed(reason, "kd")
+    assert gain_margin.passivity_refusal(cfg, {"kp": 20.0, "kd": need}, 0.112) is None
