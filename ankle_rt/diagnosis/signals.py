@@ -159,13 +159,13 @@ def stuck(resting_: np.ndarray, net: np.ndarray, holding: float | np.ndarray) ->
 
 def lattice_step(x: np.ndarray) -> float:
     """The step of the lattice an encoder's readings lie on (one count, in their unit), 0 where they lie on
-    none (an analog or interpolated signal): the smallest change between samples, where nearly every
-    change (LATTICE_SHARE) is a whole number of it."""
+    none (an analog or interpolated signal): the smallest change between samples but for the rarest 1 %
+    (a row off the lattice), where nearly every change (LATTICE_SHARE) is a whole number of it."""
     d = np.abs(np.diff(np.asarray(x, dtype=float)))
     d = d[d > 0.0]
     if not len(d):
         return 0.0
-    q = float(d.min())
+    q = float(np.percentile(d, 1.0, method="lower"))
     k = d / q
     return q if float(np.mean(np.abs(k - np.round(k)) < 0.01)) >= LATTICE_SHARE else 0.0
 
