@@ -508,10 +508,10 @@ class Backlash(Candidate):
 
     def grid(self, ch):
         """10 um-2 mm of cable, from one count of the joint encoders at the longer lever: a narrower dead
-        zone is below what the measured stretch resolves, and where the true stretch is smaller than a count
-        (a free foot, swing) the clipped measured stretch is the sign of its quantisation error, which the
-        spring term carries and the gauges do not (generator D seed 116: 12-bit joint encoders in walking,
-        a 10 um dead zone explained 41 % of the cable residual)."""
+        zone is below what the measured stretch resolves and fits its quantisation error, which the spring
+        term carries and the gauges do not (a fixed part of a count where the foot comes back to rest at
+        one angle: :meth:`implausible`; generator D seed 116, 12-bit joint encoders in walking, a 10 um dead
+        zone explained 41 % of the cable residual)."""
         floor = ch.joint_step * float(np.max(ch.geometry.levers))
         return [float(v) for v in np.geomspace(1e-5, 2e-3, 28) if v >= floor]
 
