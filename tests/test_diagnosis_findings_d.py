@@ -347,3 +347,78 @@ def test_friction_rippling_with_the_angle_is_unknown():
     diag = diagnose(case.ident, case.valid, plant="ankle", cfg=case.nominal_cfg)
     assert diag.causes == ["unknown"], (diag.causes, diag.notes)
     assert diag.unexplained["motor"]["correlates_with"][0]["with"] == "position (periodic friction)"
+
+
+def test_the_joint_encoders_count_is_read_from_their_lattice():
+    """The joint encoders' count is the step of the lattice their logged readings lie on (a 12-bit
+    encoder: 2 pi / 4096), with a few rows off it (stale rows re-interpolated); an analog or interpolated
+    signal lies on none (0)."""
+    from ankle_rt.diagnosis.signals import lattice_step
+    step = 2 * np.pi / 4096
+    angle = 0.2 * np.sin(2 * np.pi * 0.5 * np.arange(10000) * 1e-3)
+    counts = np.round(angle / step) * step
+    assert lattice_step(counts) == pytest.approx(step, rel=1e-9)
+    for row in (1000, 4000, 7000):
+        counts[row] = 0.5 * (counts[row - 1] + counts[row + 1]) + 0.1 * step
+    assert lattice_step(counts) == pytest.approx(step, rel=1e-9)
+    assert lattice_step(angle) == 0.0
+    assert lattice_step(np.zeros(50)) == 0.0
+
+
+def _quantised_cable_record(seed: int) -> tuple["Recording", "Geometry"]:
+    """A linear cable (no slack) loaded in stance-like pulses while the foot rests at one angle, 0.4 of a
+    count off the lattice, and unloaded in swing-like moves between them, its joint angles logged by 12-bit
+    encoders, the gauges with 0.02 N m of noise."""
+    from ankle_rt.config import load_config
+    from ankle_rt.diagnosis.core import geometry_of
+    from ankle_rt.interchange import Recording
+    from benchmarks.diagnosis_cases_c import SIM_CONFIG
+    geometry = geometry_of(load_config(SIM_CONFIG))
+    rng = np.random.default_rng(seed)
+    t = np.arange(20000) * 1e-3
+    q_m, q_j = 2 * np.pi / 116640, 2 * np.pi / 4096
+    s = (t % 1.1) / 1.1
+    rest = (40.4 * q_j, 3.4 * q_j)
+    swing = np.sin(np.pi * np.clip((s - 0.6) / 0.4, 0.0, 1.0)) ** 2
+    joint = np.column_stack([rest[0] - 0.2 * swing, rest[1] + 0.05 * swing])
+    stance = np.sin(np.pi * np.clip(s / 0.6, 0.0, 1.0)) ** 2
+    tau = np.column_stack([60.0 * stance, 6.0 * stance])
+    phi = tau / geometry.K
+    motors = (joint + phi) @ np.linalg.inv(geometry.R_inv).T
+    cols = {"t": t, "motor_pos_1": np.round(motors[:, 0] / q_m) * q_m, "motor_pos_2": np.round(motors[:, 1] / q_m) * q_m,
+            "ankle_dp": np.round(joint[:, 0] / q_j) * q_j, "ankle_ie": np.round(joint[:, 1] / q_j) * q_j,
+            "sg_torque_dp": tau[:, 0] + rng.normal(0.0, 0.02, len(t)),
+            "sg_torque_ie": tau[:, 1] + rng.normal(0.0, 0.02, len(t))}
+    return Recording(cols, "quantised cable"), geometry
+
+
+def test_no_dead_zone_narrower_than_a_joint_encoder_count_is_searched():
+    """The measured stretch is known to a joint-encoder count only: where the foot comes back to rest at
+    one angle, its quantisation error is a fixed offset (here 0.4 of a count), which a narrow dead zone
+    reads as a step between loaded and unloaded (generator D seed 116: a 10 um `backlash` beside its
+    delay, 12-bit joint encoders in walking). With the count read from the joint angles no dead zone
+    narrower than a count is searched, and one whose step is no larger than half a count carries is
+    dropped: no `backlash` on this slack-free cable, which without the count reads as slack."""
+    from ankle_rt.diagnosis.candidates import CABLE_CANDIDATES, Backlash, catch_all_cable
+    from ankle_rt.diagnosis.selection import select_channel
+    from ankle_rt.diagnosis.signals import CableChannel, lattice_step
+    rec, geometry = _quantised_cable_record(3)
+    step = lattice_step(rec["ankle_dp"])
+    assert step == pytest.approx(2 * np.pi / 4096)
+    fine = CableChannel(rec, geometry)
+    coarse = CableChannel(rec, geometry, joint_step=step)
+    assert min(Backlash().grid(coarse)) >= step * max(geometry.levers) > min(Backlash().grid(fine))
+    named = {ch: [ts.term.cause for ts in select_channel("cable", ch, CABLE_CANDIDATES, catch_all_cable).terms]
+             for ch in (fine, coarse)}
+    assert "backlash" not in named[coarse], named[coarse]
+    assert "backlash" in named[fine], named[fine]
+
+
+@pytest.mark.slow
+def test_a_delay_in_walking_logged_by_coarse_joint_encoders_is_named_alone():
+    """Generator D's seed 116 (a 2.5 ms delay in walking, 12-bit joint encoders, late ticks) read `delay,
+    backlash`: a 10 um dead zone at the grid's lowest value fitted the joint encoders' quantisation error.
+    The dead zone is searched from one count of them on: `delay` alone."""
+    case = make_case_d(**draw_case_d(116))
+    diag = diagnose(case.ident, case.valid, plant="ankle", cfg=case.nominal_cfg)
+    assert diag.causes == ["delay"], (diag.causes, diag.notes)

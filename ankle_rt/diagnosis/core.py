@@ -34,7 +34,7 @@ from ankle_rt.diagnosis.screening import Screening, screen, strain_gauge_drift, 
 from ankle_rt.diagnosis.selection import (IC_THRESHOLD, LARGE_REDUCTION, MIN_REDUCTION, MIN_SIZE, MIN_SIZE_UNKNOWN,
                                           MIN_UNKNOWN_REDUCTION, AMBIGUOUS_IC, ChannelModels, ChannelResult, Score,
                                           replicates, select_channel, significant)
-from ankle_rt.diagnosis.signals import CableChannel, Geometry, LoadChannel, MotorChannel, require_length
+from ankle_rt.diagnosis.signals import CableChannel, Geometry, LoadChannel, MotorChannel, lattice_step, require_length
 from ankle_rt.interchange import InterchangeError, Recording
 
 #: a named set must explain at least this fraction of what the catch-all removes from the baseline
@@ -144,6 +144,7 @@ class Inputs:
     current_limit: float | None = None      # A, the amplifier's peak limit, from the config
     counts_per_rev: int | None = None       # motor encoder counts per output revolution (ankle plant)
     coulomb: float | None = None            # N m, the nominal Coulomb friction (tells a stuck motor's rests)
+    joint_step: float = 0.0                 # rad, one count of the joint encoders (0: resolved finely)
 
 
 def resolve_inputs(rec: Recording, plant: str, cfg: Config | None) -> Inputs:
@@ -175,7 +176,9 @@ def resolve_inputs(rec: Recording, plant: str, cfg: Config | None) -> Inputs:
             prior = float(per_motor_rev) * cfg["actuator"]["gear_ratio"]
         if rec.input_kind == "current":
             limit = cfg["amplifier"]["current_limit_peak"]
-    return Inputs(kt, v_eps, geometry, notes, prior, limit, counts, coulomb)
+    # read from the file as logged, before stale rows or a new time grid interpolate between counts
+    joint_step = max((lattice_step(rec[c]) for c in ("ankle_dp", "ankle_ie") if c in rec), default=0.0)
+    return Inputs(kt, v_eps, geometry, notes, prior, limit, counts, coulomb, joint_step)
 
 
 def fit_smoothing_velocity(rec: Recording, kt: float | None, geometry: Geometry | None) -> float:
@@ -199,7 +202,7 @@ def build_channels(rec: Recording, inputs: Inputs, good: np.ndarray | None = Non
     chans: dict[str, Channel] = {"motor": MotorChannel(rec, inputs.kt, inputs.geometry, inputs.v_eps, good,
                                                        inputs.cogging_prior, inputs.counts_per_rev, inputs.coulomb)}
     if inputs.geometry is not None and CableChannel.available(rec):
-        chans["cable"] = CableChannel(rec, inputs.geometry, good)
+        chans["cable"] = CableChannel(rec, inputs.geometry, good, joint_step=inputs.joint_step)
     elif inputs.geometry is not None and LoadChannel.available(rec):
         chans["load"] = LoadChannel(rec, inputs.geometry, good)
     return chans

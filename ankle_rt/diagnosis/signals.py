@@ -44,6 +44,9 @@ EDGE_S = 0.06              # s dropped at each end (filter transients, delay shi
 REST_S = 0.05
 #: s a motor's encoder must stay unchanged for a stuck rest (see :func:`stuck`)
 STUCK_REST_S = 0.01
+#: share of an encoder's changes between samples that must be whole counts for its readings to lie on a
+#: lattice (:func:`lattice_step`; a few rows re-interpolated by the screening are not)
+LATTICE_SHARE = 0.9
 #: s, time constants of the stretch-history columns: a relaxing (viscoelastic) element in the cable
 #: catch-all, a linear load's own dynamics in the load channel's baseline (:class:`LoadChannel`)
 RELAXATION_S = (0.1, 0.3, 1.0, 3.0)
@@ -152,6 +155,19 @@ def stuck(resting_: np.ndarray, net: np.ndarray, holding: float | np.ndarray) ->
             if float(np.max(net[a:b, i] - level[a:b, i])) > float(np.min(net[a:b, i] + level[a:b, i])):
                 out[a:b, i] = True
     return out
+
+
+def lattice_step(x: np.ndarray) -> float:
+    """The step of the lattice an encoder's readings lie on (one count, in their unit), 0 where they lie on
+    none (an analog or interpolated signal): the smallest change between samples but for the rarest 1 %
+    (a row off the lattice), where nearly every change (LATTICE_SHARE) is a whole number of it."""
+    d = np.abs(np.diff(np.asarray(x, dtype=float)))
+    d = d[d > 0.0]
+    if not len(d):
+        return 0.0
+    q = float(np.percentile(d, 1.0, method="lower"))
+    k = d / q
+    return q if float(np.mean(np.abs(k - np.round(k)) < 0.01)) >= LATTICE_SHARE else 0.0
 
 
 def lagged(x: np.ndarray, dt: float, time_constant: float) -> np.ndarray:
@@ -359,11 +375,13 @@ class CableChannel(_StackedChannel):
     AXES = ("dp", "ie")
 
     def __init__(self, rec: Recording, geometry: Geometry, good: np.ndarray | None = None,
-                 joint: np.ndarray | None = None):
-        """``joint``: the joint angles (samples x axes, rad) when not the recording's own columns."""
+                 joint: np.ndarray | None = None, joint_step: float = 0.0):
+        """``joint``: the joint angles (samples x axes, rad) when not the recording's own columns;
+        ``joint_step``: the joint encoders' count (rad, :func:`lattice_step`; 0: resolved finely)."""
         super().__init__(rec, good)
         sm = self.sm
         self.geometry = geometry
+        self.joint_step = joint_step
         pos_m = np.column_stack([rec["motor_pos_1"], rec["motor_pos_2"]])
         if joint is None:
             joint = np.column_stack([rec["ankle_dp"], rec["ankle_ie"]])
