@@ -34,13 +34,14 @@ def gain_set_refusal(cfg: Mapping[str, Any], gains: Mapping[str, float], ff_visc
     try:
         with np.errstate(all="ignore"):
             margin, name = gain_set_margin_db(cfg, gains, ff_viscous=ff_viscous)
+            passivity = passivity_refusal(cfg, gains, ff_viscous) if name is None else None
     except (np.linalg.LinAlgError, ValueError, ZeroDivisionError, OverflowError) as exc:
         # degenerate physical parameters (a cable stiffness or lever of 1e-300): not provably stable
         name = next(iter(gains), "kp_dp")
         return name, (f"{name}: the gain set cannot be shown stable: the closed-loop model of this plant "
                       f"fails ({type(exc).__name__}: {exc}); check the physical parameters")
     if name is None:
-        return passivity_refusal(cfg, gains, ff_viscous) or (noise_refusal(cfg, gains) if noise else None)
+        return passivity or (noise_refusal(cfg, gains) if noise else None)
     c = cfg["controller"]
     value = gains.get(name, c["torque_loop"].get(name, c["impedance"].get(name)))
     how = ("is unstable in some case (at its gains, or with its correction clamped by max_correction)"

@@ -13,6 +13,11 @@ import numpy as np
 from ankle_rt.params import TransmissionParams
 
 
+def ankle_stiffness(p: TransmissionParams) -> tuple[float, float]:
+    """N m/rad [DP, IE]: the cables' stiffness seen at the ankle, 2 k R_DP^2 and k R_IE^2."""
+    return 2.0 * p.cable_stiffness * p.lever_dp ** 2, p.cable_stiffness * p.lever_ie ** 2
+
+
 @dataclass(frozen=True)
 class Kinematics:
     """Motor <-> ankle maps for one transmission geometry."""
@@ -33,7 +38,7 @@ class Kinematics:
     def from_params(cls, p: TransmissionParams) -> "Kinematics":
         R = motor_ratio(p)
         R_inv = np.linalg.inv(R)
-        K = np.diag([2.0 * p.cable_stiffness * p.lever_dp ** 2, p.cable_stiffness * p.lever_ie ** 2])
+        K = np.diag(ankle_stiffness(p))
         return cls(R=R, R_inv=R_inv, R_inv_T=R_inv.T.copy(), K=K, K_inv=np.linalg.inv(K))
 
     def motor_from_ankle(self, theta: np.ndarray) -> np.ndarray:

@@ -34,7 +34,7 @@ from ankle_rt.elementwise import Value, any_true, clip, positive_part, select, s
 from ankle_rt.estimation import Estimate
 from ankle_rt.gauge_check import GaugeCrossCheck
 from ankle_rt.joint_check import JointCrossCheck
-from ankle_rt.kinematics import Kinematics, motor_ratio
+from ankle_rt.kinematics import ankle_stiffness, motor_ratio
 from ankle_rt.loop_setup import has_joint_encoders, reads_joint_encoders
 from ankle_rt.oscillation import OscillationDetector
 from ankle_rt.params import TransmissionParams
@@ -191,9 +191,9 @@ class Safety:
                                           cfg["estimation"]["velocity_cutoff_hz"],
                                           max_delay_s=_configured(cfg, "safety.max_actuation_delay_s"))
             if self.joint_encoders:
-                K = Kinematics.from_params(TransmissionParams(**cfg["transmission"])).K
-                self.joints = JointCrossCheck(self.dt, float(K[0, 0]), float(K[1, 1]),
-                                              _configured(cfg, "safety.joint_mismatch_rad"), reads_joint_encoders(cfg))
+                k_dp, k_ie = ankle_stiffness(TransmissionParams(**cfg["transmission"]))
+                self.joints = JointCrossCheck(self.dt, k_dp, k_ie, _configured(cfg, "safety.joint_mismatch_rad"),
+                                              reads_joint_encoders(cfg))
         self.state = State.CONFIGURED
         self.fault = Fault.NONE
         self.fault_time = math.nan
