@@ -881,7 +881,7 @@ def gain_set_loop(cfg_like: Mapping[str, Any], gains: Mapping[str, float], *,
     if ctl["type"] == "pd":
         unknown = [k for k in gains if k not in MotorPDLoop.GAINS]
         if unknown:
-            raise ValueError(f"gain_set_margin_db: {unknown[0]!r} is not a motor-side PD gain (kp, kd)")
+            raise ValueError(f"gain set: {unknown[0]!r} is not a motor-side PD gain (kp, kd)")
         return MotorPDLoop.from_config(cfg_like, {**ctl[ctl["pd_gains"] + "_gains"], **gains}, ff_viscous=ff_viscous)
     cfg = _with_gains(cfg_like, gains)
     return ImpedanceLoop.from_config(cfg, closed=torque_feedback(cfg), ff_viscous=ff_viscous)

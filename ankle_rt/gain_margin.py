@@ -57,28 +57,28 @@ def passivity_refusal(cfg: Mapping[str, Any], gains: Mapping[str, float],
     on an axis (:func:`ankle_rt.passivity.least_rendered_damping`); None when it is passive. Named: a
     torque-loop gain ``gains`` moves whose configured value makes it passive, else the axis's damping
     (``kd`` for the motor-side PD) with the least that makes it passive up to its ``controller.gain_limits``."""
-    from ankle_rt.analysis import AXES, MotorPDLoop, gain_set_loop
+    from ankle_rt.analysis import AXES, gain_set_loop
     from ankle_rt.params import PlantParams
     from ankle_rt.passivity import least_rendered_damping
 
     p = PlantParams.from_config(cfg)
 
-    def least(g: Mapping[str, float], axis: int):
-        return least_rendered_damping(p, gain_set_loop(cfg, g, ff_viscous=ff_viscous))[axis]
+    def least(g: Mapping[str, float]):
+        return least_rendered_damping(p, gain_set_loop(cfg, g, ff_viscous=ff_viscous))
 
-    axis = next((a for a in (0, 1) if not least(gains, a).passive), None)
+    axis = next((a for a, d in enumerate(least(gains)) if not d.passive), None)
     if axis is None:
         return None
     ctl = cfg["controller"]
-    found = least(gains, axis).where()
-    tl = ctl["torque_loop"] if ctl["type"] != "pd" else {}
-    moved = next((k for k, v in gains.items() if k in tl and tl[k] != v and least({**gains, k: tl[k]}, axis).passive),
+    found = least(gains)[axis].where()
+    pd = ctl["type"] == "pd"
+    tl = {} if pd else ctl["torque_loop"]
+    moved = next((k for k, v in gains.items() if k in tl and tl[k] != v and least({**gains, k: tl[k]})[axis].passive),
                  None)
     if moved is not None:
         return moved, (f"{moved} {gains[moved]:g}: the impedance the loop renders with it is not passive on "
                        f"{AXES[axis].upper()} ({found}: it gives energy back to the foot); with the configured "
                        f"{tl[moved]:g} it is (docs/daemon.md \"Passivity\")")
-    pd = isinstance(gain_set_loop(cfg, gains), MotorPDLoop)
     name = "kd" if pd else f"damping_{AXES[axis]}"
     section = ctl[ctl["pd_gains"] + "_gains"] if pd else ctl["impedance"]
     value, ceiling = float(gains.get(name, section[name])), float(ctl["gain_limits"]["kd" if pd else "damping"])
@@ -86,13 +86,13 @@ def passivity_refusal(cfg: Mapping[str, Any], gains: Mapping[str, float],
         f"{float(gains.get('stiffness_' + AXES[axis], section['stiffness_' + AXES[axis]])):g})"
     head = (f"{name} {value:g}: {what} as the loop renders it is not passive on {AXES[axis].upper()} ({found}: "
             f"it gives energy back to the foot)")
-    if value >= ceiling or not least({**gains, name: ceiling}, axis).passive:
+    if value >= ceiling or not least({**gains, name: ceiling})[axis].passive:
         return name, (f"{head}, and no {name} up to controller.gain_limits ({ceiling:g}) makes it so: lower the "
                       f"stiffness or change the torque loop (docs/daemon.md \"Passivity\")")
     lo, hi = value, ceiling
     while hi - lo > max(1e-3, 0.01 * hi):
         mid = 0.5 * (lo + hi)
-        lo, hi = (lo, mid) if least({**gains, name: mid}, axis).passive else (mid, hi)
+        lo, hi = (lo, mid) if least({**gains, name: mid})[axis].passive else (mid, hi)
     return name, f"{head}; passive from {name} {hi:.3g} (docs/daemon.md \"Passivity\")"
 
 
