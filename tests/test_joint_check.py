@@ -64,6 +64,19 @@ def test_a_stuck_or_mis_scaled_joint_encoder_faults_when_the_ankle_moves(encoder
     assert fault == Fault.JOINT_MISMATCH.name and 0.5 <= after + ACTIVE_S <= 0.65, (fault, after)
 
 
+def test_a_half_scale_joint_encoder_under_a_stiff_law_faults_on_the_stretch_against_the_gauges(encoder_base):
+    """K_ie 100, the IE joint encoder reading half the angle, a 1.5 N m IE push from 0.5 s: the law renders half the
+    stiffness (0.03 rad for 0.015) and the stretch it implies (+1.8 N m) stays within twice the gauges' size (-1.5)
+    but against their sign; JOINT_MISMATCH after AGAINST_HOLD_S (0.23-0.25 s after pushes of 1.5-6 N m), where
+    before there was none."""
+    def half(frame, _k):
+        frame.values[5] *= 0.5
+
+    push = lambda t: (0.0, 1.5 if t >= 0.5 else 0.0)   # noqa: E731
+    fault, after, _ = fault_after(mutated_run(bench(encoder_base, (200.0, 100.0)), 1.5, half, push))
+    assert fault == Fault.JOINT_MISMATCH.name and 0.2 <= after + ACTIVE_S - 0.5 <= 0.3, (fault, after)
+
+
 @pytest.mark.parametrize("stiffness", [(50.0, 25.0), (200.0, 100.0)])
 def test_a_healthy_encoder_loop_under_the_bench_sines_does_not_fault(encoder_base, stiffness):
     """The encoder-rate loop on the issue's plant under the bench's larger sines at 2 Hz, 15 N m DP then 7.5 N m IE
