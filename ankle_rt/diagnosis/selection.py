@@ -157,18 +157,19 @@ class ChannelModels:
         friction search; fitted once per channel state, as the models are built on one)."""
         return fit(self.y0, self.Xb)
 
-    def design(self, cand: Candidate, nl: float) -> Design:
+    def design(self, cand: Candidate, nl: float, built: Design | None = None) -> Design:
         """``cand``'s columns at ``nl``, from a cache of the MAX_DESIGNS most recently used (the cogging
-        search screens dozens of counts per step, each a few hundred kB on a long record)."""
+        search screens dozens of counts per step, each a few hundred kB on a long record); ``built``: the
+        design at ``nl`` built already (stored, never built again)."""
         key = (type(cand).__name__, float(nl))       # a form of its own per class
-        d = self._designs.pop(key, None) or cand.design(self.ch, nl)
+        d = self._designs.pop(key, None) or built or cand.design(self.ch, nl)
         self._designs[key] = d                       # most recent last
         if len(self._designs) > MAX_DESIGNS:
             del self._designs[next(iter(self._designs))]
         return d
 
-    def term(self, cand: Candidate, nl: float) -> Term:
-        return Term(cand, float(nl), self.design(cand, nl))
+    def term(self, cand: Candidate, nl: float, built: Design | None = None) -> Term:
+        return Term(cand, float(nl), self.design(cand, nl, built))
 
     def terms(self, specs: list[tuple[Candidate, float]]) -> list[Term]:
         return [self.term(c, nl) for c, nl in specs]
@@ -514,13 +515,18 @@ def _refine(models: ChannelModels, chosen: list[Term], n_eff: float) -> tuple[li
         if hi <= lo:
             continue
         others = chosen[:i] + chosen[i + 1:]
+        # the solver's trial designs, kept here rather than in the models' cache (they would push out the
+        # grid's); it starts from the chosen value's cached design and ends on one of its trials
+        trials = {t.nl: t.design}
 
         def resid(p: np.ndarray) -> np.ndarray:
-            y, X = models.system(others + [Term(cand, float(p[0]), cand.design(models.ch, float(p[0])))])
-            return fit(y, X).residual
+            nl = float(p[0])
+            if nl not in trials:
+                trials[nl] = cand.design(models.ch, nl)
+            return fit(*models.system(others + [Term(cand, nl, trials[nl])])).residual
 
         sol = least_squares(resid, [t.nl], bounds=([lo], [hi]), x_scale=[t.nl], diff_step=[1e-3])
-        chosen[i] = models.term(cand, float(sol.x[0]))
+        chosen[i] = models.term(cand, float(sol.x[0]), trials.get(float(sol.x[0])))
         jtj = float(sol.jac[:, 0] @ sol.jac[:, 0])
         r = sol.fun
         sigma2 = float(r @ r) / max(1, len(r) - models.k(chosen))
