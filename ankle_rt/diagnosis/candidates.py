@@ -32,6 +32,10 @@ class Design:
     X: np.ndarray
     y: np.ndarray | None = None
 
+    @property
+    def nbytes(self) -> int:
+        return self.X.nbytes + (0 if self.y is None else self.y.nbytes)
+
 
 class Candidate:
     cause: str = ""
