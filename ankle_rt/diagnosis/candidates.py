@@ -32,6 +32,10 @@ class Design:
     X: np.ndarray
     y: np.ndarray | None = None
 
+    @property
+    def nbytes(self) -> int:
+        return self.X.nbytes + (0 if self.y is None else self.y.nbytes)
+
 
 class Candidate:
     cause: str = ""
@@ -117,7 +121,7 @@ class Stribeck(Candidate):
 
     def design(self, ch, nl):
         e = self.exponent
-        return Design(ch.filt(ch.step_mean(lambda v: np.exp(-np.abs(v / nl) ** e) * np.tanh(v / ch.v_eps)))[:, None])
+        return Design(ch.filt(ch.step_mean(lambda v, sign: np.exp(-np.abs(v / nl) ** e) * sign))[:, None])
 
     def holding(self, ch, coef):
         """The static excess: at speeds above v_eps and far below vs the term is its whole excess."""
@@ -161,7 +165,7 @@ class AsymmetricFriction(Candidate):
         return not self.per_motor or ch.m > 1
 
     def design(self, ch, nl):
-        shapes = [ch.step_mean(lambda v: np.abs(np.tanh(v / ch.v_eps))), np.abs(ch.vel)]
+        shapes = [ch.step_mean(lambda v, sign: np.abs(sign)), np.abs(ch.vel)]
         if self.per_motor:
             return Design(np.hstack([ch.per_column(ch.sm.smooth(x)) for x in shapes]))
         return Design(np.column_stack([ch.filt(x) for x in shapes]))
@@ -421,7 +425,7 @@ class CoulombTransition(Candidate):
 
     def design(self, ch, nl):
         v_eps = ch.v_eps
-        return Design(ch.per_column(ch.sm.smooth(ch.step_mean(lambda v: np.tanh(SHARPER * v / v_eps)))))
+        return Design(ch.per_column(ch.sm.smooth(ch.step_mean(lambda v, _: np.tanh(SHARPER * v / v_eps)))))
 
     def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
         out = {}
@@ -781,7 +785,7 @@ def catch_all_motor(models: ChannelModels) -> tuple[np.ndarray, list[str]]:
     v = ch.vel / v99
     raw = [(tau * np.abs(tau), "torque level"), (tau ** 3, "torque level"), (v * np.abs(v), "velocity"),
            (v ** 3, "velocity"), (np.abs(v), "velocity"),
-           (ch.step_mean(lambda w: np.abs(np.tanh(w / ch.v_eps))), "velocity")]
+           (ch.step_mean(lambda w, sign: np.abs(sign)), "velocity")]
     if np.any(ch.tc):
         tcs = ch.tc / max(float(np.max(np.abs(ch.tc))), 1e-12)
         # no tc |tc| beside tau |tau|: where the motor torque nearly balances the cable torque at a steady

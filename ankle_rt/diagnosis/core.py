@@ -178,7 +178,24 @@ def resolve_inputs(rec: Recording, plant: str, cfg: Config | None) -> Inputs:
             limit = cfg["amplifier"]["current_limit_peak"]
     # read from the file as logged, before stale rows or a new time grid interpolate between counts
     joint_step = max((lattice_step(rec[c]) for c in ("ankle_dp", "ankle_ie") if c in rec), default=0.0)
+    if counts:
+        counts = logged_counts(rec, counts, notes)
     return Inputs(kt, v_eps, geometry, notes, prior, limit, counts, coulomb, joint_step)
+
+
+def logged_counts(rec: Recording, configured: int, notes: list[str]) -> int:
+    """The motor encoder counts per output revolution the file shows (the lattice its angles lie on, as
+    logged) where they are fewer than the ``configured`` ones, else those: the cogging search stays
+    COUNTS_PER_PERIOD counts a period above the coarser of the two (angles logged to 0.01 rad, 628 counts,
+    read the lattice's own ripple as cogging at 619 periods)."""
+    step = max(lattice_step(rec[c]) for c in ("motor_pos_1", "motor_pos_2") if c in rec)
+    if step == 0.0 or round(2.0 * math.pi / step) >= configured:
+        return configured
+    logged = max(1, round(2.0 * math.pi / step))
+    notes.append(f"the motor angles lie on a lattice of {step:.4g} rad ({logged} counts per output revolution), "
+                 f"coarser than actuator.encoder_counts_per_rev ({configured}): cogging counts are searched only as "
+                 "far as the logged counts resolve")
+    return logged
 
 
 def fit_smoothing_velocity(rec: Recording, kt: float | None, geometry: Geometry | None) -> float:

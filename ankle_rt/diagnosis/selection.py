@@ -50,8 +50,12 @@ MAX_EFFECTS = 4
 REGRID_PASSES = 3
 #: rows a subset of the data must hold per fitted column before a fit on it alone is judged
 MIN_ROWS_PER_COLUMN = 10
-#: designs a channel keeps cached (least recently used dropped first)
+#: designs a channel keeps cached while it is selected (least recently used dropped first): at least this
+#: many, and more while they take less than MAX_DESIGN_BYTES (a 30 s record's selection built 155 of its
+#: designs twice under the count alone, a quarter of its cogging screens); after the selection only the
+#: chosen terms' stay (:meth:`ChannelModels.keep_only`)
 MAX_DESIGNS = 160
+MAX_DESIGN_BYTES = 256 << 20
 
 
 @dataclass
@@ -147,6 +151,7 @@ class ChannelModels:
         self.n = len(self.y0)
         self.scale = max(float(np.std(ch.measured())), 1e-300)
         self._designs: dict[tuple[str, float], Design] = {}
+        self._design_bytes = 0
         self._rss: dict[tuple, float] = {}
         self._cv: dict[tuple, np.ndarray] = {}
         self._fits: dict[tuple, Fit] = {}
@@ -157,18 +162,29 @@ class ChannelModels:
         friction search; fitted once per channel state, as the models are built on one)."""
         return fit(self.y0, self.Xb)
 
-    def design(self, cand: Candidate, nl: float) -> Design:
-        """``cand``'s columns at ``nl``, from a cache of the MAX_DESIGNS most recently used (the cogging
-        search screens dozens of counts per step, each a few hundred kB on a long record)."""
+    def design(self, cand: Candidate, nl: float, built: Design | None = None) -> Design:
+        """``cand``'s columns at ``nl``, from a cache of the most recently used (MAX_DESIGNS, and more up to
+        MAX_DESIGN_BYTES: the cogging search screens dozens of counts per step, each a few hundred kB on a
+        long record); ``built``: the design at ``nl`` built already (stored, never built again)."""
         key = (type(cand).__name__, float(nl))       # a form of its own per class
-        d = self._designs.pop(key, None) or cand.design(self.ch, nl)
+        d = self._designs.pop(key, None)
+        if d is None:
+            d = built or cand.design(self.ch, nl)
+            self._design_bytes += d.nbytes
         self._designs[key] = d                       # most recent last
-        if len(self._designs) > MAX_DESIGNS:
-            del self._designs[next(iter(self._designs))]
+        while len(self._designs) > MAX_DESIGNS and self._design_bytes > MAX_DESIGN_BYTES:
+            self._design_bytes -= self._designs.pop(next(iter(self._designs))).nbytes
         return d
 
-    def term(self, cand: Candidate, nl: float) -> Term:
-        return Term(cand, float(nl), self.design(cand, nl))
+    def keep_only(self, terms: list[Term]) -> None:
+        """Drop every cached design but those of ``terms`` (a channel's result keeps its models for the
+        validation and the report, which use its chosen terms)."""
+        keep = {(type(t.candidate).__name__, t.nl) for t in terms}
+        self._designs = {k: d for k, d in self._designs.items() if k in keep}
+        self._design_bytes = sum(d.nbytes for d in self._designs.values())
+
+    def term(self, cand: Candidate, nl: float, built: Design | None = None) -> Term:
+        return Term(cand, float(nl), self.design(cand, nl, built))
 
     def terms(self, specs: list[tuple[Candidate, float]]) -> list[Term]:
         return [self.term(c, nl) for c, nl in specs]
@@ -307,6 +323,7 @@ def select_channel(name: str, ch: Channel, candidates: tuple[Candidate, ...], ca
     out.terms = [_term_stats(models, chosen, i, rivals, n_eff, base.rss) for i in range(len(chosen))]
     out.model = models.fit(chosen)
     _catch_all_on_top(out, models, chosen, C, groups, n_eff, base)
+    models.keep_only(chosen)
     return out
 
 
@@ -514,13 +531,18 @@ def _refine(models: ChannelModels, chosen: list[Term], n_eff: float) -> tuple[li
         if hi <= lo:
             continue
         others = chosen[:i] + chosen[i + 1:]
+        # the solver's trial designs, kept here rather than in the models' cache (they would push out the
+        # grid's); it starts from the chosen value's cached design and ends on one of its trials
+        trials = {t.nl: t.design}
 
         def resid(p: np.ndarray) -> np.ndarray:
-            y, X = models.system(others + [Term(cand, float(p[0]), cand.design(models.ch, float(p[0])))])
-            return fit(y, X).residual
+            nl = float(p[0])
+            if nl not in trials:
+                trials[nl] = cand.design(models.ch, nl)
+            return fit(*models.system(others + [Term(cand, nl, trials[nl])])).residual
 
         sol = least_squares(resid, [t.nl], bounds=([lo], [hi]), x_scale=[t.nl], diff_step=[1e-3])
-        chosen[i] = models.term(cand, float(sol.x[0]))
+        chosen[i] = models.term(cand, float(sol.x[0]), trials.get(float(sol.x[0])))
         jtj = float(sol.jac[:, 0] @ sol.jac[:, 0])
         r = sol.fun
         sigma2 = float(r @ r) / max(1, len(r) - models.k(chosen))

@@ -281,6 +281,12 @@ class MotorChannel(_StackedChannel):
         #: per stacked row: no motor rests or reverses within the filter's reach (see :func:`reversals`)
         self.sliding_rows = self._far_from(self.short_rests | reversals(sm.smooth(self.pos, 1, weigh=False)))
         self._acc = sm.fast_derivative(self.pos, 2)
+        s = (np.arange(KERNEL_POINTS) + 0.5) / KERNEL_POINTS * 2.0 - 1.0
+        w = 1.0 - np.abs(s)
+        #: the triangle's weights, and v extrapolated to each of its points: kept, since every nonlinear
+        #: velocity regressor (the Stribeck grids and their refinement) is a mean over the same points
+        self._kernel_w = w / w.sum()
+        self._kernel_vel = [self.vel + self._acc * (sj * self.dt) for sj in s]
         self.v_eps = v_eps
         self.set_smoothing_velocity(v_eps)
         self.stuck = np.zeros_like(self.resting)
@@ -330,17 +336,17 @@ class MotorChannel(_StackedChannel):
     def set_smoothing_velocity(self, v_eps: float) -> None:
         """Change v_eps of the Coulomb regressor tanh(v / v_eps) (position unit/s)."""
         self.v_eps = v_eps
-        self.sign = self.step_mean(lambda v: np.tanh(v / v_eps))
+        #: tanh(v / v_eps) at each kernel point, the Coulomb sign the friction regressors multiply
+        self._kernel_sign = [np.tanh(v / v_eps) for v in self._kernel_vel]
+        self.sign = self.step_mean(lambda v, sign: sign)
 
-    def step_mean(self, force: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
-        """``force(v)`` as D2 th sees it at each sample: its triangle-weighted mean over the two steps
-        around the sample, v extrapolated linearly (samples x motors; see the module docstring)."""
-        s = (np.arange(KERNEL_POINTS) + 0.5) / KERNEL_POINTS * 2.0 - 1.0
-        w = 1.0 - np.abs(s)
-        w /= w.sum()
+    def step_mean(self, force: Callable[[np.ndarray, np.ndarray], np.ndarray]) -> np.ndarray:
+        """``force(v, tanh(v / v_eps))`` as D2 th sees it at each sample: its triangle-weighted mean over
+        the two steps around the sample, v extrapolated linearly (samples x motors; see the module
+        docstring). The kernel's velocities and Coulomb signs are computed once, not per regressor."""
         out = np.zeros_like(self.vel)
-        for sj, wj in zip(s, w):
-            out += wj * force(self.vel + self._acc * (sj * self.dt))
+        for v, sign, wj in zip(self._kernel_vel, self._kernel_sign, self._kernel_w):
+            out += wj * force(v, sign)
         return out
 
     def torque(self, delay_s: float = 0.0) -> np.ndarray:
