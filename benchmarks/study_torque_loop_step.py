@@ -19,7 +19,8 @@ K_dp 50 and 200, K_ie half: the bench's), subject to
   :func:`ankle_rt.analysis.sensor_noise_current_a`), at most ``--noise`` A.
 
 ``--walk-config FILE`` (e.g. a file including ``walk.yaml`` and ``--config``'s loop) adds its gait phases' impedances to
-the margin and passivity constraints, checked as the gait-phase controller checks them when it is built (each
+the margin and passivity constraints, for each of ``--walk-masses`` as ``ankle-rt bench walk`` scales them (100 kg:
+early stance 429 N m/rad at 8.5 N m s/rad), checked as the gait-phase controller checks them when it is built (each
 phase's (K, B) on :func:`ankle_rt.control.gait_phase.phase_margin_config`, the loop of
 :func:`ankle_rt.analysis.gain_set_loop`): walking is where a loop is judged, and its stiff, damped stance springs
 (early stance 400 N m/rad) cost margin the bench's impedances do not.
@@ -43,6 +44,7 @@ import numpy as np
 from scipy.optimize import differential_evolution
 
 from ankle_rt import analysis as an
+from ankle_rt.bench.walk import wearer_overrides
 from ankle_rt.config import load_config
 from ankle_rt.config_schema import IMPEDANCE_GAINS, MAX_CUTOFF_HZ, torque_loop_cutoffs
 from ankle_rt.control.gait_phase import PHASES, phase_margin_config
@@ -74,14 +76,20 @@ def loops_for(setup: Setup, x: np.ndarray, axis: int) -> list[an.ImpedanceLoop]:
             for l in setup.loops]
 
 
-def walk_phases(walk_config: str) -> tuple[list[PlantParams], list[an.ImpedanceLoop]]:
-    """The plant and, per gait phase, the loop the gait-phase controller checks that phase's (K, B) on (its
-    ``margin_cfg``; the friction feed-forward's viscous terms are off under the joint-torque loop)."""
-    cfg = load_config(walk_config)
-    margin_cfg = phase_margin_config(cfg)
-    phases = cfg["controller"]["gait_phase"]
-    loops = [an.gain_set_loop(margin_cfg, {k: phases[name][k] for k in IMPEDANCE_GAINS}) for name in PHASES]
-    return [PlantParams.from_config(cfg)] * len(loops), loops
+def walk_phases(walk_config: str, masses: list[float]) -> tuple[list[PlantParams], list[an.ImpedanceLoop]]:
+    """The plant and the loops the gait-phase controller checks its phases' (K, B) on (its ``margin_cfg``; the
+    friction feed-forward's viscous terms are off under the joint-torque loop), for each wearer of ``masses`` as
+    ``ankle-rt bench walk`` tunes the phases for them (:func:`ankle_rt.bench.walk.wearer_overrides`), each distinct
+    gain set once."""
+    base = load_config(walk_config)
+    sets = {}
+    for mass in masses:
+        cfg = load_config(walk_config, wearer_overrides(base, mass, "normal", 0))
+        phases = cfg["controller"]["gait_phase"]
+        for name in PHASES:
+            gains = {k: phases[name][k] for k in IMPEDANCE_GAINS}
+            sets.setdefault(tuple(gains.values()), an.gain_set_loop(phase_margin_config(cfg), gains))
+    return [PlantParams.from_config(base)] * len(sets), list(sets.values())
 
 
 def margin_db(setup: Setup, loops: list[an.ImpedanceLoop]) -> float:
@@ -161,6 +169,8 @@ def main() -> None:
     ap.add_argument("--config", help="the loop the search starts from and the other axis keeps (default: the shipped)")
     ap.add_argument("--walk-config", help="a gait-phase config (on --config's loop) whose phases' impedances the margin "
                                           "and passivity must hold at too, e.g. one including walk.yaml then the loop")
+    ap.add_argument("--walk-masses", default="50,75,100", metavar="KG,KG,...",
+                    help="with --walk-config, the wearers whose phases count (ankle-rt bench walk's default)")
     ap.add_argument("--noise", type=float, default=0.22, help="A, the most current noise from the axis's gauge")
     ap.add_argument("--dynamic", type=float, default=11.0, help="%%, the dynamic stiffness error allowed")
     ap.add_argument("--damping", type=float, default=18.0, help="%%, the rendered damping error allowed")
@@ -169,6 +179,8 @@ def main() -> None:
                     help="what the rate terms differentiate (controller.torque_loop.torque_rate_source)")
     ap.add_argument("--rate-crossover-hz", type=float, default=5.0,
                     help="with encoders, the gauges' torque below this (controller.torque_loop.torque_rate_crossover_hz_*)")
+    ap.add_argument("--spread", type=float, default=0.0,
+                    help="search within +- this fraction of the configured loop (0: the whole range)")
     ap.add_argument("--maxiter", type=int, default=20)
     ap.add_argument("--popsize", type=int, default=6)
     ap.add_argument("--seed", type=int, default=11)
@@ -179,7 +191,7 @@ def main() -> None:
     pick = lambda pair, v: tuple(v if a == axis else pair[a] for a in (0, 1))  # noqa: E731
     plants, loops = full.plants[:2], full.loops[:2]      # the bench's two impedances, then the phases'
     if args.walk_config:
-        walk_plants, walk_loops = walk_phases(args.walk_config)
+        walk_plants, walk_loops = walk_phases(args.walk_config, [float(m) for m in args.walk_masses.split(",")])
         plants, loops = plants + walk_plants, loops + walk_loops
     loops = [dataclasses.replace(l, rate_from_encoders=pick(l.rate_from_encoders, encoders),
                                  rate_crossover_hz=pick(l.rate_crossover_hz, args.rate_crossover_hz))
@@ -188,8 +200,12 @@ def main() -> None:
     tl = load_config(args.config or default_config_path())["controller"]["torque_loop"]
     start = np.array([float(tl[f"{n}_{args.axis}"] if n != "cutoff_hz" else torque_loop_cutoffs(tl)[axis])
                       for n, *_ in PARAMS])
+    if start[7] == 0.0:       # no second band-stop: its depth 1 is none wherever the search puts it
+        start[9] = 1.0
     bounds = [(lo, hi) for _, lo, hi in PARAMS]
     start = np.clip(start, *zip(*bounds))
+    if args.spread:           # a local search: within +-spread of the start
+        bounds = [(max(lo, v * (1.0 - args.spread)), min(hi, v * (1.0 + args.spread))) for v, (lo, hi) in zip(start, bounds)]
     print("configured:"); report(setup, start, axis)
     t0 = time.monotonic()
     progress = lambda xk, convergence=None: print(  # noqa: E731
