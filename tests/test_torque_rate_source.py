@@ -88,6 +88,34 @@ def test_without_joint_encoders_the_encoder_rate_is_refused_naming_the_key(name,
         assert err.value.key == "controller.torque_loop.torque_rate_source"
 
 
+def test_walking_on_the_encoder_rate_needs_the_walk_tuned_loop(tmp_path):
+    """config/walk.yaml's gait phases on the encoder rate: torque-loop-encoders.yaml keeps 4.5 dB at the early-stance
+    spring (400 N m/rad at 6.39 N m s/rad) and the gait-phase controller refuses it naming that phase; the proposal
+    torque-loop-encoders-walk.yaml is accepted in every phase (margin and passivity, checked as the controller is
+    built) for every wearer `bench walk` tunes the phases for (100 kg: early stance 429 N m/rad at 8.5 N m s/rad), runs
+    the rate on the encoders, and the heaviest wearer walks without a fault."""
+    from ankle_rt.bench.walk import run_walk, wearer_overrides
+
+    def build(path, overrides=None):
+        cfg = load_config(path, overrides)
+        return build_controller(cfg, Kinematics.from_params(TransmissionParams(**cfg["transmission"])), np.zeros(2))
+
+    def walk_on(loop):
+        path = tmp_path / f"walk-{loop}"
+        path.write_text(f"include: [{CONFIG_DIR / 'walk.yaml'}, {CONFIG_DIR / loop}]\n")
+        return path
+
+    with pytest.raises(ConfigError) as err:
+        build(walk_on("torque-loop-encoders.yaml"))
+    assert err.value.key == "controller.gait_phase.early_stance.stiffness_dp" and "4.5 dB" in str(err.value)
+    path = walk_on("torque-loop-encoders-walk.yaml")
+    base = load_config(path)
+    for mass in (50.0, 75.0, 100.0):
+        controller = build(path, wearer_overrides(base, mass, "normal", 0))
+        assert controller.torque_loop is not None and controller.torque_loop.encoder_rate
+    assert run_walk(str(path), 100.0, "normal", strides=2).fault == "NONE"
+
+
 def test_a_joint_encoder_jittering_by_a_count_is_refused_by_the_noise_check():
     """The encoder rate turns the joint encoders' jitter into current (a count, 12 urad RMS: 0.76 A in the model,
     0.79 A measured in lockstep): stated in sensors.joint_encoder_noise_rms, the loader refuses the loop."""

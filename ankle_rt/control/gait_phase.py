@@ -216,7 +216,7 @@ class GaitPhaseController(ImpedanceController):
             return cls(kin, law, dt=dt, soft_start_s=c["soft_start_s"],
                        ankle_limit=math.radians(cfg["limits"]["ankle_range_deg"]),
                        gain_maxima=c["gain_limits"], friction=friction, torque_loop=loop, limits=limits,
-                       margin_cfg=_estimated_angle(cfg), stance_limits=stance_torque_limits(cfg),
+                       margin_cfg=phase_margin_config(cfg), stance_limits=stance_torque_limits(cfg),
                        stance_hold_nm=WALKING_PEAK_MOMENT * cfg["wearer"]["mass_kg"],
                        swing=SwingLimits.from_config(cfg, WALKING_PEAK_DORSIFLEXION))
         except GainError as exc:   # a phase's parameter, or the torque-loop gain that limits its margin
@@ -374,9 +374,10 @@ def heel_strike_hold_s(cfg: Mapping[str, Any]) -> float:
     return 2.0 * math.pi * math.sqrt(cfg["foot"]["inertia_dp"] / k)
 
 
-def _estimated_angle(cfg: Mapping[str, Any]) -> dict[str, Any]:
+def phase_margin_config(cfg: Mapping[str, Any]) -> dict[str, Any]:
     """``cfg`` for the gain-margin model of the phase law, which takes the cable estimate of the ankle
     angle (:meth:`GaitPhaseController.angles`) whatever ``controller.impedance.angle_source`` says (a
-    shallow copy: the config may be a controller's read-only view)."""
+    shallow copy: the config may be a controller's read-only view); every phase's (K, B) is checked on it
+    (public: the torque-loop studies search loops against the same check)."""
     c = cfg["controller"]
     return {**cfg, "controller": {**c, "impedance": {**c["impedance"], "angle_source": "estimated"}}}
