@@ -90,7 +90,7 @@ def test_without_joint_encoders_the_encoder_rate_is_refused_naming_the_key(name,
 
 def test_walking_on_the_encoder_rate_needs_the_walk_tuned_loop(tmp_path):
     """config/walk.yaml's gait phases on the encoder rate: torque-loop-encoders.yaml keeps 4.5 dB at the early-stance
-    spring (400 N m/rad at 6.39 N m s/rad) and the gait-phase controller refuses it naming that phase; the proposal
+    spring (400 N m/rad at 6.39 N m s/rad) and the gait-phase controller refuses it naming that phase; the walk-tuned
     torque-loop-encoders-walk.yaml is accepted in every phase (margin and passivity, checked as the controller is
     built) for every wearer `bench walk` tunes the phases for (100 kg: early stance 429 N m/rad at 8.5 N m s/rad), runs
     the rate on the encoders, and the heaviest wearer walks without a fault."""
