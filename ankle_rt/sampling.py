@@ -23,6 +23,8 @@ from ankle_rt.interchange import InterchangeError, Recording
 
 GAP_FACTOR = 5.0
 """A time step this many times the median period is a gap (lost samples): refused."""
+BUNCHED = 0.1
+"""More than this share of the steps over GAP_FACTOR x the median is no gap but a time base in bunches: refused."""
 JITTER_WARN = 0.1
 """Warn when more than 1 % of the time steps deviate from the median period by more than this fraction."""
 SLOWEST_PERIOD_S = 0.1
@@ -46,6 +48,11 @@ def check_sampling(rec: Recording, cfg: Mapping[str, Any] | None = None) -> list
     if period > SLOWEST_PERIOD_S:
         raise InterchangeError(f"median sample period {period:g} s is slower than 10 Hz: is time in ms "
                                "rather than s?", src, "t")
+    bunched = float(np.mean(dt > GAP_FACTOR * period))
+    if bunched > BUNCHED:
+        raise InterchangeError(f"time stamps come in bunches: {100 * bunched:.0f} % of the steps are over "
+                               f"{GAP_FACTOR:g} x the median step {period:.4g} s (rows logged twice, or stamps in "
+                               f"pairs?)", src, "t")
     worst = int(np.argmax(dt))
     if dt[worst] > GAP_FACTOR * period:
         raise InterchangeError(f"time gap of {dt[worst]:.4g} s ({dt[worst] / period:.0f} sample periods of "

@@ -101,6 +101,16 @@ def test_a_time_gap_is_refused(tmp_path, columns, capsys):
     assert "column 't'" in err and "time gap of 0.401 s" in err and "row 501 (line 502)" in err   # t[500] is data row 501
 
 
+def test_time_stamps_in_pairs_are_refused_as_bunched_not_as_a_gap(tmp_path, columns, capsys):
+    """Every second stamp 1 us after the one before (a logger writing each sample's time twice): the median step
+    is 1 us, so every other step looked like a gap of ~1000 periods ("samples are missing"); it is named."""
+    t = columns["t"].copy()
+    t[1::2] = t[0:-1:2] + 1e-6
+    path = csv_of(tmp_path, columns, t=t)
+    err = refused(capsys, "diagnose", str(path), "--config", str(SIM_CONFIG))
+    assert "column 't'" in err and "bunches: 50 % of the steps" in err and "missing" not in err
+
+
 def test_an_irregular_time_base_is_a_warning(tmp_path, columns, _sim_cfg):
     t = columns["t"].copy()
     rng = np.random.default_rng(1)
