@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ankle_rt.diagnosis.regression import block_cv_mse, effective_samples, fit, information_criterion
+from ankle_rt.diagnosis.regression import block_cv_mse, effective_samples, fit, information_criterion, rss_only
 from ankle_rt.diagnosis.signals import MotorChannel, shift_rows
 from ankle_rt.interchange import Recording
 
@@ -25,6 +25,26 @@ def test_effective_sample_size_of_white_and_ar1_noise():
     assert effective_samples(ar, 1) == pytest.approx(n * (1 - a) / (1 + a), rel=0.25)
     # two stacked series count separately
     assert effective_samples(np.concatenate([white, white[::-1]]), 2) == pytest.approx(2 * n, rel=0.1)
+
+
+def test_lean_fits_give_the_same_numbers_bit_for_bit():
+    """fit(covariance=False) and rss_only (which scales its X in place) only leave work out (diag24):
+    coefficients, residual and RSS are the full fit's to the last bit, and a covariance is refused."""
+    rng = np.random.default_rng(3)
+    X = np.column_stack([rng.standard_normal(500) * s for s in (1e-3, 1.0, 1e3)] + [np.zeros(500)])
+    y = X[:, :3] @ [2.0, -1.0, 0.5] + rng.standard_normal(500)
+    full, lean = fit(y, X), fit(y, X, covariance=False)
+    assert np.array_equal(full.coef, lean.coef) and np.array_equal(full.residual, lean.residual)
+    assert full.rss == lean.rss and lean.xtx_inv is None
+    with pytest.raises(ValueError):
+        lean.covariance(500.0)
+    Xc = X.copy()
+    scale = np.sqrt(np.einsum("ij,ij->j", X, X))
+    scale[scale == 0.0] = 1.0
+    Xs = X / scale
+    r = y - Xs @ np.linalg.lstsq(Xs, y, rcond=None)[0]
+    assert rss_only(y, Xc) == float(r @ r)
+    assert np.array_equal(Xc, Xs)                     # scaled in place
 
 
 def test_information_criterion_penalises_parameters_by_effective_samples():

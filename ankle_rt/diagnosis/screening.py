@@ -233,8 +233,8 @@ def strain_gauge_drift(cable) -> list[float] | None:
     # the joint-angle columns of an encoder scale mismatch too: slow motion would read as a drift
     y, Xb = cable.target(), np.hstack([cable.baseline_design(), shapes, EncoderScale().design(cable, 0.0).X])
     T = time_columns(cable)
-    base = fit(y, Xb)
-    full = fit(y, np.hstack([Xb, T]))
+    base = fit(y, Xb, covariance=False)
+    full = fit(y, np.hstack([Xb, T]), covariance=False)
     if base.rss <= 0.0 or 1.0 - full.rss / base.rss < DRIFT_REDUCTION:     # 0: nothing left to explain
         return None
     drift = (T @ full.coef[Xb.shape[1]:]).reshape(cable.m, -1)

@@ -281,7 +281,7 @@ def select_channel(name: str, ch: Channel, candidates: tuple[Candidate, ...], ca
     first = [models.best_of(c, [], base.residual) for c in pool]
     C, groups = catch_all(models)
     best_blocks = [models.term(s.candidate, s.nl).design.X for s in first]
-    full = fit(models.y0, np.hstack([models.Xb, C] + best_blocks))
+    full = fit(models.y0, np.hstack([models.Xb, C] + best_blocks), covariance=False)
     n_eff = effective_samples(full.residual, ch.m)
     k0 = models.Xb.shape[1]
     for s in first:
@@ -539,7 +539,7 @@ def _refine(models: ChannelModels, chosen: list[Term], n_eff: float) -> tuple[li
             nl = float(p[0])
             if nl not in trials:
                 trials[nl] = cand.design(models.ch, nl)
-            return fit(*models.system(others + [Term(cand, nl, trials[nl])])).residual
+            return fit(*models.system(others + [Term(cand, nl, trials[nl])]), covariance=False).residual
 
         sol = least_squares(resid, [t.nl], bounds=([lo], [hi]), x_scale=[t.nl], diff_step=[1e-3])
         chosen[i] = models.term(cand, float(sol.x[0]), trials.get(float(sol.x[0])))
@@ -575,13 +575,13 @@ def _catch_all_on_top(out: ChannelResult, models: ChannelModels, chosen: list[Te
     y, X = models.system(chosen)
     model = out.model
     Xc = np.hstack([X, C])
-    full = fit(y, Xc)
+    full = fit(y, Xc, covariance=False)
     n = models.n
     out.catch_all_delta_ic = (information_criterion(model.rss, n, X.shape[1], n_eff)
                               - information_criterion(full.rss, n, Xc.shape[1], n_eff))
     out.catch_all_reduction = 1.0 - full.rss / model.rss
     out.catch_all_size = models.size(model.rss, full.rss)
-    out.catch_all_total = 1.0 - fit(models.y0, np.hstack([models.Xb, C])).rss / base.rss
+    out.catch_all_total = 1.0 - fit(models.y0, np.hstack([models.Xb, C]), covariance=False).rss / base.rss
     if out.catch_all_reduction > MIN_UNKNOWN_REDUCTION:
         cv_model = models.cv(chosen)
         cv_full = block_cv_mse(y, Xc, models.ch.m, CV_FOLDS)
@@ -604,7 +604,7 @@ def replicates(vmodels: ChannelModels, specs: list[tuple[Candidate, float]],
     y, X = vmodels.system(vmodels.terms(specs))
     C, _ = catch_all(vmodels)
     Xc = np.hstack([X, C])
-    model, full = fit(y, X), fit(y, Xc)
+    model, full = fit(y, X, covariance=False), fit(y, Xc, covariance=False)
     n_eff = effective_samples(full.residual, vmodels.ch.m)
     gain = (information_criterion(model.rss, vmodels.n, X.shape[1], n_eff)
             - information_criterion(full.rss, vmodels.n, Xc.shape[1], n_eff))
