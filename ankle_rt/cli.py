@@ -12,7 +12,11 @@ import importlib
 import os
 import sys
 
-from ankle_rt.config import ConfigError
+from ankle_rt.blas_threads import limit_blas_threads
+
+limit_blas_threads()    # before numpy's first import (ankle_rt.config's)
+
+from ankle_rt.config import ConfigError  # noqa: E402
 
 # Module names under ankle_rt.commands, in the order `--help` lists them.
 COMMANDS: tuple[str, ...] = ("run", "config", "log", "analyze", "ctl", "identify", "validate", "emulate", "calibrate", "canbus_load", "diagnose", "bench", "sweep")

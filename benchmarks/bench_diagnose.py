@@ -33,7 +33,6 @@ LuGre bristles, a first-order current loop, late control ticks, a 500 Hz log, st
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import tempfile
 import time
@@ -41,13 +40,13 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
-# The regressions are small (thousands of rows, tens of columns): BLAS threads only fight over the two
-# shared cores (3x slower measured under load). Set before numpy loads OpenBLAS.
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from ankle_rt.blas_threads import limit_blas_threads  # noqa: E402
+
+limit_blas_threads()    # as `ankle-rt` runs the diagnosis (before numpy loads OpenBLAS)
 
 import numpy as np  # noqa: E402
-
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from ankle_rt.diagnosis import diagnose  # noqa: E402
 from ankle_rt.diagnosis.core import Diagnosis  # noqa: E402

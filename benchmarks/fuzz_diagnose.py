@@ -19,7 +19,6 @@ import argparse
 import contextlib
 import io
 import json
-import os
 import sys
 import tempfile
 import time
@@ -27,13 +26,12 @@ import traceback
 from collections.abc import Callable
 from pathlib import Path
 
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-import numpy as np  # noqa: E402
+from ankle_rt.cli import main  # noqa: E402  (first: it limits the BLAS threads before numpy loads)
 
-from ankle_rt.cli import main  # noqa: E402
+import numpy as np  # noqa: E402
 from tests.diagnosis_cases import SIM_CONFIG, make_case  # noqa: E402
 from tests.diagnosis_cases_b import make_case_b  # noqa: E402
 
