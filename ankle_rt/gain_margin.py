@@ -66,11 +66,12 @@ def passivity_refusal(cfg: Mapping[str, Any], gains: Mapping[str, float],
     def least(g: Mapping[str, float]):
         return least_rendered_damping(p, gain_set_loop(cfg, g, ff_viscous=ff_viscous))
 
-    axis = next((a for a, d in enumerate(least(gains)) if not d.passive), None)
+    rendered = least(gains)
+    axis = next((a for a, d in enumerate(rendered) if not d.passive), None)
     if axis is None:
         return None
     ctl = cfg["controller"]
-    found = least(gains)[axis].where()
+    found = rendered[axis].where()
     pd = ctl["type"] == "pd"
     tl = {} if pd else ctl["torque_loop"]
     moved = next((k for k, v in gains.items() if k in tl and tl[k] != v and least({**gains, k: tl[k]})[axis].passive),

@@ -88,9 +88,9 @@ class JointCrossCheck:
         d0, d1, e0, e1 = r0 - self.o0, r1 - self.o1, g0 - self.h0, g1 - self.h1
         watched = active & self.watch
         off = watched & ((abs(d0) > self.base0 + FACTOR * abs(e0)) | (abs(d1) > self.base1 + FACTOR * abs(e1)))
-        against = watched & (_against(d0, e0, self.base0) | _against(d1, e1, self.base1))
+        opposed = watched & (_against(d0, e0, self.base0) | _against(d1, e1, self.base1))
         self.beyond = beyond = select(off, self.beyond + self.dt, 0.0)
-        self.against = against = select(against, self.against + self.dt, 0.0)
+        self.against = against = select(opposed, self.against + self.dt, 0.0)
         return (beyond >= HOLD_S) | (against >= AGAINST_HOLD_S)
 
 
