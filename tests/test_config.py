@@ -148,3 +148,24 @@ def test_a_config_of_too_many_nodes_is_refused(tmp_path, monkeypatch):
     path = _config_text(tmp_path, "controller:\n  params: {xs: [" + ", ".join(["1"] * 60) + "]}\n")
     with pytest.raises(ConfigError, match="more than 50 YAML nodes"):
         load_config(path)
+
+
+def test_every_torque_loop_file_is_a_whole_loop_so_including_one_replaces_the_one_before(tmp_path):
+    """sim.yaml includes the encoder-rate loop and hw-*.yaml replace it with the gauges' loop: a loop file that
+    left a key out would keep the earlier file's value for it, a hybrid loop nobody tuned or checked."""
+    from ankle_rt.config_schema import TORQUE_LOOP
+    loop_keys = {k for k in TORQUE_LOOP.fields if not k.startswith("max_correction")}
+    files = sorted((ROOT / "config").glob("torque-loop-*.yaml"))
+    assert len(files) >= 6
+    for path in files:
+        keys = set(yaml.safe_load(path.read_text())["controller"]["torque_loop"])
+        assert keys == loop_keys, (path.name, sorted(loop_keys - keys))
+    gauges = yaml.safe_load((ROOT / "config" / "torque-loop-gauges.yaml").read_text())["controller"]["torque_loop"]
+    base = tmp_path / "after_encoders.yaml"
+    base.write_text(f"include: [{ROOT / 'config' / 'sim.yaml'}, {ROOT / 'config' / 'torque-loop-gauges.yaml'}]\n")
+    loop = load_config(base)["controller"]["torque_loop"]
+    assert {k: loop[k] for k in gauges} == gauges
+    assert load_config(SIM_CONFIG)["controller"]["torque_loop"]["torque_rate_source"] == "encoders"
+    for name in ("hw-serial.yaml", "hw-canopen.yaml", "bench-canopen.yaml"):
+        loop = load_config(ROOT / "config" / name)["controller"]["torque_loop"]
+        assert {k: loop[k] for k in gauges} == gauges, name

@@ -13,6 +13,7 @@ from ankle_rt.config import ConfigError, load_config
 from ankle_rt.daemon import run_lockstep
 from ankle_rt.gain_margin import MAX_NOISE_SHARE, noise_refusal
 from ankle_rt.paths import default_config_path
+from tests.loop_configs import gauge_loop_config
 from tests.conftest import ROOT
 
 # the step-tuned loop of the sixth pass: stable, 7.6 dB, but ~1.2 A of set-value noise at rest
@@ -26,7 +27,7 @@ NOISY_LOOP = {"kp_dp": 58.3, "kp_ie": 44.75, "ki_dp": 12.6, "ki_ie": 15.5, "torq
 
 @pytest.fixture(scope="module")
 def base():
-    return load_config(default_config_path())
+    return gauge_loop_config()
 
 
 def test_the_model_predicts_the_current_noise_at_rest(base):
@@ -50,7 +51,8 @@ def test_the_model_predicts_the_current_noise_at_rest(base):
 
 def write(tmp_path, body: dict):
     path = tmp_path / "c.yaml"
-    path.write_text(yaml.safe_dump({"include": [str(ROOT / "config" / "sim.yaml")], **body}))
+    path.write_text(yaml.safe_dump({"include": [str(ROOT / "config" / n) for n in ("sim.yaml", "torque-loop-gauges.yaml")],
+                                    **body}))
     return path
 
 

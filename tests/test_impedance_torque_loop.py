@@ -27,7 +27,7 @@ from ankle_rt.kinematics import Kinematics
 from ankle_rt.params import PlantParams, TransmissionParams
 from ankle_rt.paths import default_config_path
 from ankle_rt.safety import Fault, State
-from tests.loop_configs import walk_loop_config
+from tests.loop_configs import gauge_loop_config, walk_loop_config
 
 PLANT = [{"type": "load_dependent_friction", "coefficient": 0.12},
          {"type": "stribeck", "static_excess": 0.15, "stribeck_velocity": 0.1}]
@@ -37,7 +37,7 @@ GROUND_DAMPING = 1.0        # N m s/rad
 
 @pytest.fixture(scope="module")
 def base():
-    return load_config(default_config_path())
+    return gauge_loop_config()      # the loop these figures were measured on (the device's, no joint encoders)
 
 
 def impedance_cfg(base, k_dp=50.0, *, feedback="auto", effects=PLANT):

@@ -22,6 +22,7 @@ from ankle_rt.joint_blend import blended_angle, crossover_alpha, law_crossover_h
 from ankle_rt.kinematics import Kinematics
 from ankle_rt.params import PlantParams, TransmissionParams
 from ankle_rt.paths import default_config_path
+from tests.loop_configs import gauge_loop_config
 
 PLANT = [{"type": "load_dependent_friction", "coefficient": 0.12},
          {"type": "stribeck", "static_excess": 0.15, "stribeck_velocity": 0.1}]
@@ -39,7 +40,7 @@ SLACK = 0.05        # of the cable stiffness: a cable that has gone nearly slack
 
 @pytest.fixture(scope="module")
 def base():
-    return load_config(default_config_path())
+    return gauge_loop_config()      # the loop the crossover's dampings were found on
 
 
 def impedance_cfg(base, effects=PLANT, friction_ff="identified", **impedance):

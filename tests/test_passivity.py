@@ -19,13 +19,14 @@ from ankle_rt.params import PlantParams, TransmissionParams
 from ankle_rt.passivity import least_rendered_damping
 from ankle_rt.analysis import gain_set_loop
 from ankle_rt.paths import CONFIG_DIR, default_config_path
+from tests.loop_configs import gauge_loop_config
 
 BENCH_K200 = "stiffness_dp: 200, stiffness_ie: 100, damping_dp: 0.5"
 
 
-def _config(tmp_path, impedance: str, *, include: str = "", torque_loop: str = ""):
+def _config(tmp_path, impedance: str, *, include: str = "torque-loop-gauges.yaml", torque_loop: str = ""):
     path = tmp_path / "c.yaml"
-    files = ", ".join(str(f) for f in (default_config_path(), *([CONFIG_DIR / include] if include else [])))
+    files = ", ".join(str(f) for f in (default_config_path(), CONFIG_DIR / include))
     path.write_text(f"include: [{files}]\ncontroller: {{type: impedance, impedance: {{{impedance}}}"
                     f"{', torque_loop: {' + torque_loop + '}' if torque_loop else ''}}}\n")
     return path
@@ -56,7 +57,7 @@ def test_what_the_check_refuses_gives_energy_back_on_the_simulator(tmp_path, mon
     energy to the foot in 3 N m sines. At the damping the refusal names it does not once the device has
     a quarter of its stated Coulomb friction (frictionless it still returns 0.8 % of a cycle's work:
     the model is linear; docs/daemon.md "Passivity")."""
-    base = load_config(default_config_path())
+    base = gauge_loop_config()
 
     def run(damping_ie: float, coulomb_scale: float):
         c = bench_config(base, stiffness=(200.0, 100.0), damping=(0.5, damping_ie), torque_feedback="auto",

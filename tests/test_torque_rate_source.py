@@ -19,6 +19,7 @@ from ankle_rt.daemon import run_lockstep
 from ankle_rt.kinematics import Kinematics
 from ankle_rt.params import PlantParams, TransmissionParams
 from ankle_rt.paths import CONFIG_DIR, default_config_path
+from tests.loop_configs import gauge_loop_config
 from tests.daemon_helpers import mutated_run
 from tests.test_joint_blend import BACKLASH, CROSSOVER, PLANT, hunt_after_release, with_play
 
@@ -27,7 +28,7 @@ ENCODER_LOOP = yaml.safe_load((CONFIG_DIR / "torque-loop-encoders.yaml").read_te
 
 @pytest.fixture(scope="module")
 def gauge_base():
-    return load_config(default_config_path())
+    return gauge_loop_config()
 
 
 @pytest.fixture(scope="module")

@@ -189,7 +189,8 @@ def actuation_from_config(cfg: "Config", friction: FrictionFeedForward | None
         return None, None, friction
     if rate_from_encoders(cfg["controller"]["torque_loop"]) and not has_joint_encoders(cfg):
         raise ConfigError("torque_rate_source encoders needs joint encoders (joint_encoders.counts_per_rev on the "
-                          "serial bridge; the simulator has them, the CANopen backend does not)",
+                          "serial bridge; the simulator has them, the CANopen backend does not): without them include "
+                          "config/torque-loop-gauges.yaml after sim.yaml, as hw-*.yaml do",
                           getattr(cfg, "source", None), "controller.torque_loop.torque_rate_source")
     c = cfg["controller"]
     loop = JointTorqueLoop(TorqueLoopGains.from_config(c["torque_loop"], cfg["transmission"]["cable_stiffness"]),
