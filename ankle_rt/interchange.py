@@ -103,7 +103,7 @@ MAX_CSV_BYTES = 256 << 20
 # Largest magnitude a value of each column can plausibly have (SI units); beyond it the file is not in
 # the units this format states (or is damaged), and numerical tools would fail on it further down.
 PLAUSIBLE_ABS: dict[str, tuple[float, str]] = {
-    "t": (1e7, "s"),                                                   # 115 days
+    "t": (1e10, "s"),              # a clock's absolute seconds (UNIX time) pass, its milliseconds do not
     "motor_pos_1": (1e4, "rad"), "motor_pos_2": (1e4, "rad"),          # at the gearbox output
     "current_cmd_1": (100.0, "A"), "current_cmd_2": (100.0, "A"),
     "motor_torque_1": (1e3, "N m"), "motor_torque_2": (1e3, "N m"),

@@ -3,6 +3,7 @@ traceback), and diagnose / validate check sampling and units against the config 
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -99,6 +100,48 @@ def test_a_time_gap_is_refused(tmp_path, columns, capsys):
     path = csv_of(tmp_path, columns, t=t)
     err = refused(capsys, "validate", "--config", str(SIM_CONFIG), "--from", str(path))
     assert "column 't'" in err and "time gap of 0.401 s" in err and "row 501 (line 502)" in err   # t[500] is data row 501
+
+
+def test_cycles_an_overrunning_loop_dropped_are_masked_by_diagnose_not_refused(tmp_path, capsys, _sim_cfg):
+    """A loop on a busy computer skips cycles: its log has gaps of a few periods, here 6 ms ones in the step's fastest
+    motion and after it. `diagnose` masks around them (its screening) and gives a verdict naming the gaps; the
+    speed check divides by each step's own time, so the motion across a gap is not "angles in degrees"; `validate`
+    (which replays the record cycle by cycle) still refuses a gap."""
+    columns = {k: np.asarray(v, dtype=float) for k, v in run_lockstep(_sim_cfg, 4.0).interchange().items()}
+    speed = np.abs(np.diff(columns["motor_pos_1"])) / np.diff(columns["t"])
+    fast = int(np.argmax(speed))
+    keep = np.ones(len(columns["t"]), dtype=bool)
+    for start in (fast - 2, fast + 150, fast + 300):
+        keep[start:start + 5] = False
+    assert speed[fast] * 6 > 1.5 * _sim_cfg["safety"]["max_motor_speed_rad_s"]   # over the bound at the median period
+    path = csv_of(tmp_path, {k: v[keep] for k, v in columns.items()})
+    assert main(["diagnose", str(path), "--config", str(SIM_CONFIG), "--json", "--no-closed-loop"]) == 0
+    out = capsys.readouterr()
+    assert json.loads(out.out)["cause"] and "3 time gap(s) (dropped samples), the longest 6 ms" in out.out + out.err
+    err = refused(capsys, "validate", "--config", str(SIM_CONFIG), "--from", str(path))
+    assert "column 't'" in err and "samples are missing" in err
+
+
+def test_a_clocks_absolute_seconds_are_counted_from_the_first_sample(tmp_path, columns, _sim_cfg):
+    """UNIX seconds in `t` (a logger stamping with the wall clock) are seconds that increase, as the format asks:
+    read, counted from the first sample with a warning saying so, and checked as any record; the same clock's
+    milliseconds are still refused."""
+    path = tmp_path / "epoch.csv"
+    write_csv(path, columns)
+    lines = path.read_text().splitlines()
+    col = lines[0].split(",").index("t")
+    rows = [line.split(",") for line in lines[1:]]
+    for row in rows:
+        row[col] = f"{1764425000.0 + float(row[col]):.6f}"
+    path.write_text("\n".join([lines[0]] + [",".join(r) for r in rows]) + "\n")
+    rec = load_recording(path, cfg=_sim_cfg)
+    assert rec["t"][0] == 0.0 and np.max(np.abs(rec["t"] - columns["t"])) < 1e-6
+    assert len(rec.extra["warnings"]) == 1 and "start at 1764425000 s" in rec.extra["warnings"][0]
+    for row in rows:
+        row[col] = f"{1e3 * float(row[col]):.3f}"
+    path.write_text("\n".join([lines[0]] + [",".join(r) for r in rows]) + "\n")
+    with pytest.raises(InterchangeError, match=r"column 't'.*implausible value .*time in ms rather than s"):
+        load_recording(path, cfg=_sim_cfg)
 
 
 def test_time_stamps_in_pairs_are_refused_as_bunched_not_as_a_gap(tmp_path, columns, capsys):

@@ -102,8 +102,9 @@ def run(args: argparse.Namespace) -> int:
     progress = Progress("diagnose", 4)   # stages: read, fit and select, closed-loop gain, write
     try:
         progress.update(0, "reading the data")
-        ident = load_recording(args.data, cfg=cfg)      # sampling and units checked (against cfg when given)
-        valid = load_recording(args.validation, cfg=cfg) if args.validation else None
+        # sampling and units checked (against cfg when given); the screening masks around time gaps
+        ident = load_recording(args.data, cfg=cfg, gaps_masked=True)
+        valid = load_recording(args.validation, cfg=cfg, gaps_masked=True) if args.validation else None
         for rec in (ident, valid):
             for warning in (rec.extra["warnings"] if rec is not None else ()):
                 print(f"ankle-rt diagnose: warning: {warning}", file=sys.stderr)

@@ -14,15 +14,33 @@ from ankle_rt.sampling import check_sampling
 from ankle_rt.textfile import TextFileError, read_head
 
 
-def load_recording(path: str | Path, min_rows: int = 2, cfg: Mapping[str, Any] | None = None) -> Recording:
+def load_recording(path: str | Path, min_rows: int = 2, cfg: Mapping[str, Any] | None = None, *,
+                   gaps_masked: bool = False) -> Recording:
     """Read ``path`` as a run log (by its magic bytes) or else as an interchange CSV; either way a file
     with fewer than ``min_rows`` rows is an error naming column 't' and the row count. The sampling
     and units are checked against ``cfg`` (when given; see :func:`ankle_rt.sampling.check_sampling`):
-    refusals raise InterchangeError, warnings are kept in ``extra["warnings"]``. A run log's header
-    metadata is kept in ``extra["log_meta"]``."""
+    refusals raise InterchangeError, warnings are kept in ``extra["warnings"]``; ``gaps_masked`` for a
+    caller that masks the samples around a time gap instead of refusing it. A run log's header metadata is
+    kept in ``extra["log_meta"]``."""
     rec = _read(Path(path), min_rows)
-    rec.extra["warnings"] = check_sampling(rec, cfg)
+    rebased = _from_first_sample(rec)
+    rec.extra["warnings"] = rebased + check_sampling(rec, cfg, gaps_masked=gaps_masked)
     return rec
+
+
+ABSOLUTE_TIME_S = 1e7
+"""s (115 days): a first time stamp beyond this is a clock's absolute time (UNIX seconds), not a run's."""
+
+
+def _from_first_sample(rec: Recording) -> list[str]:
+    """Count ``rec``'s time from its first sample when it is a clock's absolute time (the tools replay and
+    simulate from t = 0; the format asks only for seconds that increase); the warning says so."""
+    t = rec["t"]
+    if abs(t[0]) <= ABSOLUTE_TIME_S:
+        return []
+    rec.columns["t"] = t - t[0]
+    return [f"{rec.source}: column 't': time stamps start at {t[0]:.10g} s (a clock's absolute time): counted "
+            "from the first sample"]
 
 
 def _read(path: Path, min_rows: int) -> Recording:
