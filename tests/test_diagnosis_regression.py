@@ -114,3 +114,21 @@ def test_filter_is_sosfiltfilt_bit_for_bit():
                 out = sm.smooth(xx, weigh=False)
                 assert np.array_equal(out, ref) and np.array_equal(np.signbit(out), np.signbit(ref))
                 assert out.strides == ref.strides
+
+
+def test_stribeck_mean_is_the_step_mean_bit_for_bit():
+    """The cached, in-place Stribeck mean (diag25) is step_mean of the Stribeck shape to the last bit."""
+    rng = np.random.default_rng(5)
+    n = 3000
+    t = np.arange(n) * 1e-3
+    pos = np.column_stack([np.sin(2 * np.pi * 0.7 * t), 0.5 * np.cos(2 * np.pi * 1.1 * t)])
+    pos = np.round(pos / 1e-4) * 1e-4
+    data = {"t": t, "motor_pos_1": pos[:, 0], "motor_pos_2": pos[:, 1],
+            "current_cmd_1": rng.standard_normal(n), "current_cmd_2": rng.standard_normal(n)}
+    ch = MotorChannel(Recording(data, "stribeck"), 0.1, None, 0.01)
+    for e in (1.0, 2.0):
+        for vs in (0.02, 0.3, 5.0):
+            ref = ch.step_mean(lambda v, sign: np.exp(-np.abs(v / vs) ** e) * sign)
+            for _ in range(2):                         # built, then from the cache
+                out = ch.stribeck_mean(vs, e)
+                assert np.array_equal(out, ref) and np.array_equal(np.signbit(out), np.signbit(ref))

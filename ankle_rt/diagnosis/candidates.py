@@ -120,8 +120,8 @@ class Stribeck(Candidate):
         return list(np.geomspace(2.0 * ch.v_eps, max(0.3 * v99, 4.0 * ch.v_eps), 18))
 
     def design(self, ch, nl):
-        e = self.exponent
-        return Design(ch.filt(ch.step_mean(lambda v, sign: np.exp(-np.abs(v / nl) ** e) * sign))[:, None])
+        # ch.step_mean(lambda v, sign: np.exp(-np.abs(v / nl) ** self.exponent) * sign), cached
+        return Design(ch.filt(ch.stribeck_mean(nl, self.exponent))[:, None])
 
     def holding(self, ch, coef):
         """The static excess: at speeds above v_eps and far below vs the term is its whole excess."""

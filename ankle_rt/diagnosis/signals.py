@@ -47,6 +47,9 @@ STUCK_REST_S = 0.01
 #: share of an encoder's changes between samples that must be whole counts for its readings to lie on a
 #: lattice (:func:`lattice_step`; a few rows re-interpolated by the screening are not)
 LATTICE_SHARE = 0.9
+#: bytes of Stribeck means a motor channel keeps (:meth:`MotorChannel.stribeck_mean`: 36 grid values of
+#: 480 kB each on a 30 s record at 1 kHz with two motors)
+MAX_STRIBECK_BYTES = 64 << 20
 #: s, time constants of the stretch-history columns: a relaxing (viscoelastic) element in the cable
 #: catch-all, a linear load's own dynamics in the load channel's baseline (:class:`LoadChannel`)
 RELAXATION_S = (0.1, 0.3, 1.0, 3.0)
@@ -385,6 +388,8 @@ class MotorChannel(_StackedChannel):
         #: tanh(v / v_eps) at each kernel point, the Coulomb sign the friction regressors multiply
         self._kernel_sign = [np.tanh(v / v_eps) for v in self._kernel_vel]
         self.sign = self.step_mean(lambda v, sign: sign)
+        #: Stribeck means by (velocity, exponent) at this v_eps (:meth:`stribeck_mean`), least recent first
+        self._stribeck: dict[tuple[float, float], np.ndarray] = {}
 
     def step_mean(self, force: Callable[[np.ndarray, np.ndarray], np.ndarray]) -> np.ndarray:
         """``force(v, tanh(v / v_eps))`` as D2 th sees it at each sample: its triangle-weighted mean over
@@ -393,6 +398,32 @@ class MotorChannel(_StackedChannel):
         out = np.zeros_like(self.vel)
         for v, sign, wj in zip(self._kernel_vel, self._kernel_sign, self._kernel_w):
             out += wj * force(v, sign)
+        return out
+
+    def stribeck_mean(self, vs: float, exponent: float) -> np.ndarray:
+        """:meth:`step_mean` of the Stribeck shape ``exp(-|v / vs|^exponent) tanh(v / v_eps)``: the same
+        operations in the same order, in one buffer instead of a new array per operation, and cached
+        (MAX_STRIBECK_BYTES, least recently used dropped first). The mean is the raw signal before L, which
+        the weights of the stuck rests do not touch: the motor channel's second selection, after the rests
+        are weighed anew (core._select_motor), finds the grid's means of the first."""
+        key = (float(vs), float(exponent))
+        out = self._stribeck.pop(key, None)
+        if out is None:
+            out = np.zeros_like(self.vel)
+            buf = np.empty_like(self.vel)
+            for v, sign, wj in zip(self._kernel_vel, self._kernel_sign, self._kernel_w):
+                np.divide(v, vs, out=buf)
+                np.abs(buf, out=buf)
+                buf **= exponent
+                np.negative(buf, out=buf)
+                np.exp(buf, out=buf)
+                buf *= sign
+                buf *= wj
+                out += buf
+            out.flags.writeable = False           # shared by the cache
+        self._stribeck[key] = out                 # most recent last
+        while len(self._stribeck) > 1 and sum(a.nbytes for a in self._stribeck.values()) > MAX_STRIBECK_BYTES:
+            self._stribeck.pop(next(iter(self._stribeck)))
         return out
 
     def torque(self, delay_s: float = 0.0) -> np.ndarray:
