@@ -132,3 +132,36 @@ def test_stribeck_mean_is_the_step_mean_bit_for_bit():
             for _ in range(2):                         # built, then from the cache
                 out = ch.stribeck_mean(vs, e)
                 assert np.array_equal(out, ref) and np.array_equal(np.signbit(out), np.signbit(ref))
+
+
+def test_cogging_design_is_the_plain_formula_bit_for_bit():
+    """Cogging's design (taper's cosine only inside its transition, the columns written in place, diag25)
+    equals the plain formula to the last bit: the taper 0.5 (1 + cos(pi x)) on all samples, the waves
+    stacked and filtered, one block per motor."""
+    from ankle_rt.diagnosis.candidates import Cogging, CoggingHarmonic
+    rng = np.random.default_rng(9)
+    n = 4000
+    t = np.arange(n) * 1e-3
+    pos = np.column_stack([0.3 * np.sin(2 * np.pi * 0.9 * t), 0.2 * np.sin(2 * np.pi * 1.3 * t + 1.0)])
+    pos[1500:1700, 0] = pos[1500, 0]                   # a rest
+    data = {"t": t, "motor_pos_1": pos[:, 0], "motor_pos_2": pos[:, 1],
+            "current_cmd_1": rng.standard_normal(n), "current_cmd_2": rng.standard_normal(n)}
+    ch = MotorChannel(Recording(data, "cogging"), 0.1, None, 0.01)
+
+    def taper(rate):
+        f = np.abs(rate) / (2.0 * np.pi)
+        f1 = min(3.0 * ch.sm.cutoff_hz, 0.15 / ch.dt)
+        f2 = min(6.0 * ch.sm.cutoff_hz, 0.3 / ch.dt)
+        return 0.5 * (1.0 + np.cos(np.pi * np.clip((f - f1) / (f2 - f1), 0.0, 1.0)))
+
+    for cand in (Cogging(), CoggingHarmonic()):
+        for nl in (3.0, 40.0, 486.0, 1944.0):
+            waves = []
+            for h in range(1, cand.harmonics + 1):
+                w = taper(h * nl * ch.vel) * ~ch.resting
+                waves += [w * np.sin(h * nl * ch.pos), w * np.cos(h * nl * ch.pos)]
+            filtered = ch.sm.smooth(np.hstack(waves))
+            ref = np.hstack([ch.per_column(filtered[:, j * 2:(j + 1) * 2]) for j in range(len(waves))])
+            X = cand.design(ch, nl).X
+            assert np.array_equal(X, ref) and np.array_equal(np.signbit(X), np.signbit(ref))
+            assert np.array_equal(Cogging.taper(ch, nl * ch.vel), taper(nl * ch.vel))

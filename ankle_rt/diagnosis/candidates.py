@@ -313,11 +313,20 @@ class Cogging(Candidate):
         """Weight of the ripple at ``angular_rate`` = n |v| (rad/s of ripple phase): 1 well inside what
         the sampled data resolve, 0 where it nears the Nyquist rate (a ripple there is aliased in the
         sampled angle and in the measured acceleration alike, and beyond the filter's pass band anyway)."""
-        f = np.abs(angular_rate) / (2.0 * np.pi)
         f1 = min(TAPER_START * ch.sm.cutoff_hz, 0.15 / ch.dt)
         f2 = min(TAPER_END * ch.sm.cutoff_hz, 0.3 / ch.dt)
-        x = np.clip((f - f1) / (f2 - f1), 0.0, 1.0)
-        return 0.5 * (1.0 + np.cos(np.pi * x))
+        # 0.5 (1 + cos(pi x)), x = clip((|rate| / 2 pi - f1) / (f2 - f1), 0, 1), in one buffer; the cosine
+        # only inside the transition: at x = 0 it is 1 and at x = 1 it is 0, exactly (cos 0 = 1, cos pi = -1)
+        x = np.abs(angular_rate)
+        x /= 2.0 * np.pi
+        x -= f1
+        x /= f2 - f1
+        np.clip(x, 0.0, 1.0, out=x)
+        out = (x == 0.0).astype(float)
+        mid = ~((x == 0.0) | (x == 1.0))
+        if mid.any():
+            out[mid] = 0.5 * (1.0 + np.cos(np.pi * x[mid]))
+        return out
 
     #: harmonics in the regressor: the count is searched and selected on the fundamental alone (a second
     #: harmonic's columns let wrong counts fit aliased residue); :data:`upgrade` then adds the second
@@ -325,14 +334,22 @@ class Cogging(Candidate):
     harmonics = 1
 
     def design(self, ch, nl):
-        waves = []
+        m, k = ch.m, ch.n_rows
+        waves = np.empty((ch.n_samples, 2 * self.harmonics * m))   # w sin, w cos per harmonic, motor after motor
+        moving = ~ch.resting
         for h in range(1, self.harmonics + 1):
             ang = h * nl * ch.pos
-            w = self.taper(ch, h * nl * ch.vel) * ~ch.resting     # a stuck motor's static friction holds it
-            waves += [w * np.sin(ang), w * np.cos(ang)]
-        filtered = ch.sm.smooth(np.hstack(waves))                 # one filter pass for all
-        m = ch.m
-        return Design(np.hstack([ch.per_column(filtered[:, j * m:(j + 1) * m]) for j in range(len(waves))]))
+            w = self.taper(ch, h * nl * ch.vel) * moving          # a stuck motor's static friction holds it
+            j = 2 * (h - 1) * m
+            np.multiply(w, np.sin(ang), out=waves[:, j:j + m])
+            np.multiply(w, np.cos(ang), out=waves[:, j + m:j + 2 * m])
+        filtered = ch.sm.smooth(waves)                            # one filter pass for all
+        # each wave's column per motor (ch.per_column of each wave, side by side)
+        X = np.zeros((k * m, waves.shape[1]))
+        for j in range(waves.shape[1]):
+            i = j % m
+            X[i * k:(i + 1) * k, j] = filtered[ch.rows, j]
+        return Design(X)
 
     def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
         m = ch.m
