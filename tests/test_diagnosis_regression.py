@@ -165,3 +165,26 @@ def test_cogging_design_is_the_plain_formula_bit_for_bit():
             X = cand.design(ch, nl).X
             assert np.array_equal(X, ref) and np.array_equal(np.signbit(X), np.signbit(ref))
             assert np.array_equal(Cogging.taper(ch, nl * ch.vel), taper(nl * ch.vel))
+
+
+def test_projected_grid_rss_agrees_with_the_whole_solve_and_defers_degenerate_systems():
+    """A grid search's RSS by projection on the shared columns' QR (selection.Projector, diag25) is the
+    whole system's (lstsq) to the last digits; a zero column, an ill-conditioned system or too few rows
+    leave it to the whole solve (None)."""
+    from ankle_rt.diagnosis.selection import Projector
+    rng = np.random.default_rng(21)
+    n = 3000
+    A = np.column_stack([rng.standard_normal(n) * s for s in (1e-3, 1.0, 1e3)] + [np.ones(n)])
+    y = A @ [1.0, 2.0, 3.0, 4.0] + rng.standard_normal(n)
+    shared = Projector(y, A)
+    for q in (1, 2, 4):
+        B = rng.standard_normal((n, q)) * 10.0 ** rng.uniform(-4, 4, q) + 0.3 * A[:, :1] * 1e3
+        ref = rss_only(y, np.hstack([A, B]))
+        assert shared.rss(None, B) == pytest.approx(ref, rel=1e-12)
+        y2 = y + B[:, 0]                                 # a candidate with its own left side (a delay)
+        assert shared.rss(y2, B) == pytest.approx(rss_only(y2, np.hstack([A, B])), rel=1e-12)
+    assert shared.rss(y + 1.0, np.zeros((n, 0))) == pytest.approx(rss_only(y + 1.0, A.copy()), rel=1e-12)
+    assert shared.rss(None, np.column_stack([rng.standard_normal(n), np.zeros(n)])) is None      # zero column
+    assert shared.rss(None, A[:, 1:2] * 2.0 + 1e-9 * rng.standard_normal((n, 1))) is None      # collinear
+    assert Projector(y, np.column_stack([A, np.zeros(n)])).rss(None, rng.standard_normal((n, 1))) is None
+    assert Projector(y[:8], A[:8]).rss(None, rng.standard_normal((8, 1))) is None                # too few rows
