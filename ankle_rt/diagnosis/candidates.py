@@ -279,23 +279,40 @@ class Cogging(Candidate):
         full = np.zeros((ch.n_samples, ch.m))
         full[ch.rows] = residual.reshape(ch.m, -1).T
         back = ch.sm.smooth(full)                                # adjoint of "filter, keep rows"
+        power = np.zeros(n_max + 1)
+        for i, bands in enumerate(cls._angle_bands(ch, n_max)):
+            spectrum = np.zeros(n_max + 1, dtype=complex)
+            variance = np.zeros(n_max + 1)
+            for sel, w, n_b, bins, idx in bands:
+                r = back[sel, i] * weight[sel, i]
+                spectrum[: n_b + 1] += w[: n_b + 1] * np.fft.rfft(np.bincount(idx, weights=r, minlength=bins))[: n_b + 1]
+                variance += 0.5 * w ** 2 * float(r @ r)
+            power += np.abs(spectrum) ** 2 / np.maximum(variance, 1e-300)
+        return power
+
+    @classmethod
+    def _angle_bands(cls, ch, n_max: int) -> list[list[tuple]]:
+        """Per motor, the speed bands :meth:`angle_power` transforms, each (its samples, the taper per count
+        0..n_max at its speed, the highest count it keeps, its grid size, each sample's grid bin): they
+        depend on the motion alone, not on the residual, and are kept on the channel per n_max."""
+        cache = ch.__dict__.setdefault("_angle_bands", {})
+        if n_max in cache:
+            return cache[n_max]
         turn = np.mod(ch.pos, 2.0 * np.pi) / (2.0 * np.pi)      # fraction of a revolution, 0..1
         speed = np.abs(ch.vel)
         # speed bands, within which the taper of a count's ripple is nearly one number
         edges = np.unique(np.quantile(speed, np.linspace(0.0, 1.0, SPEED_BANDS + 1)))
         band = np.clip(np.searchsorted(edges, speed, side="right") - 1, 0, len(edges) - 2)
         counts = np.arange(n_max + 1, dtype=float)
-        power = np.zeros(n_max + 1)
+        out = []
         for i in range(ch.m):
-            spectrum = np.zeros(n_max + 1, dtype=complex)
-            variance = np.zeros(n_max + 1)
+            bands = []
             for b in range(len(edges) - 1):
                 sel = band[:, i] == b
                 if not sel.any():
                     continue
                 v_b = float(np.sqrt(max(edges[b], 1e-12) * max(edges[b + 1], 1e-12)))
                 w = cls.taper(ch, counts * v_b)
-                r = back[sel, i] * weight[sel, i]
                 # the taper is zero beyond n_b: this band's grid need only resolve counts up to n_b
                 # (a fast band's transform is short; only the slowest bands need the full grid)
                 if not w.any():
@@ -303,10 +320,10 @@ class Cogging(Candidate):
                 n_b = int(np.flatnonzero(w)[-1])
                 bins = 1 << int(math.ceil(math.log2(8 * max(n_b, 1))))
                 idx = np.minimum((turn[sel, i] * bins).astype(np.int64), bins - 1)
-                spectrum[: n_b + 1] += w[: n_b + 1] * np.fft.rfft(np.bincount(idx, weights=r, minlength=bins))[: n_b + 1]
-                variance += 0.5 * w ** 2 * float(r @ r)
-            power += np.abs(spectrum) ** 2 / np.maximum(variance, 1e-300)
-        return power
+                bands.append((np.flatnonzero(sel), w, n_b, bins, idx))
+            out.append(bands)
+        cache[n_max] = out
+        return out
 
     @staticmethod
     def taper(ch, angular_rate: np.ndarray) -> np.ndarray:

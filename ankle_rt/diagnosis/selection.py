@@ -9,6 +9,7 @@ residual, the best available estimate of how many independent samples the noise 
 
 from __future__ import annotations
 
+import hashlib
 import math
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -159,6 +160,7 @@ class ChannelModels:
         self._rss: dict[tuple, float] = {}
         self._cv: dict[tuple, np.ndarray] = {}
         self._fits: dict[tuple, Fit] = {}
+        self._grids: dict[tuple, list[float]] = {}      # search_grid's values by candidate and residual
 
     @cached_property
     def baseline(self) -> Fit:
@@ -246,7 +248,13 @@ class ChannelModels:
     def best_of(self, cand: Candidate, others: list[Term], residual: np.ndarray, current: float | None = None) -> Score:
         """``cand`` added to ``others`` at the value of its nonlinear parameter with the smallest RSS
         (``current``, a value it holds already, scored too: a re-search never makes the model worse)."""
-        grid = cand.search_grid(self.ch, residual, lambda nl: self.design(cand, nl))
+        # the values to score depend only on the candidate, the channel and the residual (the cogging
+        # screen builds ~40 designs and an angle spectrum): the same residual searched again (the drop-one
+        # rivals, the forms, the re-searches) takes them from here
+        key = (type(cand).__name__, hashlib.blake2b(residual.tobytes(), digest_size=20).digest())
+        grid = self._grids.get(key)
+        if grid is None:
+            grid = self._grids[key] = list(cand.search_grid(self.ch, residual, lambda nl: self.design(cand, nl)))
         if current is not None and current not in grid:
             grid = list(grid) + [current]
         shared = None                 # the columns the grid shares, factored once a value needs a solve
