@@ -120,8 +120,8 @@ class Stribeck(Candidate):
         return list(np.geomspace(2.0 * ch.v_eps, max(0.3 * v99, 4.0 * ch.v_eps), 18))
 
     def design(self, ch, nl):
-        e = self.exponent
-        return Design(ch.filt(ch.step_mean(lambda v, sign: np.exp(-np.abs(v / nl) ** e) * sign))[:, None])
+        # ch.step_mean(lambda v, sign: np.exp(-np.abs(v / nl) ** self.exponent) * sign), cached
+        return Design(ch.filt(ch.stribeck_mean(nl, self.exponent))[:, None])
 
     def holding(self, ch, coef):
         """The static excess: at speeds above v_eps and far below vs the term is its whole excess."""
@@ -279,23 +279,40 @@ class Cogging(Candidate):
         full = np.zeros((ch.n_samples, ch.m))
         full[ch.rows] = residual.reshape(ch.m, -1).T
         back = ch.sm.smooth(full)                                # adjoint of "filter, keep rows"
+        power = np.zeros(n_max + 1)
+        for i, bands in enumerate(cls._angle_bands(ch, n_max)):
+            spectrum = np.zeros(n_max + 1, dtype=complex)
+            variance = np.zeros(n_max + 1)
+            for sel, w, n_b, bins, idx in bands:
+                r = back[sel, i] * weight[sel, i]
+                spectrum[: n_b + 1] += w[: n_b + 1] * np.fft.rfft(np.bincount(idx, weights=r, minlength=bins))[: n_b + 1]
+                variance += 0.5 * w ** 2 * float(r @ r)
+            power += np.abs(spectrum) ** 2 / np.maximum(variance, 1e-300)
+        return power
+
+    @classmethod
+    def _angle_bands(cls, ch, n_max: int) -> list[list[tuple]]:
+        """Per motor, the speed bands :meth:`angle_power` transforms, each (its samples, the taper per count
+        0..n_max at its speed, the highest count it keeps, its grid size, each sample's grid bin): they
+        depend on the motion alone, not on the residual, and are kept on the channel per n_max."""
+        cache = ch.__dict__.setdefault("_angle_bands", {})
+        if n_max in cache:
+            return cache[n_max]
         turn = np.mod(ch.pos, 2.0 * np.pi) / (2.0 * np.pi)      # fraction of a revolution, 0..1
         speed = np.abs(ch.vel)
         # speed bands, within which the taper of a count's ripple is nearly one number
         edges = np.unique(np.quantile(speed, np.linspace(0.0, 1.0, SPEED_BANDS + 1)))
         band = np.clip(np.searchsorted(edges, speed, side="right") - 1, 0, len(edges) - 2)
         counts = np.arange(n_max + 1, dtype=float)
-        power = np.zeros(n_max + 1)
+        out = []
         for i in range(ch.m):
-            spectrum = np.zeros(n_max + 1, dtype=complex)
-            variance = np.zeros(n_max + 1)
+            bands = []
             for b in range(len(edges) - 1):
                 sel = band[:, i] == b
                 if not sel.any():
                     continue
                 v_b = float(np.sqrt(max(edges[b], 1e-12) * max(edges[b + 1], 1e-12)))
                 w = cls.taper(ch, counts * v_b)
-                r = back[sel, i] * weight[sel, i]
                 # the taper is zero beyond n_b: this band's grid need only resolve counts up to n_b
                 # (a fast band's transform is short; only the slowest bands need the full grid)
                 if not w.any():
@@ -303,21 +320,30 @@ class Cogging(Candidate):
                 n_b = int(np.flatnonzero(w)[-1])
                 bins = 1 << int(math.ceil(math.log2(8 * max(n_b, 1))))
                 idx = np.minimum((turn[sel, i] * bins).astype(np.int64), bins - 1)
-                spectrum[: n_b + 1] += w[: n_b + 1] * np.fft.rfft(np.bincount(idx, weights=r, minlength=bins))[: n_b + 1]
-                variance += 0.5 * w ** 2 * float(r @ r)
-            power += np.abs(spectrum) ** 2 / np.maximum(variance, 1e-300)
-        return power
+                bands.append((np.flatnonzero(sel), w, n_b, bins, idx))
+            out.append(bands)
+        cache[n_max] = out
+        return out
 
     @staticmethod
     def taper(ch, angular_rate: np.ndarray) -> np.ndarray:
         """Weight of the ripple at ``angular_rate`` = n |v| (rad/s of ripple phase): 1 well inside what
         the sampled data resolve, 0 where it nears the Nyquist rate (a ripple there is aliased in the
         sampled angle and in the measured acceleration alike, and beyond the filter's pass band anyway)."""
-        f = np.abs(angular_rate) / (2.0 * np.pi)
         f1 = min(TAPER_START * ch.sm.cutoff_hz, 0.15 / ch.dt)
         f2 = min(TAPER_END * ch.sm.cutoff_hz, 0.3 / ch.dt)
-        x = np.clip((f - f1) / (f2 - f1), 0.0, 1.0)
-        return 0.5 * (1.0 + np.cos(np.pi * x))
+        # 0.5 (1 + cos(pi x)), x = clip((|rate| / 2 pi - f1) / (f2 - f1), 0, 1), in one buffer; the cosine
+        # only inside the transition: at x = 0 it is 1 and at x = 1 it is 0, exactly (cos 0 = 1, cos pi = -1)
+        x = np.abs(angular_rate)
+        x /= 2.0 * np.pi
+        x -= f1
+        x /= f2 - f1
+        np.clip(x, 0.0, 1.0, out=x)
+        out = (x == 0.0).astype(float)
+        mid = ~((x == 0.0) | (x == 1.0))
+        if mid.any():
+            out[mid] = 0.5 * (1.0 + np.cos(np.pi * x[mid]))
+        return out
 
     #: harmonics in the regressor: the count is searched and selected on the fundamental alone (a second
     #: harmonic's columns let wrong counts fit aliased residue); :data:`upgrade` then adds the second
@@ -325,14 +351,22 @@ class Cogging(Candidate):
     harmonics = 1
 
     def design(self, ch, nl):
-        waves = []
+        m, k = ch.m, ch.n_rows
+        waves = np.empty((ch.n_samples, 2 * self.harmonics * m))   # w sin, w cos per harmonic, motor after motor
+        moving = ~ch.resting
         for h in range(1, self.harmonics + 1):
             ang = h * nl * ch.pos
-            w = self.taper(ch, h * nl * ch.vel) * ~ch.resting     # a stuck motor's static friction holds it
-            waves += [w * np.sin(ang), w * np.cos(ang)]
-        filtered = ch.sm.smooth(np.hstack(waves))                 # one filter pass for all
-        m = ch.m
-        return Design(np.hstack([ch.per_column(filtered[:, j * m:(j + 1) * m]) for j in range(len(waves))]))
+            w = self.taper(ch, h * nl * ch.vel) * moving          # a stuck motor's static friction holds it
+            j = 2 * (h - 1) * m
+            np.multiply(w, np.sin(ang), out=waves[:, j:j + m])
+            np.multiply(w, np.cos(ang), out=waves[:, j + m:j + 2 * m])
+        filtered = ch.sm.smooth(waves)                            # one filter pass for all
+        # each wave's column per motor (ch.per_column of each wave, side by side)
+        X = np.zeros((k * m, waves.shape[1]))
+        for j in range(waves.shape[1]):
+            i = j % m
+            X[i * k:(i + 1) * k, j] = filtered[ch.rows, j]
+        return Design(X)
 
     def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
         m = ch.m

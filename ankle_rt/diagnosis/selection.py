@@ -9,6 +9,7 @@ residual, the best available estimate of how many independent samples the noise 
 
 from __future__ import annotations
 
+import hashlib
 import math
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -56,6 +57,10 @@ MIN_ROWS_PER_COLUMN = 10
 #: chosen terms' stay (:meth:`ChannelModels.keep_only`)
 MAX_DESIGNS = 160
 MAX_DESIGN_BYTES = 256 << 20
+#: the largest condition number of a grid's column-scaled system that :class:`Projector` solves (beyond it,
+#: and for any zero column, the pseudo-inverse of numpy.linalg.lstsq, which cuts singular values below
+#: eps x rows: ~3e11 on a 30 s record)
+PROJECTION_COND = 1e6
 
 
 @dataclass
@@ -155,6 +160,7 @@ class ChannelModels:
         self._rss: dict[tuple, float] = {}
         self._cv: dict[tuple, np.ndarray] = {}
         self._fits: dict[tuple, Fit] = {}
+        self._grids: dict[tuple, list[float]] = {}      # search_grid's values by candidate and residual
 
     @cached_property
     def baseline(self) -> Fit:
@@ -209,10 +215,17 @@ class ChannelModels:
     def k(self, terms: list[Term]) -> int:
         return self.Xb.shape[1] + sum(t.design.X.shape[1] + (t.candidate.nonlinear is not None) for t in terms)
 
-    def rss(self, terms: list[Term]) -> float:
+    def rss(self, terms: list[Term], shared: Projector | None = None) -> float:
+        """RSS of the baseline extended by ``terms`` (cached); ``shared``: the factored columns of all but
+        the last term (a grid search's, :class:`Projector`), which solve it where they can."""
         key = self._key(terms)
         if key not in self._rss:
-            self._rss[key] = rss_only(*self.system(terms))
+            last = terms[-1].design if terms else None
+            rss = None
+            if shared is not None and last is not None:
+                own_y = last.y if all(t.design.y is None for t in terms[:-1]) else None
+                rss = shared.rss(own_y, last.X)
+            self._rss[key] = rss if rss is not None else rss_only(*self.system(terms))
         return self._rss[key]
 
     def fit(self, terms: list[Term]) -> Fit:
@@ -235,13 +248,90 @@ class ChannelModels:
     def best_of(self, cand: Candidate, others: list[Term], residual: np.ndarray, current: float | None = None) -> Score:
         """``cand`` added to ``others`` at the value of its nonlinear parameter with the smallest RSS
         (``current``, a value it holds already, scored too: a re-search never makes the model worse)."""
-        grid = cand.search_grid(self.ch, residual, lambda nl: self.design(cand, nl))
+        # the values to score depend only on the candidate, the channel and the residual (the cogging
+        # screen builds ~40 designs and an angle spectrum): the same residual searched again (the drop-one
+        # rivals, the forms, the re-searches) takes them from here
+        key = (type(cand).__name__, hashlib.blake2b(residual.tobytes(), digest_size=20).digest())
+        grid = self._grids.get(key)
+        if grid is None:
+            grid = self._grids[key] = list(cand.search_grid(self.ch, residual, lambda nl: self.design(cand, nl)))
         if current is not None and current not in grid:
             grid = list(grid) + [current]
-        profile = [(nl, self.rss(others + [self.term(cand, nl)])) for nl in grid]
+        shared = None                 # the columns the grid shares, factored once a value needs a solve
+        profile = []
+        for nl in grid:
+            terms = others + [self.term(cand, nl)]
+            if shared is None and self._key(terms) not in self._rss:
+                y = next((t.design.y for t in others if t.design.y is not None), self.y0)
+                shared = Projector(y, np.hstack([self.Xb] + [t.design.X for t in others]))
+            profile.append((nl, self.rss(terms, shared)))
         nl, rss = min(profile, key=lambda p: p[1])
         profile.sort()
         return Score(cand.cause, cand, nl, rss, self.k(others + [self.term(cand, nl)]), profile)
+
+
+class Projector:
+    """The columns a grid search shares (the baseline and the terms held fixed), factored once: the QR of
+    their column-scaled X. Each grid value's residual sum of squares is then the shared residual's less
+    what the candidate's own columns, projected off the shared ones, explain: a few products with Q instead
+    of a least-squares solve of the whole stacked system. Mathematically the RSS of the full system; in
+    floating point it differs from numpy.linalg.lstsq's in the last digits. Where the shared or the whole
+    system is ill-conditioned (PROJECTION_COND), has a zero column or not twice as many rows as columns, or
+    holds a non-finite number, ``rss`` returns None and the caller solves the whole system as before."""
+
+    def __init__(self, y: np.ndarray, A: np.ndarray):
+        from scipy.linalg import qr
+        scale = np.sqrt(np.einsum("ij,ij->j", A, A))
+        self.ok = bool(np.all(scale > 0.0) and np.all(np.isfinite(scale)) and np.all(np.isfinite(y))
+                       and A.shape[0] >= 2 * A.shape[1])
+        if not self.ok:
+            return
+        self.Q, self.R = qr(A / scale, mode="economic", check_finite=False)
+        sv = np.linalg.svd(self.R, compute_uv=False)
+        self.ok = bool(sv[-1] * PROJECTION_COND > sv[0])
+        self.y = y
+        self.y_perp = self._perp(y)
+
+    def _perp(self, B: np.ndarray) -> np.ndarray:
+        """B less its projection on the shared columns (twice: orthogonal to them to the last digits)."""
+        Q = self.Q
+        B = B - Q @ (Q.T @ B)
+        return B - Q @ (Q.T @ B)
+
+    def rss(self, y: np.ndarray | None, B: np.ndarray) -> float | None:
+        """RSS of ``y`` (None: the shared one) on the shared columns and ``B`` (None where the whole system
+        is to be solved instead: see the class docstring)."""
+        if not self.ok:
+            return None
+        if y is not None and y is not self.y and not np.all(np.isfinite(y)):
+            return None
+        yp = self.y_perp if y is None or y is self.y else self._perp(y)
+        if B.shape[1] == 0:
+            return float(yp @ yp)
+        scale = np.sqrt(np.einsum("ij,ij->j", B, B))
+        p, q = self.R.shape[1], B.shape[1]
+        if not (np.all(scale > 0.0) and np.all(np.isfinite(scale)) and len(B) >= 2 * (p + q)):
+            return None
+        Q = self.Q
+        Bs = B / scale
+        C = Q.T @ Bs                           # the candidate's columns on the shared ones ...
+        Bp = Bs - Q @ C
+        Bp -= Q @ (Q.T @ Bp)                   # ... and off them, orthogonal to the last digits
+        G = Bp.T @ Bp
+        try:
+            L = np.linalg.cholesky(G)
+        except np.linalg.LinAlgError:
+            return None
+        R = np.zeros((p + q, p + q))           # the whole scaled system's R: its condition number
+        R[:p, :p] = self.R
+        R[:p, p:] = C
+        R[p:, p:] = L.T
+        sv = np.linalg.svd(R, compute_uv=False)
+        if not sv[-1] * PROJECTION_COND > sv[0]:
+            return None
+        c = np.linalg.solve(G, Bp.T @ yp)
+        r = yp - Bp @ c
+        return float(r @ r)
 
 
 def score_against(models: ChannelModels, score: Score, ref_rss: float, ref_k: int, n_eff: float) -> Score:

@@ -47,9 +47,22 @@ STUCK_REST_S = 0.01
 #: share of an encoder's changes between samples that must be whole counts for its readings to lie on a
 #: lattice (:func:`lattice_step`; a few rows re-interpolated by the screening are not)
 LATTICE_SHARE = 0.9
+#: bytes of Stribeck means a motor channel keeps (:meth:`MotorChannel.stribeck_mean`: 36 grid values of
+#: 480 kB each on a 30 s record at 1 kHz with two motors)
+MAX_STRIBECK_BYTES = 64 << 20
 #: s, time constants of the stretch-history columns: a relaxing (viscoelastic) element in the cable
 #: catch-all, a linear load's own dynamics in the load channel's baseline (:class:`LoadChannel`)
 RELAXATION_S = (0.1, 0.3, 1.0, 3.0)
+
+
+def _sosfilt_kernel():
+    """scipy's second-order-section kernel (``scipy.signal._sosfilt._sosfilt``, what ``sosfilt`` runs on its
+    copy of the signals: float64 rows, states per row), None where this scipy has none by that name."""
+    try:
+        from scipy.signal._sosfilt import _sosfilt
+    except ImportError:       # pragma: no cover - another scipy layout: sosfiltfilt itself
+        return None
+    return _sosfilt
 
 
 def _odd_window(seconds: float, dt: float, least: int) -> int:
@@ -88,7 +101,6 @@ class Smoother:
     def smooth(self, x: np.ndarray, deriv: int = 0, weigh: bool = True) -> np.ndarray:
         """L[x], or L of the first / second central difference of x (per second, per second^2); the
         samples weighed by :attr:`weight` unless ``weigh`` is False."""
-        from scipy.signal import sosfiltfilt
         if deriv == 1:
             x = np.gradient(x, self.dt, axis=0)
         elif deriv == 2:
@@ -97,7 +109,44 @@ class Smoother:
             x = d
         if weigh and self.weight is not None:
             x = x * np.tile(self.weight, (1, x.shape[1] // self.weight.shape[1]))
-        return sosfiltfilt(self.sos, x, axis=0)
+        if x.ndim != 2 or x.dtype != np.float64 or _sosfilt_kernel() is None:
+            from scipy.signal import sosfiltfilt
+            return sosfiltfilt(self.sos, x, axis=0)
+        return self._filtfilt_columns(x)
+
+    def _filtfilt_columns(self, x: np.ndarray) -> np.ndarray:
+        """``scipy.signal.sosfiltfilt(self.sos, x, axis=0)`` for samples x columns of float64, the same
+        arithmetic (its odd extension of its default length, its initial states, its own second-order-section
+        kernel run forwards and backwards over each column) and the same layout of the result, without
+        sosfiltfilt's and sosfilt's copies and checks on every call (they cost more than the filter itself)."""
+        kernel, zi = _sosfilt_kernel(), self._zi()
+        sos = self.sos
+        n, c = x.shape
+        ntaps = 2 * len(sos) + 1 - min(int((sos[:, 2] == 0).sum()), int((sos[:, 5] == 0).sum()))
+        edge = 3 * ntaps
+        if n <= edge:
+            from scipy.signal import sosfiltfilt
+            return sosfiltfilt(sos, x, axis=0)         # raises its own error
+        xt = x.T
+        # odd extension (scipy.signal._arraytools.odd_ext), a signal per row
+        ext = np.empty((c, n + 2 * edge))
+        ext[:, edge:edge + n] = xt
+        ext[:, :edge] = 2 * xt[:, :1] - xt[:, edge:0:-1]
+        ext[:, edge + n:] = 2 * xt[:, -1:] - xt[:, -2:-(edge + 2):-1]
+        state = np.ascontiguousarray(np.moveaxis(zi[:, :, None] * ext[:, 0], -1, 0))
+        kernel(sos, ext, state)                                  # forwards, in place
+        back = ext[:, ::-1].copy()
+        state = np.ascontiguousarray(np.moveaxis(zi[:, :, None] * back[:, 0], -1, 0))
+        kernel(sos, back, state)                                 # backwards
+        return back[:, ::-1][:, edge:edge + n].T
+
+    def _zi(self) -> np.ndarray:
+        """scipy.signal.sosfilt_zi of the filter (sections x 2), computed once."""
+        zi = self.__dict__.get("_zi_cache")
+        if zi is None:
+            from scipy.signal import sosfilt_zi
+            zi = self.__dict__["_zi_cache"] = sosfilt_zi(self.sos)
+        return zi
 
     def fast_derivative(self, x: np.ndarray, deriv: int = 1) -> np.ndarray:
         from scipy.signal import savgol_filter
@@ -339,6 +388,8 @@ class MotorChannel(_StackedChannel):
         #: tanh(v / v_eps) at each kernel point, the Coulomb sign the friction regressors multiply
         self._kernel_sign = [np.tanh(v / v_eps) for v in self._kernel_vel]
         self.sign = self.step_mean(lambda v, sign: sign)
+        #: Stribeck means by (velocity, exponent) at this v_eps (:meth:`stribeck_mean`), least recent first
+        self._stribeck: dict[tuple[float, float], np.ndarray] = {}
 
     def step_mean(self, force: Callable[[np.ndarray, np.ndarray], np.ndarray]) -> np.ndarray:
         """``force(v, tanh(v / v_eps))`` as D2 th sees it at each sample: its triangle-weighted mean over
@@ -347,6 +398,32 @@ class MotorChannel(_StackedChannel):
         out = np.zeros_like(self.vel)
         for v, sign, wj in zip(self._kernel_vel, self._kernel_sign, self._kernel_w):
             out += wj * force(v, sign)
+        return out
+
+    def stribeck_mean(self, vs: float, exponent: float) -> np.ndarray:
+        """:meth:`step_mean` of the Stribeck shape ``exp(-|v / vs|^exponent) tanh(v / v_eps)``: the same
+        operations in the same order, in one buffer instead of a new array per operation, and cached
+        (MAX_STRIBECK_BYTES, least recently used dropped first). The mean is the raw signal before L, which
+        the weights of the stuck rests do not touch: the motor channel's second selection, after the rests
+        are weighed anew (core._select_motor), finds the grid's means of the first."""
+        key = (float(vs), float(exponent))
+        out = self._stribeck.pop(key, None)
+        if out is None:
+            out = np.zeros_like(self.vel)
+            buf = np.empty_like(self.vel)
+            for v, sign, wj in zip(self._kernel_vel, self._kernel_sign, self._kernel_w):
+                np.divide(v, vs, out=buf)
+                np.abs(buf, out=buf)
+                buf **= exponent
+                np.negative(buf, out=buf)
+                np.exp(buf, out=buf)
+                buf *= sign
+                buf *= wj
+                out += buf
+            out.flags.writeable = False           # shared by the cache
+        self._stribeck[key] = out                 # most recent last
+        while len(self._stribeck) > 1 and sum(a.nbytes for a in self._stribeck.values()) > MAX_STRIBECK_BYTES:
+            self._stribeck.pop(next(iter(self._stribeck)))
         return out
 
     def torque(self, delay_s: float = 0.0) -> np.ndarray:
