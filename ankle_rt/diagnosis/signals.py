@@ -24,6 +24,7 @@ Cable channel (per ankle axis, where joint angles are measured):
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -55,14 +56,45 @@ MAX_STRIBECK_BYTES = 64 << 20
 RELAXATION_S = (0.1, 0.3, 1.0, 3.0)
 
 
+@functools.cache
 def _sosfilt_kernel():
     """scipy's second-order-section kernel (``scipy.signal._sosfilt._sosfilt``, what ``sosfilt`` runs on its
-    copy of the signals: float64 rows, states per row), None where this scipy has none by that name."""
+    copy of the signals: float64 rows, states per row), None where this scipy has none by that name or where
+    it does not give sosfiltfilt's own result, to the bit, on a test signal (a private name may change)."""
+    from scipy.signal import butter, sosfilt_zi, sosfiltfilt
     try:
         from scipy.signal._sosfilt import _sosfilt
-    except ImportError:       # pragma: no cover - another scipy layout: sosfiltfilt itself
+        sos = butter(4, 0.1, output="sos")
+        x = np.sin(np.arange(400.0)[:, None] * np.array([0.05, 0.31])) + np.arange(400.0)[:, None] * 1e-3
+        same = np.array_equal(_filtfilt_with(_sosfilt, sos, sosfilt_zi(sos), x), sosfiltfilt(sos, x, axis=0))
+    except Exception:         # pragma: no cover - another scipy: sosfiltfilt itself
         return None
-    return _sosfilt
+    return _sosfilt if same else None
+
+
+def _filtfilt_with(kernel, sos: np.ndarray, zi: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """``scipy.signal.sosfiltfilt(sos, x, axis=0)`` for samples x columns of float64 through ``kernel`` (its
+    second-order-section kernel): the same arithmetic (its odd extension of its default length, its initial
+    states ``zi``, the kernel run forwards and backwards over each column) and the same layout of the result,
+    without sosfiltfilt's and sosfilt's copies and checks on every call (they cost more than the filter)."""
+    n, c = x.shape
+    ntaps = 2 * len(sos) + 1 - min(int((sos[:, 2] == 0).sum()), int((sos[:, 5] == 0).sum()))
+    edge = 3 * ntaps
+    if n <= edge:
+        from scipy.signal import sosfiltfilt
+        return sosfiltfilt(sos, x, axis=0)         # raises its own error
+    xt = x.T
+    # odd extension (scipy.signal._arraytools.odd_ext), a signal per row
+    ext = np.empty((c, n + 2 * edge))
+    ext[:, edge:edge + n] = xt
+    ext[:, :edge] = 2 * xt[:, :1] - xt[:, edge:0:-1]
+    ext[:, edge + n:] = 2 * xt[:, -1:] - xt[:, -2:-(edge + 2):-1]
+    state = np.ascontiguousarray(np.moveaxis(zi[:, :, None] * ext[:, 0], -1, 0))
+    kernel(sos, ext, state)                                  # forwards, in place
+    back = ext[:, ::-1].copy()
+    state = np.ascontiguousarray(np.moveaxis(zi[:, :, None] * back[:, 0], -1, 0))
+    kernel(sos, back, state)                                 # backwards
+    return back[:, ::-1][:, edge:edge + n].T
 
 
 def _odd_window(seconds: float, dt: float, least: int) -> int:
@@ -112,33 +144,7 @@ class Smoother:
         if x.ndim != 2 or x.dtype != np.float64 or _sosfilt_kernel() is None:
             from scipy.signal import sosfiltfilt
             return sosfiltfilt(self.sos, x, axis=0)
-        return self._filtfilt_columns(x)
-
-    def _filtfilt_columns(self, x: np.ndarray) -> np.ndarray:
-        """``scipy.signal.sosfiltfilt(self.sos, x, axis=0)`` for samples x columns of float64, the same
-        arithmetic (its odd extension of its default length, its initial states, its own second-order-section
-        kernel run forwards and backwards over each column) and the same layout of the result, without
-        sosfiltfilt's and sosfilt's copies and checks on every call (they cost more than the filter itself)."""
-        kernel, zi = _sosfilt_kernel(), self._zi()
-        sos = self.sos
-        n, c = x.shape
-        ntaps = 2 * len(sos) + 1 - min(int((sos[:, 2] == 0).sum()), int((sos[:, 5] == 0).sum()))
-        edge = 3 * ntaps
-        if n <= edge:
-            from scipy.signal import sosfiltfilt
-            return sosfiltfilt(sos, x, axis=0)         # raises its own error
-        xt = x.T
-        # odd extension (scipy.signal._arraytools.odd_ext), a signal per row
-        ext = np.empty((c, n + 2 * edge))
-        ext[:, edge:edge + n] = xt
-        ext[:, :edge] = 2 * xt[:, :1] - xt[:, edge:0:-1]
-        ext[:, edge + n:] = 2 * xt[:, -1:] - xt[:, -2:-(edge + 2):-1]
-        state = np.ascontiguousarray(np.moveaxis(zi[:, :, None] * ext[:, 0], -1, 0))
-        kernel(sos, ext, state)                                  # forwards, in place
-        back = ext[:, ::-1].copy()
-        state = np.ascontiguousarray(np.moveaxis(zi[:, :, None] * back[:, 0], -1, 0))
-        kernel(sos, back, state)                                 # backwards
-        return back[:, ::-1][:, edge:edge + n].T
+        return _filtfilt_with(_sosfilt_kernel(), self.sos, self._zi(), x)
 
     def _zi(self) -> np.ndarray:
         """scipy.signal.sosfilt_zi of the filter (sections x 2), computed once."""
