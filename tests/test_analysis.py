@@ -176,18 +176,20 @@ def test_analyze_says_when_the_plot_directory_cannot_be_made(tmp_path, capsys):
 
 def test_gain_set_margin_db_names_the_limiting_gain():
     """The shipped gains keep >= 6 dB over the robustness cases (no gain named); a torque-loop gain set
-    that oscillates (kp 100, issue 19) is unstable and the gain named is that kp; an unknown key is
-    refused by name."""
+    that oscillates (kp 100, issue 19) is refused naming that kp (unstable on the gauges' loop); an unknown key
+    is refused by name."""
     from ankle_rt.analysis import REQUIRED_GAIN_MARGIN_DB, gain_set_margin_db
     from ankle_rt.config import load_config
     from ankle_rt.paths import default_config_path
+    from tests.loop_configs import gauge_loop_config
 
-    cfg = load_config(default_config_path())
-    cfg["controller"]["type"] = "impedance"
-    margin, name = gain_set_margin_db(cfg, {})
-    assert margin >= REQUIRED_GAIN_MARGIN_DB and name is None
-    bad, why = gain_set_margin_db(cfg, {"kp_ie": 100.0})
-    assert bad == -math.inf and why == "kp_ie"
+    for cfg in (load_config(default_config_path()), gauge_loop_config()):    # the encoders' rate, the gauges'
+        cfg["controller"]["type"] = "impedance"
+        margin, name = gain_set_margin_db(cfg, {})
+        assert margin >= REQUIRED_GAIN_MARGIN_DB and name is None
+        bad, why = gain_set_margin_db(cfg, {"kp_ie": 100.0})
+        assert bad < REQUIRED_GAIN_MARGIN_DB and why == "kp_ie"
+    assert bad == -math.inf                 # on the gauges' loop (the issue's): unstable
     with pytest.raises(ValueError, match="nonsense"):
         gain_set_margin_db(cfg, {"nonsense": 1.0})
     cfg["controller"]["type"] = "pd"

@@ -14,7 +14,7 @@ from ankle_rt.daemon import run_lockstep
 from ankle_rt.safety import Fault
 from ankle_rt.sweep.cycle import BatchRun
 from tests.daemon_helpers import classic_torque_loop
-from tests.loop_configs import WALK_LOOP
+from tests.loop_configs import GAUGE_LOOP, WALK_LOOP
 
 SECONDS = 3.0
 # an identified friction model (as diagnose --write-model writes) in the plant and in the feed-forward
@@ -76,7 +76,8 @@ def test_batched_pd_cycle_matches_the_daemon(sim_cfg):
 
 @pytest.mark.parametrize("feedback", ["auto", "off"])
 def test_batched_impedance_cycle_matches_the_daemon(sim_cfg, feedback):
-    """The joint-torque loop on the strain gauges (auto: on in the simulator) and open loop."""
+    """The joint-torque loop (auto: on in the simulator, its rate on the joint encoders: sim.yaml's loop) and
+    open loop."""
     sim_cfg["controller"]["type"] = "impedance"
     sim_cfg["controller"]["impedance"]["torque_feedback"] = feedback
     if feedback == "off":   # one plant has the feed-forward on: the law's damping outweighs its viscous terms
@@ -92,7 +93,9 @@ def test_batched_impedance_cycle_matches_the_daemon(sim_cfg, feedback):
 def test_batched_identified_friction_feed_forward_matches_the_daemon(sim_cfg, feedback):
     """Stribeck, asymmetric and load-dependent (on the measured cable torque) terms; loop gains that
     differ between plants; a plant with the feed-forward off in the same batch; one compensating a
-    fraction of the model, faded with speed (config/friction-compensation.yaml)."""
+    fraction of the model, faded with speed (config/friction-compensation.yaml). On the gauges' loop, whose gains
+    the variants change within its margin."""
+    sim_cfg["controller"]["torque_loop"].update(GAUGE_LOOP)
     sim_cfg["controller"]["type"] = "impedance"
     sim_cfg["controller"]["impedance"]["torque_feedback"] = feedback
     if feedback == "off":   # the law's damping outweighs the feed-forward's viscous terms (the margin counts them)
