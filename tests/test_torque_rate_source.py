@@ -109,6 +109,7 @@ def test_walking_on_the_encoder_rate_needs_the_walk_tuned_loop(tmp_path):
     with pytest.raises(ConfigError) as err:
         build(walk_on("torque-loop-encoders.yaml"))
     assert err.value.key == "controller.gait_phase.early_stance.stiffness_dp" and "4.5 dB" in str(err.value)
+    assert "config/torque-loop-encoders-walk.yaml" in str(err.value)      # what to include instead
     path = walk_on("torque-loop-encoders-walk.yaml")
     base = load_config(path)
     for mass in (50.0, 75.0, 100.0):

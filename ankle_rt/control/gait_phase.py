@@ -48,7 +48,7 @@ from ankle_rt.estimation import Estimate
 from ankle_rt.gain_margin import gain_set_refusal
 from ankle_rt.gait_data import CADENCES, able_bodied
 from ankle_rt.kinematics import Kinematics
-from ankle_rt.loop_setup import torque_feedback
+from ankle_rt.loop_setup import rate_from_encoders, torque_feedback
 from ankle_rt.params import TransmissionParams
 
 if TYPE_CHECKING:
@@ -222,7 +222,9 @@ class GaitPhaseController(ImpedanceController):
         except GainError as exc:   # a phase's parameter, or the torque-loop gain that limits its margin
             gain = exc.gain.split(".")[-1]
             key = f"torque_loop.{gain}" if gain in c["torque_loop"] else f"gait_phase.{exc.gain}"
-            raise ConfigError(str(exc), getattr(cfg, "source", None), f"controller.{key}") from None
+            # sim.yaml's loop (the rate on the joint encoders) is tuned for the bench, not for stance springs
+            hint = WALK_ON_ENCODERS if "gain margin" in str(exc) and rate_from_encoders(c["torque_loop"]) else ""
+            raise ConfigError(str(exc) + hint, getattr(cfg, "source", None), f"controller.{key}") from None
 
     @property
     def phase(self) -> int:
@@ -372,6 +374,10 @@ def heel_strike_hold_s(cfg: Mapping[str, Any]) -> float:
     gravity moment and the swing's slow inertial torque), not a half-wave of the ring."""
     k = CABLE_STIFFNESS_LOW * float(Kinematics.from_params(TransmissionParams(**cfg["transmission"])).K[0, 0])
     return 2.0 * math.pi * math.sqrt(cfg["foot"]["inertia_dp"] / k)
+
+
+WALK_ON_ENCODERS = ("; the joint-torque loop that walks on the joint encoders' rate is config/torque-loop-encoders-walk"
+                    ".yaml (include it last), the one on the gauges config/torque-loop-walk.yaml (walk.yaml's)")
 
 
 def phase_margin_config(cfg: Mapping[str, Any]) -> dict[str, Any]:
