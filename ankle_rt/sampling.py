@@ -64,11 +64,11 @@ def check_sampling(rec: Recording, cfg: Mapping[str, Any] | None = None, *, gaps
         warnings.append(f"{src}: column 't': irregular time base ({100 * irregular:.1f} % of the steps differ "
                         f"from the median period {period:.4g} s by more than {100 * JITTER_WARN:g} %)")
     if cfg is not None:
-        warnings += _check_against_config(rec, cfg, period)
+        warnings += _check_against_config(rec, cfg, dt, period)
     return warnings
 
 
-def _check_against_config(rec: Recording, cfg: Mapping[str, Any], period: float) -> list[str]:
+def _check_against_config(rec: Recording, cfg: Mapping[str, Any], dt: np.ndarray, period: float) -> list[str]:
     src = rec.source
     warnings = []
     configured = 1.0 / cfg["controller"]["rate_hz"]
@@ -84,7 +84,7 @@ def _check_against_config(rec: Recording, cfg: Mapping[str, Any], period: float)
     for name in ("motor_pos_1", "motor_pos_2"):
         if name in rec:
             # over each step's own time where a gap makes it longer (not shorter: a stamp's jitter is no faster motion)
-            speed = np.abs(np.diff(rec[name])) / np.maximum(np.diff(rec["t"]), period)
+            speed = np.abs(np.diff(rec[name])) / np.maximum(dt, period)
             k = int(np.argmax(speed))
             if speed[k] > speed_limit:
                 raise InterchangeError(f"motor speed {speed[k]:.4g} rad/s between samples is beyond "
