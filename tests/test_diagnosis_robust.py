@@ -23,6 +23,7 @@ from ankle_rt.diagnosis.selection import replicates
 from ankle_rt.interchange import Recording
 from tests.diagnosis_cases import ENCODER_SCALE, SG_OFFSET_NM, make_case
 from tests.diagnosis_cases_b import make_case_b
+from benchmarks.diagnosis_cases_d import draw_case_d, make_case_d
 
 PHYSICAL = {"stribeck", "asymmetric_friction", "load_dependent_friction", "backlash", "cogging", "delay",
             "stiffness_nonlinear", "torque_offset"}
@@ -208,9 +209,16 @@ def test_a_constant_command_with_the_motor_at_rest_is_not_a_held_sample():
     assert any("holds the same value" in w for w in scr.warnings)
 
 
-def test_irregular_stamps_are_put_on_the_median_grid_with_set_values_held():
+@pytest.mark.parametrize("late", [False, True])
+def test_irregular_stamps_are_put_on_the_median_grid_with_set_values_averaged_over_each_period(late):
+    """Set values are held from their stamp to the next: a grid row gets the mean of what was applied over
+    its period. With ticks that only ever wake late (0-0.4 ms), the value in force at the row's instant
+    was the period before's on most rows."""
     rng = np.random.default_rng(4)
-    t = np.concatenate([[0.0], np.cumsum(1e-3 * (1.0 + rng.uniform(-0.1, 0.1, 1999)))])
+    if late:
+        t = np.arange(2000) * 1e-3 + rng.uniform(0.0, 4e-4, 2000)
+    else:
+        t = np.concatenate([[0.0], np.cumsum(1e-3 * (1.0 + rng.uniform(-0.1, 0.1, 1999)))])
     cols = {"t": t, "motor_pos_1": 2.0 * t + 0.1, "current_cmd_1": np.arange(t.size, dtype=float)}
     good = np.ones(t.size, dtype=bool)
     good[500] = False
@@ -219,8 +227,10 @@ def test_irregular_stamps_are_put_on_the_median_grid_with_set_values_held():
     dt = float(np.median(np.diff(t)))
     assert np.allclose(np.diff(rec["t"]), dt)
     assert np.allclose(rec["motor_pos_1"], 2.0 * rec["t"] + 0.1)              # measured: interpolated
-    held = cols["current_cmd_1"][np.searchsorted(t, rec["t"], side="right") - 1]
-    assert np.array_equal(rec["current_cmd_1"][:-1], held[:-1])              # set: the value in force
+    # set: the applied value's mean over [t, t + dt), by a fine midpoint sum of the held steps
+    fine = rec["t"][:-1, None] + dt * (np.arange(400) + 0.5)[None, :] / 400
+    applied = cols["current_cmd_1"][np.searchsorted(t, fine, side="right") - 1].mean(axis=1)
+    assert np.allclose(rec["current_cmd_1"][:-1], applied, atol=5e-3)
     inside = (rec["t"] > t[499]) & (rec["t"] < t[501])
     assert inside.any() and not ok[inside].any() and ok[~inside].all()
     regular = Recording({"t": np.arange(100) * 1e-3, "motor_pos_1": np.zeros(100)}, "regular")
@@ -235,6 +245,18 @@ def test_irregular_stamps_are_put_on_the_median_grid_with_set_values_held():
 def test_jittered_sample_times_leave_no_spurious_unknown(seed, kinds, controller, motion):
     # generator B's loop without real-time scheduling: +-10 % periods and late cycles (issue 21)
     case = make_case_b(seed, kinds, controller, motion, jitter=True)
+    diag = diagnose(case.ident, case.valid, plant="ankle", cfg=case.nominal_cfg)
+    assert sorted(diag.causes) == list(case.causes), f"{case.describe()} -> {diag.causes} {diag.notes}"
+    assert any("irregular sample times" in n for n in diag.notes)
+
+
+@pytest.mark.parametrize("seed", [700, 136])
+def test_ticks_that_wake_late_leave_no_spurious_unknown(seed):
+    """Generator D's loop wakes 0-0.4 ms late (never early) with rare multi-ms stalls, walking under the
+    impedance law: effect-free (700) and a Stribeck term (136). Both read `unknown` (torque history) while
+    the re-sampled rows took the set value in force at their instant."""
+    case = make_case_d(**draw_case_d(seed))
+    assert any(c["kind"] == "late_ticks" for c in case.conditions)
     diag = diagnose(case.ident, case.valid, plant="ankle", cfg=case.nominal_cfg)
     assert sorted(diag.causes) == list(case.causes), f"{case.describe()} -> {diag.causes} {diag.notes}"
     assert any("irregular sample times" in n for n in diag.notes)

@@ -4,9 +4,10 @@ A loop without real-time scheduling logs jittered periods: the filters, finite d
 :mod:`ankle_rt.diagnosis.signals` take every period as the median one, so the acceleration and the held
 torque's timing are off where the period is, and the catch-all's torque-history columns fit that error
 (a spurious ``unknown``). Such records are put on the median-period grid from the logged instants: the
-set values (current commands, motor torques) as held from their stamp to the next (what the amplifier
-applied), the measured columns interpolated linearly. Gaps stay masked: a grid row is usable only where
-both logged samples around it are (the screening's mask, found on the logged instants).
+set values (current commands, motor torques), held from their stamp to the next (what the amplifier
+applied), averaged over each grid period; the measured columns interpolated linearly. Gaps stay masked: a
+grid row is usable only where both logged samples around it are (the screening's mask, found on the logged
+instants).
 """
 
 from __future__ import annotations
@@ -44,10 +45,27 @@ def to_uniform_grid(rec: Recording, good: np.ndarray) -> tuple[Recording, np.nda
     cols = {"t": tu}
     for name, x in rec.columns.items():
         if name != "t":
-            cols[name] = x[k] if name.startswith(HELD_PREFIXES) else np.interp(tu, t, x)
+            cols[name] = held_mean(t, x, tu, dt) if name.startswith(HELD_PREFIXES) else np.interp(tu, t, x)
     note = (f"{rec.source}: irregular sample times (period spread {100 * spread:.1f} % of the median "
-            f"{1e3 * dt:.3g} ms): re-sampled onto a uniform grid (set values held, measurements interpolated)")
+            f"{1e3 * dt:.3g} ms): re-sampled onto a uniform grid (set values averaged as held over each period, "
+            "measurements interpolated)")
     return Recording(cols, rec.source, dict(rec.extra)), good[k] & good[k + 1], note
+
+
+def held_mean(t: np.ndarray, x: np.ndarray, tu: np.ndarray, dt: float) -> np.ndarray:
+    """The mean over each grid period [tu, tu + dt) of ``x`` held from each stamp ``t`` to the next: what
+    the amplifier applied over the period the grid row stands for. Taking the value held at tu instead
+    gives a row the period before's set value wherever the loop woke late (the set value changed just
+    after tu): a latency of up to a period on a random part of the rows, which the catch-all's
+    torque-history columns fitted as `unknown` (generator D's late ticks, 0-0.4 ms at 1 kHz)."""
+    x = np.asarray(x, dtype=float)
+    area = np.concatenate([[0.0], np.cumsum(x[:-1] * np.diff(t))])     # integral of the held x up to each stamp
+
+    def integral(at: np.ndarray) -> np.ndarray:
+        i = np.clip(np.searchsorted(t, at, side="right") - 1, 0, len(t) - 1)
+        return area[i] + x[i] * (at - t[i])
+
+    return (integral(tu + dt) - integral(tu)) / dt
 
 
 #: measured columns a stale row repeats (a sensor bridge that re-sent its previous sample)
