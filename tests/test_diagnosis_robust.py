@@ -10,19 +10,20 @@ from __future__ import annotations
 
 import math
 import re
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 from ankle_rt.diagnosis import diagnose
-from ankle_rt.diagnosis.candidates import HardeningStiffness, catch_all_motor
+from ankle_rt.diagnosis.candidates import Cogging, HardeningStiffness, catch_all_motor
 from ankle_rt.diagnosis.model_fragment import fragment
 from ankle_rt.diagnosis.resample import to_uniform_grid
 from ankle_rt.diagnosis.screening import screen
 from ankle_rt.diagnosis.selection import replicates
 from ankle_rt.interchange import Recording
 from tests.diagnosis_cases import ENCODER_SCALE, SG_OFFSET_NM, make_case
-from tests.diagnosis_cases_b import make_case_b
+from tests.diagnosis_cases_b import draw_case_b, make_case_b
 from benchmarks.diagnosis_cases_d import draw_case_d, make_case_d
 
 PHYSICAL = {"stribeck", "asymmetric_friction", "load_dependent_friction", "backlash", "cogging", "delay",
@@ -62,6 +63,32 @@ def test_cogging_with_a_phase_and_amplitude_per_motor_and_a_harmonic(seed, count
     assert p["harmonic_amplitude"] == pytest.approx(truth["harmonic_amplitude"], rel=0.4), msg
     for key in ("phase", "phase_2"):
         assert _phase_error(p[key], truth[key]) < 0.15, msg
+
+
+def test_a_ripple_faster_than_the_output_is_a_whole_number_of_periods_per_motor_turn():
+    """Behind the 81:1 gearbox a ripple of more than 81 periods per output turn is the rotor's: N x 81
+    (within 0.1 % or one period), or N x 81 / f where the motor encoders read f x the angle; fewer may be
+    the output's own. Without a gear ratio every count stays."""
+    geared = Cogging.physical_counts(SimpleNamespace(gear_ratio=81.0, motor_scales=(1.0,)), 3000)
+    assert geared[:81].all()
+    assert geared[[486, 485, 487, 1134, 1133, 1135, 1944, 1943, 1945]].all()
+    assert not geared[[1123, 1131, 1137, 1941, 1947, 2170, 2402]].any()   # 2170, 2402: generator D's false counts
+    scaled = Cogging.physical_counts(SimpleNamespace(gear_ratio=81.0, motor_scales=(1.0, 1.0101)), 3000)
+    assert scaled[[1123, 1134]].all() and not scaled[2402]
+    assert Cogging.physical_counts(SimpleNamespace(gear_ratio=None, motor_scales=(1.0,)), 3000).all()
+
+
+@pytest.mark.parametrize("generator,seed,causes", [("d", 128, ["torque_offset"]), ("b", 1046, ["cogging"])])
+def test_cogging_is_named_only_on_the_rotor_lattice(generator, seed, causes):
+    """Generator D seed 128 (a load offset, no ripple) read cogging beside it, at 2402 periods (29.7 per
+    motor turn, 0.05 % of the residual): now dropped as no rotor's count. Generator B seed 1046's 14 x 81
+    rotor cogging is read at 1123 periods through a 1 % motor encoder scale, which the ankle encoders
+    show: still named."""
+    case = make_case_d(**draw_case_d(seed)) if generator == "d" else make_case_b(**draw_case_b(seed))
+    diag = diagnose(case.ident, case.valid, plant="ankle", cfg=case.nominal_cfg)
+    assert diag.causes == causes, f"{case.describe()} -> {diag.causes} {diag.notes}"
+    if "cogging" in causes:
+        assert diag.parameters["periods_per_rev"]["value"] == pytest.approx(1134 / 1.0101, abs=1.0)
 
 
 def test_a_gauge_zero_offset_is_a_sensor_warning_not_a_load():

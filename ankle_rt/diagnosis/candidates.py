@@ -271,6 +271,37 @@ class Cogging(Candidate):
             picks.add(int(round(ch.cogging_prior)))
         return [float(n) for n in sorted(picks)]
 
+    def implausible(self, coef, nl, ch, base_coef):
+        """A ripple at a count no rotating part has (:meth:`physical_counts`) fits something else that
+        repeats along the travel: a stride-locked remainder in walking, a rest's holding torque. It is
+        left to the catch-all, never replaced by a neighbouring count the search did not prefer (searched
+        on the rotor's counts only, the search found such neighbours that fitted a remainder: generator D
+        seeds 124, 127, 719, 729 named cogging at 1538 and 6477 periods where there was none)."""
+        n = int(round(nl))
+        if self.physical_counts(ch, n)[n]:
+            return None
+        return (f"{n} periods per output turn is no whole number per motor turn ({n / ch.gear_ratio:.2f} x the "
+                f"gear ratio {ch.gear_ratio:g}): not a rotor's cogging")
+
+    @staticmethod
+    def physical_counts(ch, n_max: int) -> np.ndarray:
+        """Per count 0..n_max, whether a ripple fixed to a rotating part can have it. Behind a gearbox of
+        ratio G (``ch.gear_ratio``) a ripple of more than G periods per output turn turns faster than the
+        output and is the rotor's: a whole number N of periods per motor turn, N G per output turn as the
+        motor encoders read it (N G / f where they read f x the angle: ``ch.motor_scales``), within
+        ROTOR_COUNT_TOLERANCE or one period (a gearbox's true ratio may differ a little from the configured
+        one). Fewer than G periods may be the output's own (a pulley, the sheath). Without a known ratio:
+        every count. On generator D's records the free search named cogging at 2170 and 2402 periods (26.8
+        and 29.7 per motor turn) where there was none, at 0.05-3 % of the residual."""
+        n = np.arange(n_max + 1, dtype=float)
+        if not ch.gear_ratio:
+            return np.ones(n_max + 1, bool)
+        ok = n < ch.gear_ratio
+        for f in ch.motor_scales:
+            lattice = ch.gear_ratio / f
+            ok |= np.abs(n - lattice * np.round(n / lattice)) <= np.maximum(1.0, ROTOR_COUNT_TOLERANCE * n)
+        return ok
+
     @classmethod
     def angle_power(cls, ch, residual: np.ndarray, n_max: int, weight: np.ndarray) -> np.ndarray:
         """Per integer count 0..n_max: the power of the stacked ``residual``'s projection on the tapered
@@ -504,6 +535,12 @@ class EncoderScale(Candidate):
 
     def design(self, ch, nl):
         return Design(ch.per_column(ch.sm.smooth(ch.joint)))
+
+    def ratios(self, ch: CableChannel) -> np.ndarray:
+        """The scale ratio per axis fitted beside the cable baseline alone (before any effect is chosen)."""
+        X = np.hstack([ch.baseline_design(), self.design(ch, 0.0).X])
+        coef = np.linalg.lstsq(X, ch.target(), rcond=None)[0]
+        return 1.0 - coef[-2:] / coef[[0, 3]]
 
     def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
         K = base_coef[[0, 3]]
@@ -757,6 +794,7 @@ MIN_COGGING_PERIODS = 2.0
 SCALE_RANGE = (0.5, 2.0)           # plausible torque-constant calibration scales (true / configured)
 ENCODER_SCALE_RANGE = (0.8, 1.25)  # plausible motor / ankle encoder scale ratios
 SLACK_SHARE = (0.3, 2.0)           # share of the axis stiffness a dead zone may take away (ideal slack: 1)
+ROTOR_COUNT_TOLERANCE = 0.001      # a rotor ripple's count within 0.1 % of N x gear ratio (Cogging.physical_counts)
 MIN_COGGING_SEARCH = 2500          # periods per revolution searched at least (rotor cogging x gearbox)
 COUNTS_PER_PERIOD = 8              # encoder counts a cogging period must span to be measured
 MAX_COGGING_BINS = 1 << 22         # angle-domain grid points per revolution, at most

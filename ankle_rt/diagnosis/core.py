@@ -24,10 +24,10 @@ from typing import Any
 import numpy as np
 
 from ankle_rt.config import Config
-from ankle_rt.diagnosis.candidates import (CABLE_CANDIDATES, INPUT_GROUPS, LOAD_CANDIDATES, MOTOR_CANDIDATES,
-                                           RELAXATION_GROUP, Candidate, CatchAll, Channel,
-                                           catch_all_cable, catch_all_motor, folded_coulomb, time_columns,
-                                           without_groups)
+from ankle_rt.diagnosis.candidates import (CABLE_CANDIDATES, ENCODER_SCALE_RANGE, INPUT_GROUPS, LOAD_CANDIDATES,
+                                           MOTOR_CANDIDATES, RELAXATION_GROUP, Candidate, CatchAll, Channel,
+                                           EncoderScale, catch_all_cable, catch_all_motor, folded_coulomb,
+                                           time_columns, without_groups)
 from ankle_rt.diagnosis.regression import rss_only
 from ankle_rt.diagnosis.resample import repair_stale_rows, to_uniform_grid
 from ankle_rt.diagnosis.screening import Screening, screen, strain_gauge_drift, strain_gauge_offset
@@ -145,6 +145,7 @@ class Inputs:
     counts_per_rev: int | None = None       # motor encoder counts per output revolution (ankle plant)
     coulomb: float | None = None            # N m, the nominal Coulomb friction (tells a stuck motor's rests)
     joint_step: float = 0.0                 # rad, one count of the joint encoders (0: resolved finely)
+    gear_ratio: float | None = None         # motor turns per output turn (ankle plant): rotor cogging's counts
 
 
 def resolve_inputs(rec: Recording, plant: str, cfg: Config | None) -> Inputs:
@@ -166,11 +167,12 @@ def resolve_inputs(rec: Recording, plant: str, cfg: Config | None) -> Inputs:
     else:
         v_eps = fit_smoothing_velocity(rec, kt, geometry)
         notes.append(f"no config: Coulomb smoothing velocity fitted from the data: {v_eps:.3g} (position unit/s)")
-    prior = limit = counts = coulomb = None
+    prior = limit = counts = coulomb = gear = None
     if cfg is not None:
         coulomb = float(cfg["actuator"]["coulomb"]) or None
         if plant == "ankle":
             counts = int(cfg["actuator"]["encoder_counts_per_rev"])
+            gear = float(cfg["actuator"]["gear_ratio"])
         per_motor_rev = (cfg.get("diagnosis") or {}).get("cogging_periods_per_motor_rev")
         if per_motor_rev:
             prior = float(per_motor_rev) * cfg["actuator"]["gear_ratio"]
@@ -180,7 +182,7 @@ def resolve_inputs(rec: Recording, plant: str, cfg: Config | None) -> Inputs:
     joint_step = max((lattice_step(rec[c]) for c in ("ankle_dp", "ankle_ie") if c in rec), default=0.0)
     if counts:
         counts = logged_counts(rec, counts, notes)
-    return Inputs(kt, v_eps, geometry, notes, prior, limit, counts, coulomb, joint_step)
+    return Inputs(kt, v_eps, geometry, notes, prior, limit, counts, coulomb, joint_step, gear)
 
 
 def logged_counts(rec: Recording, configured: int, notes: list[str]) -> int:
@@ -217,7 +219,8 @@ def fit_smoothing_velocity(rec: Recording, kt: float | None, geometry: Geometry 
 
 def build_channels(rec: Recording, inputs: Inputs, good: np.ndarray | None = None) -> dict[str, Channel]:
     chans: dict[str, Channel] = {"motor": MotorChannel(rec, inputs.kt, inputs.geometry, inputs.v_eps, good,
-                                                       inputs.cogging_prior, inputs.counts_per_rev, inputs.coulomb)}
+                                                       inputs.cogging_prior, inputs.counts_per_rev, inputs.coulomb,
+                                                       inputs.gear_ratio)}
     if inputs.geometry is not None and CableChannel.available(rec):
         chans["cable"] = CableChannel(rec, inputs.geometry, good, joint_step=inputs.joint_step)
     elif inputs.geometry is not None and LoadChannel.available(rec):
@@ -358,6 +361,17 @@ def _remove_gauge_offsets(chans: dict[str, Channel], label: str, warnings: list[
                     "N m (IE) that the cable stretch from the ankle encoders does not carry: a sensor offset, "
                     "not a load; corrected before the motor side is fitted")
     chans["motor"].remove_gauge_offset(off)
+
+
+def _motor_scales(chans: dict[str, Channel]) -> None:
+    """Where the ankle encoders show a plausible scale ratio of the motor encoders to them, the motor
+    channel's rotor cogging may sit at N G / f as well as N G (:meth:`Cogging.physical_counts`; either
+    encoder may be the one off): generator B's 1134-period cogging read at 1123 with a 1 % scale."""
+    if "cable" not in chans:
+        return
+    ratios = EncoderScale().ratios(chans["cable"])
+    if np.all((ENCODER_SCALE_RANGE[0] < ratios) & (ratios < ENCODER_SCALE_RANGE[1])):
+        chans["motor"].motor_scales = (1.0, float(np.mean(ratios)))
 
 
 def _named_sets(results: list[ChannelResult], notes: list[str], unusable: bool, vmodels: dict[str, ChannelModels],
@@ -597,6 +611,7 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
     else:
         _remove_gauge_offsets(chans, "identification", warnings)
         _remove_gauge_offsets(vchans, "validation", warnings)
+    _motor_scales(chans)
     skip = scr.skip
     motor_pool = tuple(c for c in MOTOR_CANDIDATES if c.cause not in skip)
     motor_catch_all = without_groups(catch_all_motor, INPUT_GROUPS) if scr.one_way or vscr.one_way else catch_all_motor

@@ -309,12 +309,16 @@ class MotorChannel(_StackedChannel):
 
     def __init__(self, rec: Recording, kt: float | None, geometry: Geometry | None, v_eps: float,
                  good: np.ndarray | None = None, cogging_prior: float | None = None,
-                 counts_per_rev: int | None = None, coulomb: float | None = None):
+                 counts_per_rev: int | None = None, coulomb: float | None = None, gear_ratio: float | None = None):
         """``coulomb``: the nominal Coulomb level (N m), the holding level of the first stuck test
-        (:meth:`weigh_rests`; None: nothing is stuck)."""
+        (:meth:`weigh_rests`; None: nothing is stuck); ``gear_ratio``: motor turns per output turn, when the
+        positions are output angles behind that gearbox (None: unknown)."""
         super().__init__(rec, good)
         self.cogging_prior = cogging_prior      # periods per output revolution from the config, if known
         self.counts_per_rev = counts_per_rev    # motor encoder counts per output revolution, if known
+        self.gear_ratio = gear_ratio
+        #: the motor encoders' scale relative to the true angle, as far as known (the cable side may show it)
+        self.motor_scales: tuple[float, ...] = (1.0,)
         require_length(rec, self.n_rows)
         sm = self.sm
         self.m = 2 if rec.two_motors else 1
