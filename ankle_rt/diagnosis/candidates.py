@@ -721,7 +721,10 @@ class HardeningStiffness(Candidate):
     def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
         # the extended fit's own K (coefficients of phi) gives k_true / k_nominal
         ratio = float(np.mean(ch.geometry.K / base_coef[[0, 3]]))
-        c, sd = float(coef[0]) * ratio, _sd(cov, 0) * ratio
+        return self.law(float(coef[0]) * ratio, _sd(cov, 0) * ratio, nl, nl_sd)
+
+    def law(self, c: float, sd: float, nl: float, nl_sd: float) -> dict[str, tuple[float, float]]:
+        """The effect's parameters from the stiffening coefficient ``c`` = hardening_stretch^(1 - e) (its sd)."""
         e = self.exponent(nl)
         shape = {"exponent": (e, 0.0), **self.slack(nl, nl_sd)}
         if c <= 0.0:
@@ -782,13 +785,32 @@ class CableTautHardening(TautHardening):
         return ((z * np.abs(r * z)) @ R) / np.sum(R * R, axis=0)
 
 
+class LoadHardening(HardeningStiffness):
+    """Stiffening of the cables seen through a linear load in series (:class:`signals.LoadChannel`): the
+    spring law of the motor angles stiffens. To first order in the correction, a cable law ``K phi_c
+    (1 + a |R phi_c|^p)`` behind a load that takes the rest of the motor angle gives ``K' phi (1 + a
+    (K' / K)^(p + 1) |R phi|^p)`` per axis, K' the cable and the load in series (the load channel's
+    stiffness), K the configured cable's: with that factor in each axis' column the one coefficient is
+    the cable's own a (the axes' loads differ, so their series factors do)."""
+
+    channel = "load"
+
+    def design(self, ch, nl):
+        p = self.exponent(nl) - 1.0
+        series = ch.stiffness * (ch.stiffness / ch.geometry.K) ** (p + 1.0)
+        return Design(ch.filt(series * self.shape(ch, nl))[:, None])
+
+    def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
+        return self.law(float(coef[0]), _sd(cov, 0), nl, nl_sd)
+
+
 MOTOR_CANDIDATES: tuple[Candidate, ...] = (Stribeck(), StribeckExponential(), AsymmetricFriction(),
                                            AsymmetricFrictionPerMotor(), LoadDependentFriction(), Cogging(), Delay(),
                                            TorqueOffset(), TorqueConstantScale(), CoulombTransition())
 CABLE_CANDIDATES: tuple[Candidate, ...] = (Backlash(), CableBacklash(), HardeningStiffness(), TautHardening(),
                                            CableTautHardening(), EncoderScale())
 #: the load channel (no joint angles, a linear load on the foot): what a motor-side gap leaves in the gauges
-LOAD_CANDIDATES: tuple[Candidate, ...] = (GearBacklash(),)
+LOAD_CANDIDATES: tuple[Candidate, ...] = (GearBacklash(), LoadHardening())
 
 MIN_COGGING_PERIODS = 2.0
 SCALE_RANGE = (0.5, 2.0)           # plausible torque-constant calibration scales (true / configured)

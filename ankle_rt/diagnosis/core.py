@@ -223,9 +223,28 @@ def build_channels(rec: Recording, inputs: Inputs, good: np.ndarray | None = Non
                                                        inputs.gear_ratio)}
     if inputs.geometry is not None and CableChannel.available(rec):
         chans["cable"] = CableChannel(rec, inputs.geometry, good, joint_step=inputs.joint_step)
-    elif inputs.geometry is not None and LoadChannel.available(rec):
+    if inputs.geometry is not None and ("cable" in chans or LoadChannel.available(rec)):
         chans["load"] = LoadChannel(rec, inputs.geometry, good)
     return chans
+
+
+def _joint_angles_add_noise(chans: dict[str, Channel]) -> float | None:
+    """How many times better the spring law of the motor angles alone (a linear load: the load channel)
+    fits the gauges than the cable law of the stretch with the joint angles, where it is better by more
+    than 1 / JOINT_NOISE_RATIO (None: it is not). The joint encoders then add their counts' error to the
+    stretch rather than information: generator D's bench rigs with 12-bit joint encoders (a count 1.5
+    mrad beside 2-7 mrad of stretch) fitted 300-5000x better without them, and the cable channel's
+    residual, the joint angles' quantisation, hid a stiffening cable."""
+    cable, load = chans["cable"], chans["load"]
+    rss_cable = rss_only(cable.target(), cable.baseline_design())
+    rss_load = rss_only(load.target(), load.baseline_design())
+    if rss_load < JOINT_NOISE_RATIO * rss_cable:
+        return rss_cable / max(rss_load, 1e-300)
+    return None
+
+
+#: the load channel's baseline residual below this share of the cable channel's: the joint angles are noise
+JOINT_NOISE_RATIO = 0.1
 
 
 # -- the chosen model of a channel, refined and fitted ---------------------------------------------------
@@ -593,12 +612,21 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
     vchans = build_channels(validation, inputs, vscr.good)
     loads = [c.get("load") for c in (chans, vchans)]
     linear_load = all(ch is not None and ch.linear for ch in loads)
-    if plant == "ankle" and "cable" not in chans and not linear_load:
+    with_joints = "cable" in chans and "cable" in vchans
+    noisy_joints = _joint_angles_add_noise(chans) if linear_load and with_joints else None
+    cable_side = "load" if linear_load and (not with_joints or noisy_joints) else "cable" if with_joints else None
+    spring = ("the gauges read a spring law of the motor angles (a linear load on the foot: the spring term "
+              "explains " + ", ".join(f"{100 * v:.1f} %" for v in loads[0].spring_share) + " of the DP, IE torque)"
+              if linear_load else "")
+    if plant == "ankle" and cable_side is None:
         notes.append("no joint angles (ankle_dp, ankle_ie): cable side (backlash, stiffness) not diagnosed")
-    elif linear_load:
-        notes.append("no joint angles, but the gauges read a spring law of the motor angles (a linear load on the "
-                     "foot: the spring term explains " + ", ".join(f"{100 * v:.1f} %" for v in loads[0].spring_share)
-                     + " of the DP, IE torque): a gap between rotor and pulley is looked for in the load channel")
+    elif cable_side == "load" and not with_joints:
+        notes.append(f"no joint angles, but {spring}: a gap between rotor and pulley and a stiffening cable are "
+                     "looked for in the load channel")
+    elif cable_side == "load":
+        notes.append(f"{spring}, {noisy_joints:.0f}x closer than the cable law of the stretch with the joint angles "
+                     f"(one joint count {inputs.joint_step:.3g} rad): the joint encoders add their counts' error "
+                     "rather than information, so the cable side is diagnosed in the load channel")
     drift = "cable" in chans and (drift_pp := strain_gauge_drift(chans["cable"])) is not None
     if drift:
         warnings.append("the strain-gauge offsets drift over the record (peak to peak "
@@ -617,10 +645,10 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
     motor_catch_all = without_groups(catch_all_motor, INPUT_GROUPS) if scr.one_way or vscr.one_way else catch_all_motor
     results = [_select_motor(chans, vchans, motor_pool, motor_catch_all, drift)]
     vmodels = {name: ChannelModels(vch) for name, vch in vchans.items()}
-    if "cable" in chans and "cable" in vchans:
+    if cable_side == "cable":
         results.append(select_channel("cable", chans["cable"], CABLE_CANDIDATES, catch_all_cable))
     load_catch_all = without_groups(catch_all_cable, {RELAXATION_GROUP})     # in the load's baseline
-    if linear_load:
+    if cable_side == "load":
         results.append(select_channel("load", chans["load"], LOAD_CANDIDATES, load_catch_all))
 
     notes += [f"{res.name} channel: {n}" for res in results for n in res.notes]
