@@ -11,8 +11,8 @@ import pytest
 from ankle_rt.config import load_config
 from ankle_rt.diagnosis import diagnose
 from ankle_rt.diagnosis.candidates import GearBacklash, LoadHardening
-from ankle_rt.diagnosis.core import geometry_of
-from ankle_rt.diagnosis.signals import LoadChannel
+from ankle_rt.diagnosis.core import Inputs, _add_drift_nuisance, _joint_angles_add_noise, build_channels, geometry_of
+from ankle_rt.diagnosis.signals import LoadChannel, lattice_step
 from ankle_rt.interchange import Recording
 from benchmarks.diagnosis_cases_c import SIM_CONFIG
 from benchmarks.diagnosis_cases_d import R_PULLEY, draw_case_d, make_case_d
@@ -79,6 +79,59 @@ def test_the_series_law_gives_the_cables_own_hardening_stretch():
     coef = np.linalg.lstsq(X, ch.target(), rcond=None)[0]
     params = hardening.parameters(coef[-1:], np.zeros((1, 1)), 3.0, 0.0, ch, coef[:-1])
     assert params["hardening_stretch"][0] == pytest.approx(s_h, rel=0.05)
+
+
+def _relaxing_rig(joint_count: float) -> Recording:
+    """A linear cable with a relaxing branch (20 % of K, 0.5 s) on torsion springs of 150 / 60 N m/rad, the
+    joint angles counted in steps of ``joint_count`` rad (0: exact)."""
+    geometry = geometry_of(load_config(SIM_CONFIG))
+    dt = 1e-3
+    t = np.arange(0.0, 12.0, dt)
+    phi_m = np.column_stack([0.09 * np.sin(2 * np.pi * 0.3 * t) + 0.03 * np.sin(2 * np.pi * 1.1 * t),
+                             0.06 * np.sin(2 * np.pi * 0.45 * t + 1.0) + 0.02 * np.sin(2 * np.pi * 1.7 * t)])
+    rig, share, decay = np.array([150.0, 60.0]), 0.2, 1.0 - np.exp(-dt / 0.5)
+    K = geometry.K
+    relaxed, phi_c, tau = np.zeros(2), np.empty_like(phi_m), np.empty_like(phi_m)
+    for i in range(len(t)):       # the cable's stretch where the cable and its branch balance the springs
+        phi_c[i] = (rig * phi_m[i] + share * K * relaxed) / (K * (1.0 + share) + rig)
+        tau[i] = K * phi_c[i] + share * K * (phi_c[i] - relaxed)
+        relaxed += (phi_c[i] - relaxed) * decay
+    theta = phi_m - phi_c
+    if joint_count:
+        theta = np.round(theta / joint_count) * joint_count
+    motors = phi_m @ np.linalg.inv(geometry.R_inv).T
+    drive = tau @ geometry.R_inv_T.T                  # the motors' torques that hold the cables (N m)
+    return Recording({"t": t, "motor_pos_1": motors[:, 0], "motor_pos_2": motors[:, 1],
+                      "motor_torque_1": drive[:, 0], "motor_torque_2": drive[:, 1],
+                      "sg_torque_dp": tau[:, 0], "sg_torque_ie": tau[:, 1],
+                      "ankle_dp": theta[:, 0], "ankle_ie": theta[:, 1]}, "relaxing rig")
+
+
+def test_the_rig_law_takes_the_cable_side_only_where_the_joint_counts_are_noise():
+    """On a rig the load channel replaces the cable channel where the cable law of the stretch fits the
+    gauges 10x worse, beside the same linear filters of its angle: 12-bit joint encoders on a few mrad of
+    stretch. Exact joint angles keep the cable channel, also with a relaxing cable (the load's filters in
+    its baseline alone made them look 7000x worse)."""
+    geometry = geometry_of(load_config(SIM_CONFIG))
+    for count, coarse in ((0.0, False), (2 * np.pi / 4096, True)):
+        rec = _relaxing_rig(count)
+        inputs = Inputs(kt=None, v_eps=0.01, geometry=geometry, notes=[],
+                        joint_step=max(lattice_step(rec[c]) for c in ("ankle_dp", "ankle_ie")))
+        chans = build_channels(rec, inputs)
+        assert chans["load"].linear
+        ratio = _joint_angles_add_noise(chans)
+        assert (ratio is not None and ratio > 10.0) == coarse, (count, ratio)
+
+
+def test_a_gauge_drift_keeps_the_loads_own_dynamics_in_its_baseline():
+    """A drift's time shapes join the load channel's nuisance columns (the load's inertia, damping and
+    relaxation) instead of replacing them, and building them again gives the same columns."""
+    geometry = geometry_of(load_config(SIM_CONFIG))
+    load = build_channels(_relaxing_rig(0.0), Inputs(kt=None, v_eps=0.01, geometry=geometry, notes=[]))["load"]
+    own = load.nuisance.copy()
+    _add_drift_nuisance(load)
+    _add_drift_nuisance(load)
+    assert load.nuisance.shape[1] == own.shape[1] + 6 and np.array_equal(load.nuisance[:, :own.shape[1]], own)
 
 
 def test_a_stiffening_cable_is_named_through_the_rig():

@@ -278,7 +278,7 @@ class Cogging(Candidate):
         on the rotor's counts only, the search found such neighbours that fitted a remainder: generator D
         seeds 124, 127, 719, 729 named cogging at 1538 and 6477 periods where there was none)."""
         n = int(round(nl))
-        if self.physical_counts(ch, n)[n]:
+        if self.physical_counts(ch, n)[n] or (ch.cogging_prior and n == round(ch.cogging_prior)):
             return None
         return (f"{n} periods per output turn is no whole number per motor turn ({n / ch.gear_ratio:.2f} x the "
                 f"gear ratio {ch.gear_ratio:g}): not a rotor's cogging")

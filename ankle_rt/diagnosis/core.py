@@ -230,13 +230,18 @@ def build_channels(rec: Recording, inputs: Inputs, good: np.ndarray | None = Non
 
 def _joint_angles_add_noise(chans: dict[str, Channel]) -> float | None:
     """How many times better the spring law of the motor angles alone (a linear load: the load channel)
-    fits the gauges than the cable law of the stretch with the joint angles, where it is better by more
-    than 1 / JOINT_NOISE_RATIO (None: it is not). The joint encoders then add their counts' error to the
-    stretch rather than information: generator D's bench rigs with 12-bit joint encoders (a count 1.5
-    mrad beside 2-7 mrad of stretch) fitted 300-5000x better without them, and the cable channel's
-    residual, the joint angles' quantisation, hid a stiffening cable."""
+    fits the gauges than the cable law of the stretch with the (counted) joint angles, each beside the
+    same linear filters of its angle (:meth:`CableChannel.history_columns`, in the load's baseline), where
+    it is better by more than 1 / JOINT_NOISE_RATIO (None: it is not, or the joint angles are not counts).
+    The joint encoders then add their counts' error to the stretch rather than information: generator D's
+    bench rigs with 12-bit joint encoders (a count 1.5 mrad beside 2-7 mrad of stretch) fitted 300-5000x
+    better without them, and the cable channel's residual, the joint angles' quantisation, hid a
+    stiffening cable. (Without the filters on the cable side a relaxing cable made any joint angles look
+    like noise.)"""
     cable, load = chans["cable"], chans["load"]
-    rss_cable = rss_only(cable.target(), cable.baseline_design())
+    if cable.joint_step <= 0.0:
+        return None
+    rss_cable = rss_only(cable.target(), np.hstack([cable.baseline_design(), cable.history_columns()]))
     rss_load = rss_only(load.target(), load.baseline_design())
     if rss_load < JOINT_NOISE_RATIO * rss_cable:
         return rss_cable / max(rss_load, 1e-300)
@@ -363,9 +368,12 @@ def _describe_remainder(res: ChannelResult) -> dict[str, Any]:
 
 
 def _add_drift_nuisance(ch: Channel) -> None:
-    """A strain-gauge drift as nuisance columns of the channel's baseline: slow shapes of time per motor
-    or axis, and on the motor side the gauges' constant offset as well (the cable side has its own)."""
+    """A strain-gauge drift as nuisance columns of the channel's baseline (built anew): slow shapes of time
+    per motor or axis, beside the load's own dynamics in the load channel, and on the motor side the gauges'
+    constant offset as well (the cable side has its own)."""
     ch.nuisance = time_columns(ch)
+    if isinstance(ch, LoadChannel):
+        ch.nuisance = np.hstack([ch.history_columns(), ch.nuisance])
     if isinstance(ch, MotorChannel):
         ch.nuisance = np.hstack([ch.nuisance, ch.constants()])
 
@@ -621,7 +629,8 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
     if plant == "ankle" and cable_side is None:
         notes.append("no joint angles (ankle_dp, ankle_ie): cable side (backlash, stiffness) not diagnosed")
     elif cable_side == "load" and not with_joints:
-        notes.append(f"no joint angles, but {spring}: a gap between rotor and pulley and a stiffening cable are "
+        missing = "no joint angles" if "cable" not in chans else "no joint angles in the validation data"
+        notes.append(f"{missing}, but {spring}: a gap between rotor and pulley and a stiffening cable are "
                      "looked for in the load channel")
     elif cable_side == "load":
         notes.append(f"{spring}, {noisy_joints:.0f}x closer than the cable law of the stretch with the joint angles "

@@ -496,6 +496,14 @@ class CableChannel(_StackedChannel):
     def measured(self) -> np.ndarray:
         return self.target()
 
+    def history_columns(self) -> np.ndarray:
+        """Linear filters of the stretch per axis (block diagonal): its second derivative and its departures
+        from first-order lags of RELAXATION_S, what a foot's inertia, a rig's damping or a relaxing element
+        make of it."""
+        history = [self.sm.smooth(self.phi, 2)] + [self.sm.smooth(self.phi - lagged(self.phi, self.dt, tc))
+                                                   for tc in RELAXATION_S]
+        return np.hstack([self.per_column(h) for h in history])
+
     def baseline_design(self) -> np.ndarray:
         """Columns K_a, K_a beta, offset_a per axis a (block diagonal)."""
         k = self.n_rows
@@ -522,9 +530,7 @@ class LoadChannel(CableChannel):
         super().__init__(rec, geometry, good, joint=np.zeros((len(rec), 2)))
         # the load's own dynamics (the foot's inertia, the rig's damping, a relaxing element) are linear
         # filters of the motor angles: nuisance columns of the baseline, never a discrepancy
-        history = [self.sm.smooth(self.phi, 2)] + [self.sm.smooth(self.phi - lagged(self.phi, self.dt, tc))
-                                                   for tc in RELAXATION_S]
-        self.nuisance = np.hstack([self.per_column(h) for h in history])
+        self.nuisance = self.history_columns()
         Xb = self.baseline_design()
         y = self.target()
         coef = np.linalg.lstsq(Xb, y, rcond=None)[0]
