@@ -272,35 +272,32 @@ class Cogging(Candidate):
         return [float(n) for n in sorted(picks)]
 
     def implausible(self, coef, nl, ch, base_coef):
-        """A ripple at a count no rotating part has (:meth:`physical_counts`) fits something else that
+        """A ripple at a count no rotating part has (:meth:`rotor_count`) fits something else that
         repeats along the travel: a stride-locked remainder in walking, a rest's holding torque. It is
         left to the catch-all, never replaced by a neighbouring count the search did not prefer (searched
         on the rotor's counts only, the search found such neighbours that fitted a remainder: generator D
         seeds 124, 127, 719, 729 named cogging at 1538 and 6477 periods where there was none)."""
         n = int(round(nl))
-        if self.physical_counts(ch, n)[n] or (ch.cogging_prior and n == round(ch.cogging_prior)):
+        if self.rotor_count(ch, n) or (ch.cogging_prior and n == round(ch.cogging_prior)):
             return None
         return (f"{n} periods per output turn is no whole number per motor turn ({n / ch.gear_ratio:.2f} x the "
                 f"gear ratio {ch.gear_ratio:g}): not a rotor's cogging")
 
     @staticmethod
-    def physical_counts(ch, n_max: int) -> np.ndarray:
-        """Per count 0..n_max, whether a ripple fixed to a rotating part can have it. Behind a gearbox of
-        ratio G (``ch.gear_ratio``) a ripple of more than G periods per output turn turns faster than the
+    def rotor_count(ch, n: int) -> bool:
+        """Whether a ripple fixed to a rotating part can have ``n`` periods per output turn. Behind a gearbox
+        of ratio G (``ch.gear_ratio``) a ripple of more than G periods per output turn turns faster than the
         output and is the rotor's: a whole number N of periods per motor turn, N G per output turn as the
         motor encoders read it (N G / f where they read f x the angle: ``ch.motor_scales``), within
         ROTOR_COUNT_TOLERANCE or one period (a gearbox's true ratio may differ a little from the configured
         one). Fewer than G periods may be the output's own (a pulley, the sheath). Without a known ratio:
         every count. On generator D's records the free search named cogging at 2170 and 2402 periods (26.8
         and 29.7 per motor turn) where there was none, at 0.05-3 % of the residual."""
-        n = np.arange(n_max + 1, dtype=float)
-        if not ch.gear_ratio:
-            return np.ones(n_max + 1, bool)
-        ok = n < ch.gear_ratio
-        for f in ch.motor_scales:
-            lattice = ch.gear_ratio / f
-            ok |= np.abs(n - lattice * np.round(n / lattice)) <= np.maximum(1.0, ROTOR_COUNT_TOLERANCE * n)
-        return ok
+        gear = ch.gear_ratio
+        if not gear or n < gear:
+            return True
+        return any(abs(n - lattice * round(n / lattice)) <= max(1.0, ROTOR_COUNT_TOLERANCE * n)
+                   for lattice in (gear / f for f in ch.motor_scales))
 
     @classmethod
     def angle_power(cls, ch, residual: np.ndarray, n_max: int, weight: np.ndarray) -> np.ndarray:
@@ -714,9 +711,12 @@ class HardeningStiffness(Candidate):
         return ch.phi * np.abs(ch.geometry.levers * ch.phi) ** (self.exponent(nl) - 1.0)
 
     def design(self, ch, nl):
-        # nominal K per axis: both axes scale with the one cable stiffness k, so one shared coefficient
-        # (k_true / k_nominal) / s_h^(e - 1) fits both, whatever k is
-        return Design(ch.filt(ch.geometry.K * self.shape(ch, nl))[:, None])
+        return Design(ch.filt(self.gain(ch, nl) * self.shape(ch, nl))[:, None])
+
+    def gain(self, ch, nl: float) -> np.ndarray:
+        """The column's factor per axis: the nominal K (both axes scale with the one cable stiffness k, so
+        one shared coefficient (k_true / k_nominal) / s_h^(e - 1) fits both, whatever k is)."""
+        return ch.geometry.K
 
     def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
         # the extended fit's own K (coefficients of phi) gives k_true / k_nominal
@@ -795,10 +795,9 @@ class LoadHardening(HardeningStiffness):
 
     channel = "load"
 
-    def design(self, ch, nl):
+    def gain(self, ch, nl):
         p = self.exponent(nl) - 1.0
-        series = ch.stiffness * (ch.stiffness / ch.geometry.K) ** (p + 1.0)
-        return Design(ch.filt(series * self.shape(ch, nl))[:, None])
+        return ch.stiffness * (ch.stiffness / ch.geometry.K) ** (p + 1.0)
 
     def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
         return self.law(float(coef[0]), _sd(cov, 0), nl, nl_sd)
@@ -809,14 +808,15 @@ MOTOR_CANDIDATES: tuple[Candidate, ...] = (Stribeck(), StribeckExponential(), As
                                            TorqueOffset(), TorqueConstantScale(), CoulombTransition())
 CABLE_CANDIDATES: tuple[Candidate, ...] = (Backlash(), CableBacklash(), HardeningStiffness(), TautHardening(),
                                            CableTautHardening(), EncoderScale())
-#: the load channel (no joint angles, a linear load on the foot): what a motor-side gap leaves in the gauges
+#: the load channel (a linear load on the foot, no joint angles or too coarse ones): what a motor-side gap and a
+#: stiffening cable leave in the spring law of the motor angles
 LOAD_CANDIDATES: tuple[Candidate, ...] = (GearBacklash(), LoadHardening())
 
 MIN_COGGING_PERIODS = 2.0
 SCALE_RANGE = (0.5, 2.0)           # plausible torque-constant calibration scales (true / configured)
 ENCODER_SCALE_RANGE = (0.8, 1.25)  # plausible motor / ankle encoder scale ratios
 SLACK_SHARE = (0.3, 2.0)           # share of the axis stiffness a dead zone may take away (ideal slack: 1)
-ROTOR_COUNT_TOLERANCE = 0.001      # a rotor ripple's count within 0.1 % of N x gear ratio (Cogging.physical_counts)
+ROTOR_COUNT_TOLERANCE = 0.001      # a rotor ripple's count within 0.1 % of N x gear ratio (Cogging.rotor_count)
 MIN_COGGING_SEARCH = 2500          # periods per revolution searched at least (rotor cogging x gearbox)
 COUNTS_PER_PERIOD = 8              # encoder counts a cogging period must span to be measured
 MAX_COGGING_BINS = 1 << 22         # angle-domain grid points per revolution, at most

@@ -392,7 +392,7 @@ def _remove_gauge_offsets(chans: dict[str, Channel], label: str, warnings: list[
 
 def _motor_scales(chans: dict[str, Channel]) -> None:
     """Where the ankle encoders show a plausible scale ratio of the motor encoders to them, the motor
-    channel's rotor cogging may sit at N G / f as well as N G (:meth:`Cogging.physical_counts`; either
+    channel's rotor cogging may sit at N G / f as well as N G (:meth:`Cogging.rotor_count`; either
     encoder may be the one off): generator B's 1134-period cogging read at 1123 with a 1 % scale."""
     if "cable" not in chans:
         return
