@@ -495,7 +495,7 @@ class CoulombTransition(Candidate):
             kc, c = float(base_coef[2 + 3 * i]), float(coef[i])
             width = folded_coulomb(kc, c, ch.v_eps)[1]
             d_width = ch.v_eps * kc * (SHARPER - 1.0) / (kc + SHARPER * c) ** 2 if kc + SHARPER * c else math.inf
-            out[f"smoothing_velocity_{i + 1}"] = (width, d_width * _sd(cov, i))
+            out[f"smoothing_velocity_{i + 1}"] = (width, abs(d_width) * _sd(cov, i))
         return out
 
     def rejection(self, params, coef, base_coef):
