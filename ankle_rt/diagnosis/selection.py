@@ -228,6 +228,10 @@ class ChannelModels:
             self._rss[key] = rss if rss is not None else rss_only(*self.system(terms))
         return self._rss[key]
 
+    def ic(self, terms: list[Term], n_eff: float) -> float:
+        """The information criterion of the model with ``terms``."""
+        return information_criterion(self.rss(terms), self.n, self.k(terms), n_eff)
+
     def fit(self, terms: list[Term]) -> Fit:
         """The least-squares fit of the baseline extended by ``terms`` (coefficients in their order)."""
         key = tuple((type(t.candidate).__name__, t.nl) for t in terms)
@@ -480,9 +484,6 @@ def _best_forms(models: ChannelModels, chosen: list[Term], pool: list[Candidate]
     since the form picked first, while another effect was still out of the model, need not be the one that
     fits beside it (stiffening on the taut stretch picked alone, where a dead zone then explains the slack
     and the cubic law the rest; the dead zone's width moves with the form)."""
-    def ic(terms: list[Term]) -> float:
-        return information_criterion(models.rss(terms), models.n, models.k(terms), n_eff)
-
     for i, t in enumerate(chosen):
         others = chosen[:i] + chosen[i + 1:]
         residual = models.fit(others).residual
@@ -491,7 +492,7 @@ def _best_forms(models: ChannelModels, chosen: list[Term], pool: list[Candidate]
                 continue
             trial = chosen[:i] + [models.term(c, models.best_of(c, others, residual).nl)] + chosen[i + 1:]
             trial = _settle(models, trial, n_eff)[0]
-            if ic(trial) < ic(chosen):
+            if models.ic(trial, n_eff) < models.ic(chosen, n_eff):
                 chosen = trial
     return chosen
 
@@ -572,9 +573,6 @@ def _calibrations_in_place(models: ChannelModels, chosen: list[Term], nl_sd: lis
     Stribeck term at its grid's narrowest beside the effects that fit first is a sharper Coulomb transition
     (generator D seed 719: cogging and a Stribeck term of confidence 0.0005, the transition 30.8 better in
     its place)."""
-    def ic(terms: list[Term]) -> float:
-        return information_criterion(models.rss(terms), models.n, models.k(terms), n_eff)
-
     for cause in [t.cause for t in chosen if not t.candidate.calibration]:
         i = next((j for j, o in enumerate(chosen) if o.cause == cause), None)    # one term per cause
         if i is None:
@@ -586,7 +584,7 @@ def _calibrations_in_place(models: ChannelModels, chosen: list[Term], nl_sd: lis
             if not c.calibration or any(o.cause == c.cause for o in chosen):
                 continue
             trial = others + [models.term(c, models.best_of(c, others, residual).nl)]
-            if (margin := ic(chosen) - ic(trial)) <= 0.0:
+            if (margin := models.ic(chosen, n_eff) - models.ic(trial, n_eff)) <= 0.0:
                 continue
             trial = _settle(models, trial, n_eff)[0]
             again = score_against(models, models.best_of(t.candidate, trial, models.fit(trial).residual),
