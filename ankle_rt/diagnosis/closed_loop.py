@@ -51,15 +51,21 @@ def closed_loop_gain(rec: Recording, config_path: str | Path, diag: Diagnosis) -
     from ankle_rt.identification.validation import compare
 
     refit = {"actuator": dict(diag.actuator_refit)} if diag.actuator_refit else {}
-    duration = float(rec["t"][-1] + rec.dt)
+    # the simulation runs from t = 0: the record's own time from its first sample (a file's stamps may
+    # start anywhere, negative or a clock's uptime), and the simulation taken at the record's instants
+    # (its rate need not be the config's: compare() pairs samples by index)
+    t = np.asarray(rec["t"], dtype=float) - float(rec["t"][0])
+    duration = float(t[-1] + rec.dt)
     cols = tuple(c for c in POSITION_COLUMNS if c in rec)
-    traces: dict[str, Any] = {"t": rec["t"], "measured": {c: rec[c] for c in cols}}
+    measured = Recording({"t": t, **{c: rec[c] for c in cols}}, rec.source)
+    traces: dict[str, Any] = {"t": t, "measured": {c: rec[c] for c in cols}}
     out = {}
     for name, effects in (("baseline", []), ("extended", diag.sim_effects)):
         cfg = load_config(config_path, overrides={**refit, "sim": {"effects": effects}})
         run = run_lockstep(cfg, duration)
         sim = Recording(run.interchange(), f"{name} simulation")
-        errors, _ = compare(rec, sim, cols, relative=False)
+        at = {c: np.interp(t, sim["t"], sim[c]) for c in cols}
+        errors, _ = compare(measured, Recording({"t": t, **at}, f"{name} simulation"), cols, relative=False)
         out[name] = float(np.mean([e.nrmse for e in errors]))
-        traces[name] = {c: np.interp(rec["t"], sim["t"], sim[c]) for c in cols}
+        traces[name] = at
     return ClosedLoopGain(out["baseline"], out["extended"], cols, duration, traces)

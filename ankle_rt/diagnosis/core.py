@@ -19,11 +19,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
-from ankle_rt.config import Config
+from ankle_rt.config import Config, ConfigError, config_data, config_from_data
 from ankle_rt.diagnosis.candidates import (CABLE_CANDIDATES, ENCODER_SCALE_RANGE, INPUT_GROUPS, LOAD_CANDIDATES,
                                            MOTOR_CANDIDATES, RELAXATION_GROUP, Candidate, CatchAll, Channel,
                                            EncoderScale, catch_all_cable, catch_all_motor, folded_coulomb,
@@ -522,6 +523,37 @@ def _adequacy(results: list[ChannelResult]) -> dict[str, Any]:
                      "adequate": not r.unexplained} for r in results}
 
 
+def _gauges_against_stretch(results: list[ChannelResult]) -> str | None:
+    """A warning where the gauges read against the cable stretch: a cable stiffness fitted below zero by
+    more than 3 sd on some axis (a gauge of the wrong sign, or the axes swapped). No cable law holds
+    there, and the motor side's cable torque is wrong too: every effect would be judged against it."""
+    res = next((r for r in results if r.name == "cable"), None)
+    if res is None or not res.baseline.rss > 0.0:
+        return None
+    coef = res.baseline.coef
+    sd = np.sqrt(np.maximum(np.diag(res.baseline.covariance(res.n_eff)), 0.0))
+    bad = [i for i in range(res.channel.m) if coef[PER * i] < -3.0 * sd[PER * i]]
+    if not bad:
+        return None
+    axes = ", ".join(f"{CableChannel.AXES[i].upper()} {coef[PER * i]:.4g} N m/rad" for i in bad)
+    return (f"the strain gauges read against the cable stretch (cable stiffness fitted at {axes}): a gauge "
+            "of the wrong sign or swapped axes; nothing is named")
+
+
+def _refit_problem(cfg: Mapping[str, Any], refit: dict[str, float]) -> str | None:
+    """Why the config would refuse the re-fitted actuator baseline (a range, the controller's gain margin
+    on the re-fitted plant), None if it takes it: a baseline fitted where it explains nothing (motion one
+    way only: a negative Coulomb term; gauges of the wrong sign: a tenth of the inertia) is never simulated
+    or written into a config that then fails to load."""
+    data = config_data(cfg)
+    data["actuator"].update(refit)
+    try:
+        config_from_data(data, lambda _key: "re-fit", str(getattr(cfg, "source", "config")))
+    except ConfigError as exc:
+        return str(exc)
+    return None
+
+
 def _holding(res: ChannelResult, ch: MotorChannel) -> np.ndarray:
     """What the motor channel's chosen model holds a resting motor with (N m, samples x motors of ``ch``):
     the nominal Coulomb level the first stuck test used plus what each chosen friction effect adds near
@@ -660,6 +692,9 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
     if cable_side == "load":
         results.append(select_channel("load", chans["load"], LOAD_CANDIDATES, load_catch_all))
 
+    if (against := _gauges_against_stretch(results)) is not None:
+        warnings.append(against)
+        unusable = True
     notes += [f"{res.name} channel: {n}" for res in results for n in res.notes]
     catch_alls = {"motor": motor_catch_all, "cable": catch_all_cable, "load": load_catch_all}
     chosen, unexplained = _named_sets(results, notes, unusable, vmodels, catch_alls)
@@ -718,6 +753,10 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
             # the baseline was fitted in configured-torque units: scale tau = J a + ..., so J, D, kc scale too
             for key in ("inertia", "damping", "coulomb"):
                 actuator_refit[key] *= scale
+        if (problem := _refit_problem(cfg, actuator_refit)) is not None:
+            notes.append(f"the re-fitted actuator baseline is not used (neither simulated nor written by "
+                         f"--write-model; the config's values stay): {problem}")
+            actuator_refit = None
     channel = effects[0]["channel"] if effects else (next(iter(unexplained)) if unexplained else None)
     detail = {"results": results, "fits": fits, "validation_channels": vchans, "validation_models": vmodels}
     return Diagnosis(calibration=calibration, causes=causes, confidence=float(confidence), channel=channel,

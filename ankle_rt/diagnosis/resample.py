@@ -22,6 +22,8 @@ from ankle_rt.diagnosis.screening import GAP_FACTOR
 JITTER_SHARE = 0.01
 #: columns the controller sets and holds over the period (zero-order hold)
 HELD_PREFIXES = ("current_cmd", "motor_torque")
+#: s, a time gap longer than this is left out of the uniform grid (its rows would all be masked)
+GRID_GAP_S = 1.0
 
 
 def period_spread(t: np.ndarray) -> float:
@@ -40,7 +42,12 @@ def to_uniform_grid(rec: Recording, good: np.ndarray) -> tuple[Recording, np.nda
     if spread <= JITTER_SHARE:
         return rec, good, None
     dt = rec.dt
-    tu = t[0] + dt * np.arange(int(np.floor((t[-1] - t[0]) / dt + 1e-9)) + 1)
+    # the grid skips a time gap longer than GRID_GAP_S (masked anyway, its rows stand for nothing): a
+    # record with a day's gap would otherwise get 86 M grid rows at 1 kHz, a MemoryError
+    cuts = np.flatnonzero(np.diff(t) > max(GRID_GAP_S, GAP_FACTOR * dt)) + 1
+    first = np.floor((t[np.r_[0, cuts]] - t[0]) / dt + 1e-9).astype(np.int64)
+    last = np.floor((t[np.r_[cuts - 1, len(t) - 1]] - t[0]) / dt + 1e-9).astype(np.int64)
+    tu = t[0] + dt * np.concatenate([np.arange(a, b + 1) for a, b in zip(first, last)]).astype(float)
     k = np.clip(np.searchsorted(t, tu, side="right") - 1, 0, len(t) - 2)   # logged period holding each row
     cols = {"t": tu}
     for name, x in rec.columns.items():

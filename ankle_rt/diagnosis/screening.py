@@ -113,6 +113,20 @@ def _held(x: np.ndarray, rail: np.ndarray, at_rest: np.ndarray | None = None) ->
     return out
 
 
+def _dead_encoder(rec: Recording, i: int, moving: np.ndarray) -> str | None:
+    """What motor ``i``'s set value does while its encoder never changes and another motor moves (None
+    when the encoder changes, its set value is constant too, or no motor moves): such a motor's inertia,
+    damping and friction fit to zero and every other effect's share is judged against a silent column."""
+    pos = np.asarray(rec[f"motor_pos_{i + 1}"], dtype=float)
+    others = np.delete(moving, i, axis=1)
+    if np.ptp(pos) > 0.0 or not others.any():
+        return None
+    for col in (f"current_cmd_{i + 1}", f"motor_torque_{i + 1}"):
+        if col in rec and (span := float(np.ptp(np.asarray(rec[col], dtype=float)))) > 0.0:
+            return f"{col} varies ({span:.3g} peak to peak)"
+    return None
+
+
 def _pct(share: float) -> str:
     return f"{100 * share:.1f} %"
 
@@ -184,6 +198,10 @@ def screen(rec: Recording, v_eps: float, current_limit: float | None = None, lab
                                 "motion to separate friction, load and inertia well")
         for i, c in enumerate(motors):
             m = moving[:, i]
+            if (dead := _dead_encoder(rec, i, moving)) is not None:
+                out.warnings.append(f"{label}: {c} never changes while {dead} and the other motor moves: a "
+                                    "dead or disconnected encoder (or a seized motor); nothing is named")
+                out.unusable = True
             if m.sum() < 10:
                 continue
             fwd = float(np.mean(vel[m, i] > 0.0))

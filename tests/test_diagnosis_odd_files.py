@@ -1,0 +1,107 @@
+"""Valid files a lab's logs bring that the generators do not: stamps from any clock, a long pause in
+irregular stamps, a dead encoder, gauges of the wrong sign, a baseline re-fit the config would refuse.
+Each gets a verdict, and nothing the config refuses is simulated or written."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+import yaml
+
+from ankle_rt.config import load_config
+from ankle_rt.diagnosis import diagnose
+from ankle_rt.diagnosis.closed_loop import closed_loop_gain
+from ankle_rt.diagnosis.core import _refit_problem
+from ankle_rt.diagnosis.model_fragment import fragment
+from ankle_rt.diagnosis.resample import to_uniform_grid
+from ankle_rt.interchange import Recording
+from benchmarks.diagnosis_cases_d import draw_case_d, make_case_d
+from tests.diagnosis_cases import SIM_CONFIG
+
+
+@pytest.mark.parametrize("t0", [-40.0, 1.0e6])
+def test_the_closed_loop_replays_a_record_from_its_first_stamp(t0):
+    """Stamps counted from a later trigger (negative) or a clock's uptime: the re-run lasts the record's
+    2 s (it simulated t[-1] s: a negative count, or a 1e6 s log buffer), on the record's own instants."""
+    t = t0 + 1e-3 * np.arange(2000)
+    wave = 0.01 * np.sin(2 * np.pi * t)
+    cols = {"t": t, "ref_dp": wave, "ref_ie": wave,
+            **{c: wave for c in ("motor_pos_1", "motor_pos_2", "ankle_dp", "ankle_ie")}}
+    gain = closed_loop_gain(Recording(cols, "offset stamps"), SIM_CONFIG,
+                            SimpleNamespace(actuator_refit=None, sim_effects=[]))
+    assert gain.duration_s == pytest.approx(2.0)
+    assert gain.traces["t"][0] == 0.0 and len(gain.traces["baseline"]["ankle_dp"]) == t.size
+    assert np.isfinite(gain.nrmse_baseline) and gain.nrmse_baseline == gain.nrmse_extended
+
+
+def test_a_long_pause_in_irregular_stamps_is_left_out_of_the_grid():
+    """A jittered 1 kHz log with a day's pause in the middle: a grid over the pause would hold 86 M rows (a
+    MemoryError); it holds the logged stretches only, the rows beside the pause masked."""
+    rng = np.random.default_rng(5)
+    n = 4000
+    t = 1e-3 * (np.arange(n) + rng.uniform(-0.3, 0.3, n))
+    t[n // 2:] += 86400.0
+    cols = {"t": t, "motor_pos_1": np.sin(t), "current_cmd_1": np.cos(t)}
+    good = np.ones(n, dtype=bool)
+    good[n // 2 - 1:n // 2 + 1] = False                  # screening masks the samples around a time gap
+    rec, ok, note = to_uniform_grid(Recording(cols, "paused"), good)
+    assert note and abs(len(rec) - n) <= 4
+    assert np.allclose(rec["motor_pos_1"][ok], np.sin(rec["t"][ok]), atol=1e-5)
+    pause = np.flatnonzero(np.diff(rec["t"]) > 1.0)
+    assert len(pause) == 1 and not ok[pause[0]] and not ok[pause[0] + 1]
+
+
+def test_a_baseline_re_fit_the_config_refuses_is_named():
+    cfg = load_config(SIM_CONFIG)
+    assert _refit_problem(cfg, {"coulomb": float(cfg["actuator"]["coulomb"])}) is None
+    assert "actuator.coulomb" in _refit_problem(cfg, {"coulomb": -0.04})
+    assert "unstable" in _refit_problem(cfg, {"inertia": 0.1 * float(cfg["actuator"]["inertia"])})
+
+
+@pytest.fixture(scope="module")
+def walking_case():
+    """Generator D's seed 112: an effect-free walking record under the motor PD, with joint encoders."""
+    return make_case_d(**draw_case_d(112))
+
+
+def _variant(rec: Recording, **cols: np.ndarray) -> Recording:
+    return Recording({**rec.columns, **cols}, rec.source)
+
+
+def test_gauges_of_the_wrong_sign_are_a_warning_and_nothing_named(walking_case):
+    c = walking_case
+    flip = {g: -c.ident[g] for g in ("sg_torque_dp", "sg_torque_ie")}
+    vflip = {g: -c.valid[g] for g in ("sg_torque_dp", "sg_torque_ie")}
+    diag = diagnose(_variant(c.ident, **flip), _variant(c.valid, **vflip), plant="ankle", cfg=c.nominal_cfg)
+    assert diag.causes == ["unknown"] and diag.confidence == 0.0
+    assert any("read against the cable stretch" in w for w in diag.data_warnings), diag.data_warnings
+    clean = diagnose(c.ident, c.valid, plant="ankle", cfg=c.nominal_cfg)
+    assert not any("against the cable stretch" in w for w in clean.data_warnings)
+
+
+def test_a_dead_encoder_while_its_motor_is_driven_is_a_warning_and_nothing_named(walking_case):
+    c = walking_case
+    still = np.full(len(c.ident), float(c.ident["motor_pos_2"][0]))
+    diag = diagnose(_variant(c.ident, motor_pos_2=still), c.valid, plant="ankle", cfg=c.nominal_cfg)
+    assert diag.causes == ["unknown"]
+    assert any("motor_pos_2 never changes while current_cmd_2 varies" in w for w in diag.data_warnings)
+
+
+def test_a_one_way_record_writes_no_re_fit_the_config_refuses(walking_case, tmp_path):
+    """Each motor's path folded to one direction (the logged currents kept): the baseline explains nothing
+    and its Coulomb term fits below zero. It is named in a note and left out of the written config,
+    which loads."""
+    c = walking_case
+    fold = {m: c.ident[m][0] + np.r_[0.0, np.cumsum(np.abs(np.diff(c.ident[m])))]
+            for m in ("motor_pos_1", "motor_pos_2")}
+    diag = diagnose(_variant(c.ident, **fold), None, plant="ankle", cfg=c.nominal_cfg)
+    assert diag.causes
+    refused = [n for n in diag.notes if "re-fitted actuator baseline is not used" in n]
+    assert refused and diag.actuator_refit is None, diag.notes
+    out = tmp_path / "extended.yaml"
+    frag = fragment(diag, SIM_CONFIG, out)
+    assert "actuator" not in frag
+    out.write_text(yaml.safe_dump(frag))
+    load_config(out)
