@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import csv
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Iterable, Mapping
@@ -83,11 +84,26 @@ class Recording:
         return float(np.median(np.diff(self.columns["t"])))
 
 
+def _header_hint(header: list[str]) -> str:
+    """The header as read, and the usual reason a required name is not in it (another separator, a
+    comment line first, units in the names), for the error that says it is missing."""
+    shown = ", ".join(repr(h[:40]) for h in header[:6]) + (", ..." if len(header) > 6 else "")
+    if len(header) == 1 and any(sep in header[0] for sep in ";\t|"):
+        return f"; the header is one cell, {header[0][:60]!r}: the columns must be separated by commas"
+    if header and header[0].startswith("#"):
+        return f"; the first line is {header[0][:60]!r}: the header must be the first line"
+    bare = {re.split(r"[\s\[(]", h, maxsplit=1)[0] for h in header}
+    if {"t", "motor_pos_1"} & bare:
+        return f"; the header is {shown}: a name carries no unit ('t', not 't [s]'; every unit is SI)"
+    return f"; the header is {shown}"
+
+
 def _required_columns(header: list[str], path: str | Path) -> None:
     if "t" not in header:
-        raise InterchangeError("required column missing (time in s)", path, "t", 0)
+        raise InterchangeError("required column missing (time in s)" + _header_hint(header), path, "t", 0)
     if "motor_pos_1" not in header:
-        raise InterchangeError("required column missing (motor angle in rad)", path, "motor_pos_1", 0)
+        raise InterchangeError("required column missing (motor angle in rad)" + _header_hint(header), path,
+                               "motor_pos_1", 0)
     two = "motor_pos_2" in header
     pairs = ("current_cmd", "motor_torque")
     suffixes = ("_1", "_2") if two else ("_1",)

@@ -54,6 +54,21 @@ def test_a_utf8_bom_is_accepted(tmp_path, columns):
     assert len(read_csv(path)) == len(columns["t"])
 
 
+@pytest.mark.parametrize("header,says", [
+    ("t;motor_pos_1;current_cmd_1", "separated by commas"),
+    ("# logged on the bench\nt,motor_pos_1,current_cmd_1", "the header must be the first line"),
+    ("t [s],motor_pos_1 [rad],current_cmd_1 [A]", "a name carries no unit"),
+    ("time,pos,i", "the header is 'time', 'pos', 'i'"),
+])
+def test_a_header_without_the_time_column_says_what_was_read(tmp_path, header, says):
+    sep = ";" if ";" in header else ","
+    path = tmp_path / "odd.csv"
+    path.write_text(header + "\n" + "\n".join(sep.join(["0.00" + str(i), "0", "0"]) for i in range(1, 4)) + "\n")
+    with pytest.raises(InterchangeError, match="required column missing") as err:
+        read_csv(path)
+    assert says in str(err.value)
+
+
 def test_rows_with_extra_cells_are_refused(tmp_path, columns):
     path = csv_of(tmp_path, columns)
     lines = path.read_text().splitlines()
