@@ -19,7 +19,7 @@ from ankle_rt.diagnosis import diagnose
 from ankle_rt.diagnosis.candidates import Cogging, HardeningStiffness, catch_all_motor
 from ankle_rt.diagnosis.model_fragment import fragment
 from ankle_rt.diagnosis.resample import to_uniform_grid
-from ankle_rt.diagnosis.screening import screen
+from ankle_rt.diagnosis.screening import _pct, screen
 from ankle_rt.diagnosis.selection import replicates
 from ankle_rt.interchange import Recording
 from tests.diagnosis_cases import ENCODER_SCALE, SG_OFFSET_NM, make_case
@@ -225,6 +225,11 @@ def test_every_sample_at_a_gauge_rail_is_masked_also_a_single_touch():
     assert any("clipped" in w for w in scr.warnings)
     assert not scr.good[touch]
     assert not scr.good[np.abs(gauge) >= level].any()
+
+
+def test_a_small_masked_share_is_not_printed_as_zero():
+    # one held run of 8 samples in a 60 s log at 2 kHz is 0.0067 % of it, not "0.0 %"
+    assert _pct(8 / 120000) == "0.0067 %" and _pct(0.021) == "2.1 %" and _pct(0.0005) == "0.1 %"
 
 
 def test_a_constant_command_with_the_motor_at_rest_is_not_a_held_sample():

@@ -537,7 +537,8 @@ class EncoderScale(Candidate):
         """The scale ratio per axis fitted beside the cable baseline alone (before any effect is chosen)."""
         X = np.hstack([ch.baseline_design(), self.design(ch, 0.0).X])
         coef = np.linalg.lstsq(X, ch.target(), rcond=None)[0]
-        return 1.0 - coef[-2:] / coef[[0, 3]]
+        with np.errstate(divide="ignore", invalid="ignore"):      # silent gauges (no stiffness): nan, no ratio
+            return 1.0 - coef[-2:] / coef[[0, 3]]
 
     def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
         K = base_coef[[0, 3]]

@@ -128,7 +128,9 @@ def _dead_encoder(rec: Recording, i: int, moving: np.ndarray) -> str | None:
 
 
 def _pct(share: float) -> str:
-    return f"{100 * share:.1f} %"
+    """A share in per cent; a small one with two significant digits (a few samples of a 2 kHz log are
+    not "0.0 %")."""
+    return f"{100 * share:.1f} %" if share >= 0.0005 else f"{100 * share:.2g} %"
 
 
 def screen(rec: Recording, v_eps: float, current_limit: float | None = None, label: str = "data") -> Screening:
