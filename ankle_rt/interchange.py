@@ -98,6 +98,15 @@ def _header_hint(header: list[str]) -> str:
     return f"; the header is {shown}"
 
 
+def _repeated_stamp_hint(before: float, stamp: float) -> str:
+    """Why a clock's large stamp may repeat: written with too few digits (a UNIX time to 9 significant
+    digits keeps whole seconds), which the file's reader cannot undo."""
+    if stamp != before or abs(stamp) < 1e4:
+        return ""
+    return (f" ({stamp!r} twice: a clock's stamps written with too few digits? write t with 17 significant "
+            "digits, or in s from the record's start)")
+
+
 def _required_columns(header: list[str], path: str | Path) -> None:
     if "t" not in header:
         raise InterchangeError("required column missing (time in s)" + _header_hint(header), path, "t", 0)
@@ -176,7 +185,8 @@ def read_columns(path: str | Path, columns: Iterable[str], check_header: Callabl
                                            f"({_UNIT_HINTS[unit]} or a damaged file)", path, name, row_no)
                 data[name].append(value)
             if times is not None and len(times) > 1 and times[-1] <= times[-2]:
-                raise InterchangeError("time does not increase", path, "t", row_no)
+                raise InterchangeError("time does not increase" + _repeated_stamp_hint(times[-2], times[-1]),
+                                       path, "t", row_no)
     except TextFileError as exc:
         raise InterchangeError(str(exc), path) from None
     except csv.Error as exc:

@@ -69,6 +69,14 @@ def test_a_header_without_the_time_column_says_what_was_read(tmp_path, header, s
     assert says in str(err.value)
 
 
+def test_a_clock_stamp_written_with_too_few_digits_is_named(tmp_path):
+    path = tmp_path / "epoch.csv"
+    rows = [f"{1.7e9 + 1e-3 * i:.9g},0,0" for i in range(5)]
+    path.write_text("t,motor_pos_1,current_cmd_1\n" + "\n".join(rows) + "\n")
+    with pytest.raises(InterchangeError, match="time does not increase.*too few digits"):
+        read_csv(path)
+
+
 def test_rows_with_extra_cells_are_refused(tmp_path, columns):
     path = csv_of(tmp_path, columns)
     lines = path.read_text().splitlines()
