@@ -566,13 +566,15 @@ def _shown_in_motion(models: ChannelModels, chosen: list[Term], nl_sd: list[floa
 
 def _calibrations_in_place(models: ChannelModels, chosen: list[Term], nl_sd: list[float], pool: list[Candidate],
                            n_eff: float, out: ChannelResult) -> tuple[list[Term], list[float]]:
-    """Each chosen effect tested against a calibration (:attr:`Candidate.calibration`, not chosen yet) that
-    fits better in its place by the criterion: the calibration takes the place, and the effect stays only
-    where it then passes the criterion, the residual share and the held-out blocks on top of it (each change
-    noted). Of two explanations the data prefer, the one that only re-tunes the baseline names nothing: a
-    Stribeck term at its grid's narrowest beside the effects that fit first is a sharper Coulomb transition
-    (generator D seed 719: cogging and a Stribeck term of confidence 0.0005, the transition 30.8 better in
-    its place)."""
+    """Each chosen effect tested against the calibration (:attr:`Candidate.calibration`, not chosen yet)
+    that fits best in its place, when that is better by more than AMBIGUOUS_IC (closer, both are reported
+    as alternatives) and its fitted values are a calibration's (:meth:`Candidate.rejection`): the
+    calibration takes the place, and the effect stays beside it only where it then passes the criterion,
+    the residual share and the held-out blocks on top of it and the calibration still earns its own place
+    (each change noted). Of two explanations the data prefer, the one that only re-tunes the baseline names
+    nothing: a Stribeck term at its grid's narrowest beside the effects that fit first is a sharper Coulomb
+    transition (generator D seed 719: cogging and a Stribeck term of confidence 0.0005, the transition
+    30.8 better in its place)."""
     for cause in [t.cause for t in chosen if not t.candidate.calibration]:
         i = next((j for j, o in enumerate(chosen) if o.cause == cause), None)    # one term per cause
         if i is None:
@@ -580,29 +582,45 @@ def _calibrations_in_place(models: ChannelModels, chosen: list[Term], nl_sd: lis
         t = chosen[i]
         others = chosen[:i] + chosen[i + 1:]
         residual = models.fit(others).residual
-        for c in pool:
-            if not c.calibration or any(o.cause == c.cause for o in chosen):
-                continue
-            trial = others + [models.term(c, models.best_of(c, others, residual).nl)]
-            if (margin := models.ic(chosen, n_eff) - models.ic(trial, n_eff)) <= 0.0:
-                continue
-            trial = _settle(models, trial, n_eff)[0]
-            again = score_against(models, models.best_of(t.candidate, trial, models.fit(trial).residual),
-                                  models.rss(trial), models.k(trial), n_eff)
-            # on top of the calibration the effect needs the criterion, the residual share and the held-out
-            # blocks, not the practical size again: the size it passed included the low-speed friction
-            # both fit (D 703: a true Stribeck term 0.0005 on top, removing 10.7 % of the residual)
-            back = (again.delta_ic > IC_THRESHOLD and again.reduction > MIN_REDUCTION
-                    and cv_wins(models, trial, trial + [models.term(t.candidate, again.nl)])[0])
-            out.notes.append(f"{c.cause} fits {margin:.1f} better in the place of {t.cause}: "
-                             + (f"{t.cause} kept beside it (criterion gain {again.delta_ic:.1f} on top)" if back else
-                                f"{t.cause} replaced (on top of it, criterion gain {again.delta_ic:.1f}, "
-                                f"removes {100 * again.reduction:.1f} % of the residual)"))
-            if back:
-                trial = trial + [models.term(t.candidate, again.nl)]
-            chosen, nl_sd = _settle(models, trial, n_eff)
-            break
+        trials = [others + [models.term(c, models.best_of(c, others, residual).nl)] for c in pool
+                  if c.calibration and all(o.cause != c.cause for o in chosen)]
+        trials = [tr for tr in trials if _calibration_values(models, tr, n_eff)]
+        if not trials:
+            continue
+        trial = min(trials, key=lambda tr: models.ic(tr, n_eff))
+        if (margin := models.ic(chosen, n_eff) - models.ic(trial, n_eff)) <= AMBIGUOUS_IC:
+            continue
+        trial = _settle(models, trial, n_eff)[0]
+        calibration = trial[-1].cause
+        again = score_against(models, models.best_of(t.candidate, trial, models.fit(trial).residual),
+                              models.rss(trial), models.k(trial), n_eff)
+        both = trial + [models.term(t.candidate, again.nl)]
+        # on top of the calibration the effect needs the criterion, the residual share and the held-out
+        # blocks, not the practical size again: the size it passed included the low-speed friction both
+        # fit (D 703: a true Stribeck term 0.0005 on top, removing 10.7 % of the residual)
+        back = (again.delta_ic > IC_THRESHOLD and again.reduction > MIN_REDUCTION
+                and cv_wins(models, trial, both)[0])
+        if back and not significant(_drop_score(models, both, len(both) - 2, n_eff)):
+            continue            # beside the effect the calibration adds nothing: the effect alone stays
+        out.notes.append(f"{calibration} fits {margin:.1f} better in the place of {t.cause}: "
+                         + (f"{t.cause} kept beside it (criterion gain {again.delta_ic:.1f} on top)" if back else
+                            f"{t.cause} replaced (on top of it, criterion gain {again.delta_ic:.1f}, "
+                            f"removes {100 * again.reduction:.1f} % of the residual)"))
+        chosen, nl_sd = _settle(models, both if back else trial, n_eff)
     return chosen, nl_sd
+
+
+def _calibration_values(models: ChannelModels, terms: list[Term], n_eff: float) -> bool:
+    """Whether the last of ``terms`` fits values its calibration can take (:meth:`Candidate.rejection`
+    beside the others: a torque-constant scale within its range, a sharper transition, not a smoother
+    one). A calibration refused later would take the effect it replaced with it."""
+    f = models.fit(terms)
+    sl = models.slices(terms)[-1]
+    cov = f.covariance(n_eff)
+    t = terms[-1]
+    base = f.coef[:models.Xb.shape[1]]
+    params = t.candidate.parameters(f.coef[sl], cov[sl, sl], t.nl, 0.0, models.ch, base)
+    return t.candidate.rejection(params, f.coef[sl], base) is None
 
 
 def _not_in_motion(models: ChannelModels, chosen: list[Term], i: int, n_eff: float) -> str | None:
