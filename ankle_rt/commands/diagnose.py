@@ -85,7 +85,7 @@ def run(args: argparse.Namespace) -> int:
     if args.data is None:
         print("ankle-rt diagnose: give a data file (or --batch DIR)", file=sys.stderr)
         return 2
-    from ankle_rt.config import load_config
+    from ankle_rt.config import ConfigError, load_config
     from ankle_rt.diagnosis import DiagnosisError, diagnose
     from ankle_rt.diagnosis.closed_loop import applicable, closed_loop_gain
     from ankle_rt.diagnosis.model_fragment import write_fragment
@@ -119,7 +119,10 @@ def run(args: argparse.Namespace) -> int:
     if (not args.no_closed_loop and args.config and args.plant == "ankle" and diag.effects
             and applicable(run_data)):
         progress.update(2, "closed-loop simulation of both models")
-        closed = closed_loop_gain(run_data, args.config, diag)
+        try:
+            closed = closed_loop_gain(run_data, args.config, diag)
+        except ConfigError as exc:       # the controller built on the re-fit refuses it: no re-run, a note
+            diag.notes.append(f"closed-loop gain not computed: {exc}")
     progress.update(3, "writing the results")
     if args.write_model:
         try:

@@ -533,12 +533,25 @@ class EncoderScale(Candidate):
     def design(self, ch, nl):
         return Design(ch.per_column(ch.sm.smooth(ch.joint)))
 
+    def _beside_baseline(self, ch: CableChannel) -> np.ndarray:
+        """The cable baseline's coefficients fitted with the scale columns."""
+        X = np.hstack([ch.baseline_design(), self.design(ch, 0.0).X])
+        return np.linalg.lstsq(X, ch.target(), rcond=None)[0]
+
     def ratios(self, ch: CableChannel) -> np.ndarray:
         """The scale ratio per axis fitted beside the cable baseline alone (before any effect is chosen)."""
-        X = np.hstack([ch.baseline_design(), self.design(ch, 0.0).X])
-        coef = np.linalg.lstsq(X, ch.target(), rcond=None)[0]
+        coef = self._beside_baseline(ch)
         with np.errstate(divide="ignore", invalid="ignore"):      # silent gauges (no stiffness): nan, no ratio
             return 1.0 - coef[-2:] / coef[[0, 3]]
+
+    def stiffness(self, ch: CableChannel) -> tuple[np.ndarray, np.ndarray]:
+        """The cable stiffness per axis (N m/rad) fitted beside the scale columns, and the spring term's
+        size against the gauge torque's (sd of K x stretch over sd of the torque): a motor-encoder scale
+        error tilts the measured stretch, which can turn the baseline's own stiffness negative (0.9 on
+        generator D's seed 112: -2152 N m/rad on DP); a gauge of the wrong sign turns it negative either way."""
+        k = self._beside_baseline(ch)[[0, 3]]
+        size = np.abs(k) * np.std(ch.L_phi, axis=0) / np.maximum(np.std(ch.L_tau_j, axis=0), 1e-300)
+        return k, size
 
     def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
         K = base_coef[[0, 3]]

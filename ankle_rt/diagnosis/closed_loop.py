@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from ankle_rt.diagnosis.core import Diagnosis
+from ankle_rt.diagnosis.resample import GRID_GAP_S
 from ankle_rt.interchange import Recording
 
 POSITION_COLUMNS = ("motor_pos_1", "motor_pos_2", "ankle_dp", "ankle_ie")
@@ -40,8 +41,9 @@ class ClosedLoopGain:
 
 
 def applicable(rec: Recording) -> bool:
-    """A daemon run with references (the controller then comes from the run's config)."""
-    return "ref_dp" in rec and "ref_ie" in rec
+    """A daemon run with references (the controller then comes from the run's config), without a pause
+    longer than the uniform grid bridges: a re-run spans the record's whole time, a day's pause included."""
+    return "ref_dp" in rec and "ref_ie" in rec and float(np.max(np.diff(rec["t"]))) <= GRID_GAP_S
 
 
 def closed_loop_gain(rec: Recording, config_path: str | Path, diag: Diagnosis) -> ClosedLoopGain:

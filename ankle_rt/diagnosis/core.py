@@ -35,7 +35,8 @@ from ankle_rt.diagnosis.screening import Screening, screen, strain_gauge_drift, 
 from ankle_rt.diagnosis.selection import (IC_THRESHOLD, LARGE_REDUCTION, MIN_REDUCTION, MIN_SIZE, MIN_SIZE_UNKNOWN,
                                           MIN_UNKNOWN_REDUCTION, AMBIGUOUS_IC, ChannelModels, ChannelResult, Score,
                                           replicates, select_channel, significant)
-from ankle_rt.diagnosis.signals import CableChannel, Geometry, LoadChannel, MotorChannel, lattice_step, require_length
+from ankle_rt.diagnosis.signals import (LINEAR_LOAD_SHARE, CableChannel, Geometry, LoadChannel, MotorChannel,
+                                       lattice_step, require_length)
 from ankle_rt.interchange import InterchangeError, Recording
 
 #: a named set must explain at least this fraction of what the catch-all removes from the baseline
@@ -523,28 +524,41 @@ def _adequacy(results: list[ChannelResult]) -> dict[str, Any]:
                      "adequate": not r.unexplained} for r in results}
 
 
-def _gauges_against_stretch(results: list[ChannelResult]) -> str | None:
-    """A warning where the gauges read against the cable stretch: a cable stiffness fitted below zero by
-    more than 3 sd on some axis (a gauge of the wrong sign, or the axes swapped). No cable law holds
-    there, and the motor side's cable torque is wrong too: every effect would be judged against it."""
-    res = next((r for r in results if r.name == "cable"), None)
-    if res is None or not res.baseline.rss > 0.0:
-        return None
-    coef = res.baseline.coef
-    sd = np.sqrt(np.maximum(np.diag(res.baseline.covariance(res.n_eff)), 0.0))
-    bad = [i for i in range(res.channel.m) if coef[PER * i] < -3.0 * sd[PER * i]]
-    if not bad:
-        return None
-    axes = ", ".join(f"{CableChannel.AXES[i].upper()} {coef[PER * i]:.4g} N m/rad" for i in bad)
-    return (f"the strain gauges read against the cable stretch (cable stiffness fitted at {axes}): a gauge "
-            "of the wrong sign or swapped axes; nothing is named")
+def _gauges_against_stretch(chan_sets: list[dict[str, Any]]) -> str | None:
+    """A warning where the gauges read against the stretch in a record (identification, validation): a
+    cable stiffness fitted below zero on some axis, beside the encoder-scale columns, with a spring term
+    of the gauge torque's size (AGAINST_SHARE of its sd), or a spring law of the motor angles below zero
+    that explains as much as a rig's (LINEAR_LOAD_SHARE; on a rig the joint angle's scale column takes
+    the cable's spring term, as the rig's torque follows the angle). That is a gauge of the wrong
+    sign or swapped axes: no cable law holds, and the motor side's cable torque is wrong too, so every
+    effect would be judged against it (both gauges flipped read `none`)."""
+    for chans in chan_sets:
+        found: dict[int, float] = {}
+        if "cable" in chans:
+            stiffness, size = EncoderScale().stiffness(chans["cable"])
+            found |= {i: k for i, k in enumerate(stiffness) if k < 0.0 and size[i] >= AGAINST_SHARE}
+        if "load" in chans:
+            load = chans["load"]
+            found |= {i: k for i, k in enumerate(load.stiffness)
+                      if k < 0.0 and load.spring_share[i] >= LINEAR_LOAD_SHARE}
+        if found:
+            axes = ", ".join(f"{CableChannel.AXES[i].upper()} {k:.4g} N m/rad" for i, k in sorted(found.items()))
+            return (f"the strain gauges read against the stretch (stiffness fitted at {axes}): a gauge of the "
+                    "wrong sign or swapped axes; nothing is named")
+    return None
+
+
+#: size (sd) of a negative spring term against the gauge torque's before the gauges are taken to read against
+#: the stretch (flipped gauges: ~1; silent gauges, or motor angles that follow no stretch: ~0)
+AGAINST_SHARE = 0.5
 
 
 def _refit_problem(cfg: Mapping[str, Any], refit: dict[str, float]) -> str | None:
-    """Why the config would refuse the re-fitted actuator baseline (a range, the controller's gain margin
-    on the re-fitted plant), None if it takes it: a baseline fitted where it explains nothing (motion one
-    way only: a negative Coulomb term; gauges of the wrong sign: a tenth of the inertia) is never simulated
-    or written into a config that then fails to load."""
+    """Why the config loader would refuse the re-fitted actuator baseline (a range, the controller's gain
+    margin on the re-fitted plant), None if it takes it: a baseline fitted where it explains nothing
+    (motion one way only: a negative Coulomb term; gauges of the wrong sign: a tenth of the inertia) is
+    never simulated or written into a config that then fails to load. The effects' own values are checked
+    as candidates (rejection), the controller's build-time checks by the closed loop's run."""
     data = config_data(cfg)
     data["actuator"].update(refit)
     try:
@@ -681,6 +695,9 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
         _remove_gauge_offsets(chans, "identification", warnings)
         _remove_gauge_offsets(vchans, "validation", warnings)
     _motor_scales(chans)
+    if (against := _gauges_against_stretch([chans, vchans])) is not None:
+        warnings.append(against)
+        unusable = True
     skip = scr.skip
     motor_pool = tuple(c for c in MOTOR_CANDIDATES if c.cause not in skip)
     motor_catch_all = without_groups(catch_all_motor, INPUT_GROUPS) if scr.one_way or vscr.one_way else catch_all_motor
@@ -692,9 +709,6 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
     if cable_side == "load":
         results.append(select_channel("load", chans["load"], LOAD_CANDIDATES, load_catch_all))
 
-    if (against := _gauges_against_stretch(results)) is not None:
-        warnings.append(against)
-        unusable = True
     notes += [f"{res.name} channel: {n}" for res in results for n in res.notes]
     catch_alls = {"motor": motor_catch_all, "cable": catch_all_cable, "load": load_catch_all}
     chosen, unexplained = _named_sets(results, notes, unusable, vmodels, catch_alls)
@@ -753,7 +767,9 @@ def diagnose(ident: Recording, validation: Recording | None = None, *, plant: st
             # the baseline was fitted in configured-torque units: scale tau = J a + ..., so J, D, kc scale too
             for key in ("inertia", "damping", "coulomb"):
                 actuator_refit[key] *= scale
-        if (problem := _refit_problem(cfg, actuator_refit)) is not None:
+        if unusable:
+            actuator_refit = None          # fitted on what the screening found unusable: nothing to re-fit
+        elif (problem := _refit_problem(cfg, actuator_refit)) is not None:
             notes.append(f"the re-fitted actuator baseline is not used (neither simulated nor written by "
                          f"--write-model; the config's values stay): {problem}")
             actuator_refit = None
