@@ -92,16 +92,18 @@ def _header_hint(header: list[str]) -> str:
         return f"; the header is one cell, {header[0][:60]!r}: the columns must be separated by commas"
     if header and header[0].startswith("#"):
         return f"; the first line is {header[0][:60]!r}: the header must be the first line"
-    bare = {re.split(r"[\s\[(]", h, maxsplit=1)[0] for h in header}
-    if {"t", "motor_pos_1"} & bare:
+    required = {"t", "motor_pos_1"}
+    if any(re.split(r"[\s\[(]", h, maxsplit=1)[0] in required - {h} for h in header):
         return f"; the header is {shown}: a name carries no unit ('t', not 't [s]'; every unit is SI)"
+    if "t" not in header and any(h.lower() in ("t", "time", "timestamp", "time_s") for h in header):
+        return f"; the header is {shown}: the time column is named 't' (in s; every name lower case)"
     return f"; the header is {shown}"
 
 
 def _repeated_stamp_hint(before: float, stamp: float) -> str:
     """Why a clock's large stamp may repeat: written with too few digits (a UNIX time to 9 significant
     digits keeps whole seconds), which the file's reader cannot undo."""
-    if stamp != before or abs(stamp) < 1e4:
+    if stamp != before or abs(stamp) < 100.0:
         return ""
     return (f" ({stamp!r} twice: a clock's stamps written with too few digits? write t with 17 significant "
             "digits, or in s from the record's start)")

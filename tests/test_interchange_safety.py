@@ -58,7 +58,8 @@ def test_a_utf8_bom_is_accepted(tmp_path, columns):
     ("t;motor_pos_1;current_cmd_1", "separated by commas"),
     ("# logged on the bench\nt,motor_pos_1,current_cmd_1", "the header must be the first line"),
     ("t [s],motor_pos_1 [rad],current_cmd_1 [A]", "a name carries no unit"),
-    ("time,pos,i", "the header is 'time', 'pos', 'i'"),
+    ("tick,pos,i", "the header is 'tick', 'pos', 'i'"),
+    ("Time,motor_pos_1,current_cmd_1", "the time column is named 't'"),
 ])
 def test_a_header_without_the_time_column_says_what_was_read(tmp_path, header, says):
     sep = ";" if ";" in header else ","
@@ -67,6 +68,7 @@ def test_a_header_without_the_time_column_says_what_was_read(tmp_path, header, s
     with pytest.raises(InterchangeError, match="required column missing") as err:
         read_csv(path)
     assert says in str(err.value)
+    assert ("carries no unit" in str(err.value)) == ("[" in header)
 
 
 def test_a_clock_stamp_written_with_too_few_digits_is_named(tmp_path):

@@ -115,22 +115,34 @@ def _held(x: np.ndarray, rail: np.ndarray, at_rest: np.ndarray | None = None) ->
 
 def _dead_encoder(rec: Recording, i: int, moving: np.ndarray) -> str | None:
     """What motor ``i``'s set value does while its encoder never changes and another motor moves (None
-    when the encoder changes, its set value is constant too, or no motor moves): such a motor's inertia,
-    damping and friction fit to zero and every other effect's share is judged against a silent column."""
+    when the encoder changes, no other motor moves, or its set value spans less than DEAD_SPAN_SHARE of a
+    moving motor's: a parked motor holding against a varying load): such a motor's inertia, damping and
+    friction fit to zero and every other effect's share is judged against a silent column."""
     pos = np.asarray(rec[f"motor_pos_{i + 1}"], dtype=float)
-    others = np.delete(moving, i, axis=1)
-    if np.ptp(pos) > 0.0 or not others.any():
+    if np.ptp(pos) > 0.0:
         return None
-    for col in (f"current_cmd_{i + 1}", f"motor_torque_{i + 1}"):
-        if col in rec and (span := float(np.ptp(np.asarray(rec[col], dtype=float)))) > 0.0:
-            return f"{col} varies ({span:.3g} peak to peak)"
+    for prefix, unit in (("current_cmd", "A"), ("motor_torque", "N m")):
+        col = f"{prefix}_{i + 1}"
+        if col not in rec:
+            continue
+        span = float(np.ptp(np.asarray(rec[col], dtype=float)))
+        driven = [float(np.ptp(np.asarray(rec[f"{prefix}_{j + 1}"], dtype=float))) for j in range(moving.shape[1])
+                  if j != i and moving[:, j].any() and f"{prefix}_{j + 1}" in rec]
+        if driven and span >= DEAD_SPAN_SHARE * max(driven):
+            return f"{col} spans {span:.3g} {unit}"
     return None
 
 
+#: a still motor's set value must span this share of a moving motor's before its encoder counts as dead
+DEAD_SPAN_SHARE = 0.25
+
+
 def _pct(share: float) -> str:
-    """A share in per cent; a small one with two significant digits (a few samples of a 2 kHz log are
+    """A share in per cent; one below 0.1 % with two significant digits (a few samples of a 2 kHz log are
     not "0.0 %")."""
-    return f"{100 * share:.1f} %" if share >= 0.0005 else f"{100 * share:.2g} %"
+    if share >= 0.001:
+        return f"{100 * share:.1f} %"
+    return np.format_float_positional(100 * share, precision=2, fractional=False, trim="-") + " %"
 
 
 def screen(rec: Recording, v_eps: float, current_limit: float | None = None, label: str = "data") -> Screening:
