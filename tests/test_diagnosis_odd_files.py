@@ -13,7 +13,7 @@ import yaml
 from ankle_rt.config import load_config
 from ankle_rt.diagnosis import diagnose
 from ankle_rt.diagnosis.closed_loop import closed_loop_gain
-from ankle_rt.diagnosis.core import _refit_problem
+from ankle_rt.diagnosis.core import _gauges_against_stretch, _refit_problem, build_channels, resolve_inputs
 from ankle_rt.diagnosis.model_fragment import fragment
 from ankle_rt.diagnosis.resample import to_uniform_grid
 from ankle_rt.diagnosis.screening import screen
@@ -82,14 +82,19 @@ def test_gauges_of_the_wrong_sign_are_a_warning_and_nothing_named(walking_case):
     assert any("read against the stretch" in w for w in diag.data_warnings), diag.data_warnings
 
 
-def test_a_motor_encoder_scale_error_is_not_read_as_gauges_of_the_wrong_sign(walking_case):
-    """Motor angles read 0.9 x: the measured stretch tilts, and the cable baseline alone fitted a negative
-    stiffness (DP -2152 N m/rad). Beside the encoder-scale columns it stays positive."""
-    c = walking_case
-    scaled = {m: 0.9 * c.ident[m] for m in ("motor_pos_1", "motor_pos_2")}
-    vscaled = {m: 0.9 * c.valid[m] for m in ("motor_pos_1", "motor_pos_2")}
-    diag = diagnose(_variant(c.ident, **scaled), _variant(c.valid, **vscaled), plant="ankle", cfg=c.nominal_cfg)
-    assert not any("against the stretch" in w for w in diag.data_warnings), diag.data_warnings
+@pytest.mark.parametrize("seed,change,against", [
+    (112, "clean", False), (112, "flip", True), (112, "scale", False),
+    (115, "clean", False), (115, "flip", True), (115, "scale", False)])
+def test_gauges_against_the_stretch_are_told_from_an_encoder_scale_and_from_walking(seed, change, against):
+    """Generator D's 112 (a rig) and 115 (walking, effect-free): both gauges flipped read against the
+    stretch; motor angles read 0.9 x tilt it (the cable baseline alone fitted -2152 N m/rad on 112's DP),
+    and in walking the spring law of the motor angles fits IE at -638 N m/rad (115): neither is flagged."""
+    c = make_case_d(**draw_case_d(seed))
+    cols = {"flip": {g: -c.ident[g] for g in ("sg_torque_dp", "sg_torque_ie")},
+            "scale": {m: 0.9 * c.ident[m] for m in ("motor_pos_1", "motor_pos_2")}, "clean": {}}[change]
+    rec = _variant(c.ident, **cols)
+    chans = build_channels(rec, resolve_inputs(rec, "ankle", c.nominal_cfg))
+    assert (_gauges_against_stretch([chans]) is not None) == against
 
 
 @pytest.mark.parametrize("share,dead", [(0.1, False), (0.5, True)])

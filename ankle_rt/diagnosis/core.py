@@ -526,21 +526,22 @@ def _adequacy(results: list[ChannelResult]) -> dict[str, Any]:
 
 def _gauges_against_stretch(chan_sets: list[dict[str, Any]]) -> str | None:
     """A warning where the gauges read against the stretch in a record (identification, validation): a
-    cable stiffness fitted below zero on some axis, beside the encoder-scale columns, with a spring term
-    of the gauge torque's size (AGAINST_SHARE of its sd), or a spring law of the motor angles below zero
-    that explains as much as a rig's (LINEAR_LOAD_SHARE; on a rig the joint angle's scale column takes
-    the cable's spring term, as the rig's torque follows the angle). That is a gauge of the wrong
-    sign or swapped axes: no cable law holds, and the motor side's cable torque is wrong too, so every
-    effect would be judged against it (both gauges flipped read `none`)."""
+    cable stiffness below zero on an axis both alone and beside the encoder-scale columns, with a spring
+    term at least AGAINST_SHARE of the gauge torque's sd (a 0.9 motor-encoder scale turns the one alone
+    negative, -2152 N m/rad on generator D's seed 112; in walking the scale column can take the other, 115),
+    or on a rig (a spring law of the motor angles explaining LINEAR_LOAD_SHARE of both axes' torque; there
+    the joint angle's scale column takes the cable's spring term) a rig stiffness below zero. That is a
+    gauge of the wrong sign or swapped axes: no cable law holds, and the motor side's cable torque is wrong
+    too, so every effect would be judged against it (both gauges flipped read `none`)."""
     for chans in chan_sets:
         found: dict[int, float] = {}
         if "cable" in chans:
-            stiffness, size = EncoderScale().stiffness(chans["cable"])
-            found |= {i: k for i, k in enumerate(stiffness) if k < 0.0 and size[i] >= AGAINST_SHARE}
-        if "load" in chans:
-            load = chans["load"]
-            found |= {i: k for i, k in enumerate(load.stiffness)
-                      if k < 0.0 and load.spring_share[i] >= LINEAR_LOAD_SHARE}
+            ch = chans["cable"]
+            alone = np.linalg.lstsq(ch.baseline_design(), ch.target(), rcond=None)[0][[0, PER]]
+            beside, size = EncoderScale().stiffness(ch)
+            found |= {i: k for i, k in enumerate(alone) if k < 0.0 and beside[i] < 0.0 and size[i] >= AGAINST_SHARE}
+        if "load" in chans and np.all(chans["load"].spring_share >= LINEAR_LOAD_SHARE):
+            found |= {i: k for i, k in enumerate(chans["load"].stiffness) if k < 0.0}
         if found:
             axes = ", ".join(f"{CableChannel.AXES[i].upper()} {k:.4g} N m/rad" for i, k in sorted(found.items()))
             return (f"the strain gauges read against the stretch (stiffness fitted at {axes}): a gauge of the "
