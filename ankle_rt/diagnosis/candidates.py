@@ -87,6 +87,11 @@ class Candidate:
         bad = [k for k, (v, _) in params.items() if not math.isfinite(v)]
         return f"non-finite {', '.join(bad)}" if bad else None
 
+    def refusal(self, coef: np.ndarray, cov: np.ndarray, nl: float, nl_sd: float, ch: Channel,
+                base_coef: np.ndarray) -> str | None:
+        """:meth:`rejection` of the parameters these fitted ``coef`` (their ``cov``) give at ``nl``."""
+        return self.rejection(self.parameters(coef, cov, nl, nl_sd, ch, base_coef), coef, base_coef)
+
     def holding(self, ch: Channel, coef: np.ndarray) -> float | np.ndarray:
         """The friction this block adds near zero speed with its coefficients ``coef`` (N m, one number or
         per sample and motor): what it holds a resting motor with beside the nominal Coulomb level

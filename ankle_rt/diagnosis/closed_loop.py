@@ -59,8 +59,9 @@ def closed_loop_gain(rec: Recording, config_path: str | Path, diag: Diagnosis) -
     t = np.asarray(rec["t"], dtype=float) - float(rec["t"][0])
     duration = float(t[-1] + rec.dt)
     cols = tuple(c for c in POSITION_COLUMNS if c in rec)
-    measured = Recording({"t": t, **{c: rec[c] for c in cols}}, rec.source)
-    traces: dict[str, Any] = {"t": t, "measured": {c: rec[c] for c in cols}}
+    angles = {c: rec[c] for c in cols}
+    measured = Recording({"t": t, **angles}, rec.source)
+    traces: dict[str, Any] = {"t": t, "measured": angles}
     out = {}
     for name, effects in (("baseline", []), ("extended", diag.sim_effects)):
         cfg = load_config(config_path, overrides={**refit, "sim": {"effects": effects}})

@@ -18,8 +18,8 @@ Steps (docs/diagnosis.md explains the choices):
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 from collections.abc import Mapping
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -458,8 +458,7 @@ def _rejection(res: ChannelResult, cf: ChannelFit, i: int) -> str | None:
     cand, nl, nl_sd = cf.specs[i]
     sl = cf.slices[i]
     base = cf.coef[:cf.n_base]
-    reason = cand.rejection(cand.parameters(cf.coef[sl], cf.cov[sl, sl], nl, nl_sd, res.channel, base),
-                            cf.coef[sl], base)
+    reason = cand.refusal(cf.coef[sl], cf.cov[sl, sl], nl, nl_sd, res.channel, base)
     if reason or cand.nonlinear is None or cand.integer:
         return reason
     grid = sorted(cand.grid(res.channel))

@@ -590,7 +590,7 @@ def _calibrations_in_place(models: ChannelModels, chosen: list[Term], nl_sd: lis
         trial = min(trials, key=lambda tr: models.ic(tr, n_eff))
         if (margin := models.ic(chosen, n_eff) - models.ic(trial, n_eff)) <= AMBIGUOUS_IC:
             continue
-        trial = _settle(models, trial, n_eff)[0]
+        trial, trial_sd = _settle(models, trial, n_eff)
         calibration = trial[-1].cause
         again = score_against(models, models.best_of(t.candidate, trial, models.fit(trial).residual),
                               models.rss(trial), models.k(trial), n_eff)
@@ -606,7 +606,7 @@ def _calibrations_in_place(models: ChannelModels, chosen: list[Term], nl_sd: lis
                          + (f"{t.cause} kept beside it (criterion gain {again.delta_ic:.1f} on top)" if back else
                             f"{t.cause} replaced (on top of it, criterion gain {again.delta_ic:.1f}, "
                             f"removes {100 * again.reduction:.1f} % of the residual)"))
-        chosen, nl_sd = _settle(models, both if back else trial, n_eff)
+        chosen, nl_sd = _settle(models, both, n_eff) if back else (trial, trial_sd)
     return chosen, nl_sd
 
 
@@ -618,9 +618,7 @@ def _calibration_values(models: ChannelModels, terms: list[Term], n_eff: float) 
     sl = models.slices(terms)[-1]
     cov = f.covariance(n_eff)
     t = terms[-1]
-    base = f.coef[:models.Xb.shape[1]]
-    params = t.candidate.parameters(f.coef[sl], cov[sl, sl], t.nl, 0.0, models.ch, base)
-    return t.candidate.rejection(params, f.coef[sl], base) is None
+    return t.candidate.refusal(f.coef[sl], cov[sl, sl], t.nl, 0.0, models.ch, f.coef[:models.Xb.shape[1]]) is None
 
 
 def _not_in_motion(models: ChannelModels, chosen: list[Term], i: int, n_eff: float) -> str | None:
