@@ -12,6 +12,7 @@ from ankle_rt.config import load_config
 from ankle_rt.diagnosis import diagnose
 from ankle_rt.diagnosis.candidates import GearBacklash, LoadHardening
 from ankle_rt.diagnosis.core import Inputs, _add_drift_nuisance, _joint_angles_add_noise, build_channels, geometry_of
+from ankle_rt.diagnosis.regression import rss_only
 from ankle_rt.diagnosis.signals import LoadChannel, lattice_step
 from ankle_rt.interchange import Recording
 from benchmarks.diagnosis_cases_c import SIM_CONFIG
@@ -121,6 +122,62 @@ def test_the_rig_law_takes_the_cable_side_only_where_the_joint_counts_are_noise(
         assert chans["load"].linear
         ratio = _joint_angles_add_noise(chans)
         assert (ratio is not None and ratio > 10.0) == coarse, (count, ratio)
+
+
+def _slack_rig(half_width_m: float, joint_count: float) -> Recording:
+    """A cable with a dead zone of ``half_width_m`` m of cable (half_width_m / lever rad of stretch per
+    axis) on stiff torsion springs (350 / 120 N m/rad), quasi-static, the joint angles counted in steps of
+    ``joint_count`` rad: the rig's softer spring in series makes the law of the motor angles the closer
+    linear law, though the joint angles resolve the dead zone."""
+    geometry = geometry_of(load_config(SIM_CONFIG))
+    t = np.arange(0.0, 12.0, 1e-3)
+    phi_m = np.column_stack([0.04 * np.sin(2 * np.pi * 0.3 * t) + 0.012 * np.sin(2 * np.pi * 1.1 * t),
+                             0.03 * np.sin(2 * np.pi * 0.45 * t + 1.0) + 0.01 * np.sin(2 * np.pi * 1.7 * t)])
+    rig, K, b = np.array([350.0, 120.0]), geometry.K, half_width_m / geometry.levers
+    # tau = K (phi_c - b sign phi_c) beyond the dead zone = rig (phi_m - phi_c); inside it the cable is slack
+    phi_c = np.where(np.abs(phi_m) > b, (rig * phi_m + K * b * np.sign(phi_m)) / (K + rig), phi_m)
+    tau = np.where(np.abs(phi_m) > b, K * (phi_c - b * np.sign(phi_c)), 0.0)
+    theta = np.round((phi_m - phi_c) / joint_count) * joint_count
+    motors = phi_m @ np.linalg.inv(geometry.R_inv).T
+    drive = tau @ geometry.R_inv_T.T
+    return Recording({"t": t, "motor_pos_1": motors[:, 0], "motor_pos_2": motors[:, 1],
+                      "motor_torque_1": drive[:, 0], "motor_torque_2": drive[:, 1],
+                      "sg_torque_dp": tau[:, 0], "sg_torque_ie": tau[:, 1],
+                      "ankle_dp": theta[:, 0], "ankle_ie": theta[:, 1]}, "slack rig")
+
+
+def test_a_slack_cable_on_a_stiff_rig_keeps_the_joint_angles():
+    """Generator E: a dead zone in the cables on a stiff rig, with 16-bit joint encoders. Its linear cable
+    law fits the gauges far worse than the rig's law of the motor angles, which hides the dead zone in
+    the rig's softer spring; with its dead zone the cable law fits far better than the load's best form.
+    The joint angles carry the dead zone: the cable channel keeps them."""
+    geometry = geometry_of(load_config(SIM_CONFIG))
+    rec = _slack_rig(1e-4, 2 * np.pi / 65536)
+    inputs = Inputs(kt=None, v_eps=0.01, geometry=geometry, notes=[],
+                    joint_step=max(lattice_step(rec[c]) for c in ("ankle_dp", "ankle_ie")))
+    chans = build_channels(rec, inputs)
+    assert chans["load"].linear
+    cable, load = chans["cable"], chans["load"]
+    linear_cable = rss_only(cable.target(), np.hstack([cable.baseline_design(), cable.history_columns()]))
+    assert rss_only(load.target(), load.baseline_design()) < 0.1 * linear_cable      # linear: "noise"
+    assert _joint_angles_add_noise(chans) is None
+
+
+def test_a_slack_cable_on_a_stiff_rig_is_named_backlash_in_the_cable_channel():
+    """On that rig the motor angles follow the joint angles, so the encoder-scale columns can rebuild the
+    rig's law of the motor angles (scale ratios of thousands): no calibration takes such values, and it is
+    passed over in the selection (noted) instead of being chosen and refused only after it kept the
+    dead zone out. The dead zone is named with its width."""
+    rec = _slack_rig(1e-4, 2 * np.pi / 65536)
+    rng = np.random.default_rng(1)
+    for c in ("sg_torque_dp", "sg_torque_ie"):
+        rec.columns[c] = rec.columns[c] + 0.02 * rng.standard_normal(len(rec))
+    diag = diagnose(rec, None, plant="ankle", cfg=load_config(SIM_CONFIG))
+    assert diag.causes == ["backlash"], (diag.causes, diag.notes)
+    effect = diag.effects[0]
+    assert effect["channel"] == "cable"
+    assert effect["parameters"]["half_width"]["value"] == pytest.approx(1e-4, rel=0.1)
+    assert any("encoder_scale passed over in the selection" in n for n in diag.notes), diag.notes
 
 
 def test_a_gauge_drift_keeps_the_loads_own_dynamics_in_its_baseline():

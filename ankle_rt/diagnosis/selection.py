@@ -383,6 +383,7 @@ def select_channel(name: str, ch: Channel, candidates: tuple[Candidate, ...], ca
     out = ChannelResult(name, ch, base, first, n_eff, models)
 
     chosen: list[Term] = []
+    refused: dict[str, str] = {}          # calibrations passed over in the selection, and why
     current = base
     while len(chosen) < MAX_EFFECTS:
         left = [c for c in pool if all(t.cause != c.cause for t in chosen)]    # one form per cause
@@ -391,6 +392,13 @@ def select_channel(name: str, ch: Channel, candidates: tuple[Candidate, ...], ca
         added = False
         for s in sorted(filter(significant, trials), key=lambda s: -s.delta_ic):
             term = models.term(s.candidate, s.nl)
+            # a calibration is chosen only at values a calibration takes: on a linear rig the motor angles
+            # follow the joint angles, and the encoder-scale columns fitted the rig's law of the motor
+            # angles (ratios of 7750 and -1280, generator E), refused only after it had kept the cable's
+            # dead zone and stiffening out
+            if term.candidate.calibration and (why := _calibration_refusal(models, chosen + [term], n_eff)):
+                refused.setdefault(term.cause, why)
+                continue
             ok, _ = cv_wins(models, chosen, chosen + [term])
             if ok:
                 chosen.append(term)
@@ -399,6 +407,8 @@ def select_channel(name: str, ch: Channel, candidates: tuple[Candidate, ...], ca
                 break
         if not added:
             break
+    out.notes += [f"{cause} passed over in the selection: {why}" for cause, why in refused.items()
+                  if all(t.cause != cause for t in chosen)]
     chosen = _prune(models, chosen, n_eff)
     chosen, out.nl_sd = _settle(models, chosen, n_eff)
     forms = _best_forms(models, list(chosen), pool, n_eff)
@@ -584,7 +594,7 @@ def _calibrations_in_place(models: ChannelModels, chosen: list[Term], nl_sd: lis
         residual = models.fit(others).residual
         trials = [others + [models.term(c, models.best_of(c, others, residual).nl)] for c in pool
                   if c.calibration and all(o.cause != c.cause for o in chosen)]
-        trials = [tr for tr in trials if _calibration_values(models, tr, n_eff)]
+        trials = [tr for tr in trials if _calibration_refusal(models, tr, n_eff) is None]
         if not trials:
             continue
         trial = min(trials, key=lambda tr: models.ic(tr, n_eff))
@@ -610,15 +620,15 @@ def _calibrations_in_place(models: ChannelModels, chosen: list[Term], nl_sd: lis
     return chosen, nl_sd
 
 
-def _calibration_values(models: ChannelModels, terms: list[Term], n_eff: float) -> bool:
-    """Whether the last of ``terms`` fits values its calibration can take (:meth:`Candidate.rejection`
+def _calibration_refusal(models: ChannelModels, terms: list[Term], n_eff: float) -> str | None:
+    """Why the last of ``terms`` fits no values its calibration can take (:meth:`Candidate.rejection`
     beside the others: a torque-constant scale within its range, a sharper transition, not a smoother
-    one). A calibration refused later would take the effect it replaced with it."""
+    one), or None. A calibration refused later would take with it the effects it kept out."""
     f = models.fit(terms)
     sl = models.slices(terms)[-1]
     cov = f.covariance(n_eff)
     t = terms[-1]
-    return t.candidate.refusal(f.coef[sl], cov[sl, sl], t.nl, 0.0, models.ch, f.coef[:models.Xb.shape[1]]) is None
+    return t.candidate.refusal(f.coef[sl], cov[sl, sl], t.nl, 0.0, models.ch, f.coef[:models.Xb.shape[1]])
 
 
 def _not_in_motion(models: ChannelModels, chosen: list[Term], i: int, n_eff: float) -> str | None:
@@ -711,6 +721,8 @@ def _term_stats(models: ChannelModels, chosen: list[Term], i: int, pool: list[Ca
         if any(t.cause == rival.cause for t in chosen):
             continue
         r = models.best_of(rival, rest, residual)
+        if rival.calibration and _calibration_refusal(models, rest + [models.term(rival, r.nl)], n_eff):
+            continue              # at values no calibration takes it is no rival (nor chosen: select_channel)
         margin = information_criterion(r.rss, models.n, r.k, n_eff) - ic_full
         if margin < stats.rival_margin:
             stats.rival, stats.rival_margin = rival.cause, margin
