@@ -191,6 +191,21 @@ def test_a_softening_fit_is_rejected_never_written():
     assert "softening" in cand.rejection(params, np.array([-1.0]), np.array([100.0, 0, 0, 50.0]))
 
 
+def test_a_cable_hardening_within_one_joint_count_is_implausible():
+    """Generator E: beside cogging on a free foot a cubic-like term hardened within 4e-6 rad, 1/23 of a
+    joint count. A hardening stretch below one count (at the longer lever) is below what the measured
+    stretch resolves; one above it, or joint angles read finely (no lattice), is not judged so."""
+    cand = HardeningStiffness()
+    geometry = SimpleNamespace(K=np.array([100.0, 50.0]), levers=np.array([0.05, 0.03]))
+    base = np.array([100.0, 0, 0, 50.0, 0, 0])
+    counted = SimpleNamespace(geometry=geometry, joint_step=1e-3)        # one count: 5e-5 m of cable
+    for s_h, below in ((1e-5, True), (1e-3, False)):
+        why = cand.implausible(np.array([s_h ** -2.0]), 3.0, counted, base)
+        assert (why is not None and "one count of the joint encoders" in why) == below, (s_h, why)
+    fine = SimpleNamespace(geometry=geometry, joint_step=0.0)
+    assert cand.implausible(np.array([1e10]), 3.0, fine, base) is None
+
+
 def _actuator_log(n: int = 6000, dt: float = 1e-3) -> dict[str, np.ndarray]:
     t = np.arange(n) * dt
     pos = 0.5 * np.sin(2 * np.pi * 0.5 * t)

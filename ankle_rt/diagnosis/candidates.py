@@ -756,6 +756,19 @@ class HardeningStiffness(Candidate):
         """The slack parameter of the form (none: the law acts on the whole stretch)."""
         return {}
 
+    def implausible(self, coef, nl, ch, base_coef):
+        """A cable that hardens within less than one count of the joint encoders (at the longer lever, as
+        :meth:`Backlash.grid`) hardens where the measured stretch resolves nothing: the term fits their
+        quantisation or what a light free foot leaves below one count (generator E: a hardening stretch
+        of 4e-6 rad, 1/23 of a count, beside cogging and beside a Stribeck term)."""
+        floor = getattr(ch, "joint_step", 0.0) * float(np.max(ch.geometry.levers))
+        zero = np.zeros((len(coef), len(coef)))
+        s_h = self.parameters(coef, zero, nl, 0.0, ch, base_coef)["hardening_stretch"][0]
+        if not s_h < floor:
+            return None
+        return (f"it hardens within {s_h:.3g} m of cable stretch, less than one count of the joint encoders "
+                f"({floor:.3g} m): below what the measured stretch resolves")
+
     def rejection(self, params, coef, base_coef):
         if not math.isfinite(params["hardening_stretch"][0]):
             return "the fitted stiffening term is zero or negative (a linear or softening cable, not a hardening one)"
