@@ -260,6 +260,23 @@ def test_a_constant_command_with_the_motor_at_rest_is_not_a_held_sample():
     assert any("holds the same value" in w for w in scr.warnings)
 
 
+def test_a_constant_command_at_a_steady_speed_is_not_a_held_sample():
+    """A 12-bit set value stays on one step while a controller tracks a ramp at a steady speed (generator
+    E): the motor's angle, a straight line within one encoder count, explains it. The same run while the
+    motor accelerates is a hold."""
+    count = 2 * np.pi / 20000
+    cols = _actuator_log()
+    t, pos, cur = cols["t"], cols["motor_pos_1"], cols["current_cmd_1"]
+    pos[1000:1100] = pos[1000] + 0.05 * (t[1000:1100] - t[1000])      # a ramp at 0.05 rad/s
+    cols["motor_pos_1"] = np.round(pos / count) * count
+    cur[1000:1100] = cur[1000]
+    cur[2250:2300] = cur[2250]                                        # accelerating: held
+    scr = screen(Recording(cols, "ramp"), 1e-3, 15.0)
+    assert scr.good[1000:1100].all()
+    assert not scr.good[2250:2300].any()
+    assert any("holds the same value" in w for w in scr.warnings)
+
+
 @pytest.mark.parametrize("late", [False, True])
 def test_irregular_stamps_are_put_on_the_median_grid_with_set_values_averaged_over_each_period(late):
     """Set values are held from their stamp to the next: a grid row gets the mean of what was applied over

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ankle_rt.diagnosis.signals import lattice_step
 from ankle_rt.interchange import Recording
 
 GAP_FACTOR = 1.5              # a sample period above this x the median is a gap
@@ -97,20 +98,36 @@ def _clipped_noisy(x: np.ndarray, still: np.ndarray | None = None) -> np.ndarray
     return out
 
 
-def _held(x: np.ndarray, rail: np.ndarray, at_rest: np.ndarray | None = None) -> np.ndarray:
+def _held(x: np.ndarray, rail: np.ndarray, at_rest: np.ndarray | None = None,
+          angle: np.ndarray | None = None) -> np.ndarray:
     """Runs of >= HOLD_SAMPLES identical values, in a column that otherwise changes almost every sample
     (a noisy sensor or a continuously varying set value). Not held: the column's extremes (a limit,
-    however brief), exact zeros (an amplifier switched off, e.g. while the gauges are tared), and runs
-    throughout which ``at_rest`` holds (a set current computed from an encoder that did not move is
-    constant by nature)."""
+    however brief), exact zeros (an amplifier switched off, e.g. while the gauges are tared), and a set
+    current's runs that its motor explains: throughout which ``at_rest`` holds (computed from an encoder
+    that did not move, it is constant by nature), or along which the motor's ``angle`` is a straight line
+    of time within one count (a steady speed takes a steady drive; generator E's 12-bit set values, 7 mA
+    a step, stayed on one step that long while a PD controller tracked a ramp: 0.03-5 % of every record
+    was masked, the slow samples a Stribeck term needs)."""
     same = np.concatenate([[False], np.diff(x) == 0.0]) & (x != np.max(x)) & (x != np.min(x)) & (x != 0.0)
     if np.mean(same & ~rail) > 0.5:        # a signal that is piecewise constant by nature
         return np.zeros(len(x), dtype=bool)
+    count = lattice_step(angle) if angle is not None else 0.0
     out = np.zeros(len(x), dtype=bool)
     for a, b in _runs(same & ~rail):
-        if b - a + 1 >= HOLD_SAMPLES and not (at_rest is not None and bool(np.all(at_rest[a:b]))):
-            out[max(0, a - 1):b] = True
+        if b - a + 1 < HOLD_SAMPLES or (at_rest is not None and bool(np.all(at_rest[a:b]))):
+            continue
+        if angle is not None and _straight(angle[max(0, a - 1):b], count):
+            continue
+        out[max(0, a - 1):b] = True
     return out
+
+
+def _straight(y: np.ndarray, count: float) -> bool:
+    """Whether the samples ``y`` lie on a straight line of their index within one ``count`` (a float's
+    rounding where the readings lie on no lattice)."""
+    k = np.arange(len(y), dtype=float)
+    line = np.polyval(np.polyfit(k, y, 1), k)
+    return bool(np.max(np.abs(y - line)) <= max(count, 1e-9 * max(float(np.max(np.abs(y))), 1.0)))
 
 
 def _dead_encoder(rec: Recording, i: int, moving: np.ndarray) -> str | None:
@@ -171,6 +188,7 @@ def screen(rec: Recording, v_eps: float, current_limit: float | None = None, lab
                             f"{1e3 * longest:.0f} ms: the samples around them are masked")
     motors = [c for c in ("motor_pos_1", "motor_pos_2") if c in rec]
     at_rest = {}
+    angles = {}
     still = None
     if motors:
         from ankle_rt.diagnosis.signals import Smoother
@@ -180,6 +198,7 @@ def screen(rec: Recording, v_eps: float, current_limit: float | None = None, lab
         for i, c in enumerate(motors):
             pos = np.asarray(rec[c], dtype=float)
             at_rest[f"current_cmd_{i + 1}"] = np.concatenate([[True], np.diff(pos) == 0.0]) | ~moving[:, i]
+            angles[f"current_cmd_{i + 1}"] = pos
         still = np.logical_and.reduce([at_rest[f"current_cmd_{i + 1}"] for i in range(len(motors))])
     inputs = [c for c in ("current_cmd_1", "current_cmd_2", "motor_torque_1", "motor_torque_2") if c in rec]
     gauges = [c for c in ("sg_torque_dp", "sg_torque_ie") if c in rec]
@@ -192,7 +211,7 @@ def screen(rec: Recording, v_eps: float, current_limit: float | None = None, lab
             rail = np.abs(x) >= 0.999 * current_limit
         else:
             rail = _flat_at_extreme(x) | (_clipped_noisy(x, still) if col in gauges else False)
-        held = _held(x, rail, at_rest.get(col))
+        held = _held(x, rail, at_rest.get(col), angles.get(col))
         what = "set current" if is_current else ("motor torque" if col in inputs else "strain gauge")
         if rail.any():
             level = float(np.max(np.abs(x[rail])))
