@@ -109,6 +109,22 @@ def test_stiffening_with_slack_acts_on_the_taut_stretch_only(params, per):
     assert tdp > 0.0
 
 
+def test_backlash_per_axis_may_give_the_ie_axis_a_width_of_its_own(params):
+    """``half_width_ie``: the IE axis' dead zone is half_width_ie / R_IE, DP's stays half_width / R_DP; the
+    key is refused with ``per: cable`` (one length per cable) and named in its entry."""
+    tr = params.transmission
+    own, = build_effects([{"type": "backlash", "half_width": 2e-4, "half_width_ie": 5e-5}], params, DT)
+    shared, = build_effects([{"type": "backlash", "half_width": 2e-4}], params, DT)
+    phi_ie = 1.2 * 5e-5 / tr.lever_ie        # beyond IE's own dead zone, inside the shared one
+    assert shared.cable_torque(0.0, phi_ie, 0.0, 0.0)[1] == pytest.approx(-shared.k_ie * phi_ie)
+    assert own.cable_torque(0.0, phi_ie, 0.0, 0.0)[1] == pytest.approx(-own.k_ie * 5e-5 / tr.lever_ie)
+    phi_dp = 0.5 * 2e-4 / tr.lever_dp
+    assert own.cable_torque(phi_dp, 0.0, 0.0, 0.0)[0] == shared.cable_torque(phi_dp, 0.0, 0.0, 0.0)[0]
+    with pytest.raises(ConfigError, match=r"sim\.effects\.1\.half_width_ie: .*per: axis"):
+        build_effects([{"type": "delay", "delay": 0.002},
+                       {"type": "backlash", "half_width": 2e-4, "half_width_ie": 5e-5, "per": "cable"}], params, DT)
+
+
 def test_torque_offset_shifts_both_directions_the_same_way(params):
     """Unlike friction asymmetry, a load torque keeps its sign when the motion reverses."""
     eff = [{"type": "torque_offset", "torque_1": 0.1}]

@@ -42,6 +42,7 @@ class Candidate:
     channel: str = "motor"
     nonlinear: str | None = None     # name of the grid-searched parameter
     integer: bool = False            # the nonlinear parameter is an integer (refined on the grid only)
+    nonlinear_count: int = 1         # physical values the nonlinear parameter stands for (a criterion's k)
     calibration: bool = False        # a sensor / calibration finding: reported, never a cause or a sim effect
     #: fixed settings of the simulator effect this form stands for (several forms may share a cause; a
     #: channel names at most one form per cause)
@@ -598,20 +599,24 @@ class Backlash(Candidate):
     form = {"per": "axis"}
 
     def grid(self, ch):
-        """10 um-2 mm of cable, from one count of the joint encoders at the longer lever: a narrower dead
-        zone is below what the measured stretch resolves and fits its quantisation error, which the spring
-        term carries and the gauges do not (a fixed part of a count where the foot comes back to rest at
-        one angle: :meth:`implausible`; generator D seed 116, 12-bit joint encoders in walking, a 10 um dead
-        zone explained 41 % of the cable residual)."""
+        """10 um-2 mm of cable (:data:`BACKLASH_WIDTHS`), from one count of the joint encoders at the longer
+        lever: a narrower dead zone is below what the measured stretch resolves and fits its quantisation
+        error, which the spring term carries and the gauges do not (a fixed part of a count where the foot
+        comes back to rest at one angle: :meth:`implausible`; generator D seed 116, 12-bit joint encoders
+        in walking, a 10 um dead zone explained 41 % of the cable residual)."""
         floor = ch.joint_step * float(np.max(ch.geometry.levers))
-        return [float(v) for v in np.geomspace(1e-5, 2e-3, 28) if v >= floor]
+        return [float(v) for v in BACKLASH_WIDTHS if v >= floor]
 
     def linked(self, other):
         return isinstance(other, TautHardening)
 
+    def widths(self, nl: float) -> np.ndarray:
+        """The dead zone's half-width per axis [DP, IE] (m of cable) at the nonlinear value ``nl``."""
+        return np.array([nl, nl])
+
     def clipped(self, ch, half_width: float) -> np.ndarray:
         """The stretch inside the dead zone per axis (samples x axes): the spring force it takes away / K."""
-        b = half_width / ch.geometry.levers
+        b = self.widths(half_width) / ch.geometry.levers
         return np.clip(ch.phi, -b, b)
 
     def design(self, ch, nl):
@@ -626,7 +631,7 @@ class Backlash(Candidate):
         to rest at the same angle, its quantisation error is a fixed offset of up to half a count, which
         reads as such a step between loaded and unloaded. A step no larger than what half a count of
         stretch carries is that error, not slack."""
-        step = -np.asarray(coef) * nl / ch.geometry.levers
+        step = -np.asarray(coef) * self.widths(nl) / ch.geometry.levers
         count = np.abs(base_coef[[0, 3]]) * ch.joint_step / 2.0
         if not np.any((step > 0.0) & (step <= count)):     # a negative step is no slack (rejection)
             return None
@@ -642,6 +647,52 @@ class Backlash(Candidate):
             return (f"the dead zone takes {', '.join(f'{v:.2f}' for v in share)} x the stiffness per axis "
                     f"(slack: {SLACK_SHARE[0]:g}-{SLACK_SHARE[1]:g}; below 0 a saturating spring, e.g. a clipped gauge)")
         return super().rejection(params, coef, base_coef)
+
+
+class AxisBacklash(Backlash):
+    """Slack as a dead zone per ankle axis, each axis with a width of its own (``half_width`` for DP,
+    ``half_width_ie`` for IE, m of cable): two axes' play need not be one length of cable (a joint's own
+    play; generator E's dead zones of 4 and 3 mrad left a remainder of 97 % of the catch-all's beside the
+    shared width, named `unknown`). The pair is coded in one integer, DP index x WIDTH_CODE + IE index into
+    :data:`BACKLASH_WIDTHS`; each axis' width is screened on its own (the axes' columns are apart), and
+    the best few of each scored in pairs."""
+
+    nonlinear = "half_widths"
+    integer = True
+    nonlinear_count = 2
+
+    def linked(self, other):
+        return False                     # two widths: no one slack to move together with
+
+    def widths(self, nl):
+        i, j = divmod(int(round(nl)), WIDTH_CODE)
+        return BACKLASH_WIDTHS[[i, j]]
+
+    def grid(self, ch):
+        index = [int(np.flatnonzero(BACKLASH_WIDTHS == w)[0]) for w in super().grid(ch)]
+        return [float(WIDTH_CODE * i + j) for i in index for j in index]
+
+    def search_grid(self, ch, residual, design):
+        """Per axis, the widths whose column alone explains most of ``residual``; their pairs."""
+        index = [int(np.flatnonzero(BACKLASH_WIDTHS == w)[0]) for w in super().grid(ch)]
+        if not index:
+            return []
+        Q = np.linalg.qr(ch.baseline_design())[0]          # a column's share beyond the baseline's span
+        explained = np.zeros((2, len(index)))
+        for k, i in enumerate(index):
+            b = BACKLASH_WIDTHS[i] / ch.geometry.levers
+            X = ch.per_column(ch.sm.smooth(np.clip(ch.phi, -b, b)))          # one column per axis
+            X -= Q @ (Q.T @ X)
+            for a in range(2):
+                explained[a, k] = float(X[:, a] @ residual) ** 2 / max(float(X[:, a] @ X[:, a]), 1e-300)
+        best = [np.asarray(index)[np.argsort(explained[a])[::-1][:AXIS_WIDTHS_SCORED]] for a in range(2)]
+        return [float(WIDTH_CODE * i + j) for i in best[0] for j in best[1]]
+
+    def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
+        # resolved on the grid only: the sd is half a grid step
+        w = self.widths(nl)
+        sd = w * (BACKLASH_WIDTHS[1] / BACKLASH_WIDTHS[0] - 1.0) / 2.0
+        return {"half_width": (float(w[0]), float(sd[0])), "half_width_ie": (float(w[1]), float(sd[1]))}
 
 
 class CableBacklash(Backlash):
@@ -790,7 +841,7 @@ class TautHardening(HardeningStiffness):
         return Backlash().grid(ch)
 
     def linked(self, other):
-        return isinstance(other, Backlash)
+        return isinstance(other, Backlash) and other.nonlinear == "half_width"     # one slack, not two
 
     def exponent(self, nl):
         return 2.0
@@ -838,13 +889,17 @@ class LoadHardening(HardeningStiffness):
 MOTOR_CANDIDATES: tuple[Candidate, ...] = (Stribeck(), StribeckExponential(), AsymmetricFriction(),
                                            AsymmetricFrictionPerMotor(), LoadDependentFriction(), Cogging(), Delay(),
                                            TorqueOffset(), TorqueConstantScale(), CoulombTransition())
-CABLE_CANDIDATES: tuple[Candidate, ...] = (Backlash(), CableBacklash(), HardeningStiffness(), TautHardening(),
+CABLE_CANDIDATES: tuple[Candidate, ...] = (Backlash(), AxisBacklash(), CableBacklash(), HardeningStiffness(), TautHardening(),
                                            CableTautHardening(), EncoderScale())
 #: the load channel (a linear load on the foot, no joint angles or too coarse ones): what a motor-side gap and a
 #: stiffening cable leave in the spring law of the motor angles
 LOAD_CANDIDATES: tuple[Candidate, ...] = (GearBacklash(), LoadHardening())
 
 MIN_COGGING_PERIODS = 2.0
+#: the dead zones' half-widths searched, m of cable (:meth:`Backlash.grid`)
+BACKLASH_WIDTHS = np.geomspace(1e-5, 2e-3, 28)
+WIDTH_CODE = 100                   # AxisBacklash's pair code: DP index x WIDTH_CODE + IE index
+AXIS_WIDTHS_SCORED = 3             # per axis, the widths whose pairs AxisBacklash scores
 SCALE_RANGE = (0.5, 2.0)           # plausible torque-constant calibration scales (true / configured)
 ENCODER_SCALE_RANGE = (0.8, 1.25)  # plausible motor / ankle encoder scale ratios
 SLACK_SHARE = (0.3, 2.0)           # share of the axis stiffness a dead zone may take away (ideal slack: 1)

@@ -213,7 +213,8 @@ class ChannelModels:
         return out
 
     def k(self, terms: list[Term]) -> int:
-        return self.Xb.shape[1] + sum(t.design.X.shape[1] + (t.candidate.nonlinear is not None) for t in terms)
+        return self.Xb.shape[1] + sum(t.design.X.shape[1] + (t.candidate.nonlinear_count if t.candidate.nonlinear else 0)
+                                      for t in terms)
 
     def rss(self, terms: list[Term], shared: Projector | None = None) -> float:
         """RSS of the baseline extended by ``terms`` (cached); ``shared``: the factored columns of all but

@@ -133,5 +133,8 @@ def build_effects(entries: list[dict], plant: PlantParams, dt: float, source: st
         cls = EFFECTS[name]
         body = {k: v for k, v in entry.items() if k != "type"}
         params = validate(body, cls.PARAMS, lambda _p: source, ("sim", "effects", str(i)))
-        effects.append(cls(params, plant, dt))
+        try:
+            effects.append(cls(params, plant, dt))
+        except ConfigError as e:          # a constraint between the effect's own keys, named in its entry
+            raise ConfigError(e.message, source, ".".join(filter(None, ("sim.effects", str(i), e.key)))) from None
     return effects
