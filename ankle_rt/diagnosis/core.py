@@ -51,7 +51,9 @@ PER = 3
 
 PLANTS = ("ankle", "actuator")
 #: what each calibration finding's scales are
-CALIBRATION_TEXT = {"torque_constant": "the torque constant is (true / configured, per motor)",
+CALIBRATION_TEXT = {"torque_constant": "the torque constant, or the strain gauges' gain (only the ratio of the "
+                                       "current's torque to the gauges' shows: a gauge gain g reads as a scale g), "
+                                       "is (true / configured, per motor)",
                     "coulomb_transition": "the Coulomb friction turns sharper than the configured smoothing "
                                           "velocity (per motor, rad/s),",
                     "encoder_scale": "the motor encoders read, relative to the ankle encoders (per axis),"}
@@ -429,12 +431,14 @@ def _named_sets(results: list[ChannelResult], notes: list[str], unusable: bool, 
     explains is measured jointly (:attr:`ChannelResult.named_share`), not as the sum of each effect's
     drop-one share: overlapping effects (two frictions at every reversal) share what they explain, and
     each one's drop-one share counts only what the others cannot take over. A remainder
-    beside named effects counts only where it shows on the validation data too (:func:`replicates`)."""
+    beside named effects counts only where it shows on the validation data too (:func:`replicates`).
+    From an ``unusable`` record nothing is named, a remainder neither: what the models leave of gauges
+    read against the stretch or of a dead encoder is no discrepancy of the device."""
     chosen: dict[str, list[tuple[Candidate, float]]] = {}
     unexplained: dict[str, Any] = {}
     for res in results:
         specs = [(ts.term.candidate, ts.term.nl) for ts in res.terms]
-        if res.unexplained:
+        if res.unexplained and not unusable:
             explained = res.named_share / max(res.catch_all_total, 1e-12)
             if specs and explained < MIN_EXPLAINED:
                 notes.append(f"{res.name} channel: {', '.join(c.cause for c, _ in specs)} explain only "
