@@ -79,6 +79,7 @@ def test_gauges_of_the_wrong_sign_are_a_warning_and_nothing_named(walking_case):
     vflip = {g: -c.valid[g] for g in ("sg_torque_dp", "sg_torque_ie")}
     diag = diagnose(_variant(c.ident, **flip), _variant(c.valid, **vflip), plant="ankle", cfg=c.nominal_cfg)
     assert diag.causes == ["unknown"] and diag.confidence == 0.0
+    assert diag.unexplained is None                  # no remainder of an unusable record either
     assert any("read against the stretch" in w for w in diag.data_warnings), diag.data_warnings
 
 

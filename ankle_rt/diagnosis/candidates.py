@@ -74,6 +74,10 @@ class Candidate:
     def design(self, ch: Channel, nl: float) -> Design:
         raise NotImplementedError
 
+    def nonlinear_values(self, nl: float) -> dict[str, float]:
+        """The nonlinear parameter at ``nl`` as the report names it (nothing for a linear form)."""
+        return {self.nonlinear: nl} if self.nonlinear else {}
+
     def parameters(self, coef: np.ndarray, cov: np.ndarray, nl: float, nl_sd: float,
                    ch: Channel, base_coef: np.ndarray) -> dict[str, tuple[float, float]]:
         """Effect parameters as {name: (value, standard deviation)} from the candidate's coefficients
@@ -607,6 +611,10 @@ class Backlash(Candidate):
         floor = ch.joint_step * float(np.max(ch.geometry.levers))
         return [float(v) for v in BACKLASH_WIDTHS if v >= floor]
 
+    def applies(self, ch):
+        """Only where a width on the grid is wider than a joint count (coarse joint encoders leave none)."""
+        return bool(self.grid(ch))
+
     def linked(self, other):
         return isinstance(other, TautHardening)
 
@@ -654,8 +662,8 @@ class AxisBacklash(Backlash):
     ``half_width_ie`` for IE, m of cable): two axes' play need not be one length of cable (a joint's own
     play; generator E's dead zones of 4 and 3 mrad left a remainder of 97 % of the catch-all's beside the
     shared width, named `unknown`). The pair is coded in one integer, DP index x WIDTH_CODE + IE index into
-    :data:`BACKLASH_WIDTHS`; each axis' width is screened on its own (the axes' columns are apart), and
-    the best few of each scored in pairs."""
+    :data:`BACKLASH_WIDTHS`, resolved on that grid only; each axis' width is screened on its own (the axes'
+    columns are apart), and the best few of each scored in pairs."""
 
     nonlinear = "half_widths"
     integer = True
@@ -668,21 +676,27 @@ class AxisBacklash(Backlash):
         i, j = divmod(int(round(nl)), WIDTH_CODE)
         return BACKLASH_WIDTHS[[i, j]]
 
+    def nonlinear_values(self, nl):
+        w = self.widths(nl)
+        return {"half_width": float(w[0]), "half_width_ie": float(w[1])}
+
+    def _indices(self, ch) -> list[int]:
+        """The indices into BACKLASH_WIDTHS of the widths :meth:`Backlash.grid` searches."""
+        return [int(np.searchsorted(BACKLASH_WIDTHS, w)) for w in super().grid(ch)]
+
     def grid(self, ch):
-        index = [int(np.flatnonzero(BACKLASH_WIDTHS == w)[0]) for w in super().grid(ch)]
+        index = self._indices(ch)
         return [float(WIDTH_CODE * i + j) for i in index for j in index]
 
     def search_grid(self, ch, residual, design):
-        """Per axis, the widths whose column alone explains most of ``residual``; their pairs."""
-        index = [int(np.flatnonzero(BACKLASH_WIDTHS == w)[0]) for w in super().grid(ch)]
-        if not index:
-            return []
-        Q = np.linalg.qr(ch.baseline_design())[0]          # a column's share beyond the baseline's span
+        """Per axis, the widths whose column alone explains most of ``residual`` beyond the baseline's span;
+        their pairs."""
+        index = self._indices(ch)
+        Q = np.linalg.qr(ch.baseline_design())[0]
         explained = np.zeros((2, len(index)))
         for k, i in enumerate(index):
-            b = BACKLASH_WIDTHS[i] / ch.geometry.levers
-            X = ch.per_column(ch.sm.smooth(np.clip(ch.phi, -b, b)))          # one column per axis
-            X -= Q @ (Q.T @ X)
+            X = Backlash.design(self, ch, float(WIDTH_CODE * i + i)).X      # both axes at width i
+            X = X - Q @ (Q.T @ X)
             for a in range(2):
                 explained[a, k] = float(X[:, a] @ residual) ** 2 / max(float(X[:, a] @ X[:, a]), 1e-300)
         best = [np.asarray(index)[np.argsort(explained[a])[::-1][:AXIS_WIDTHS_SCORED]] for a in range(2)]
@@ -690,9 +704,8 @@ class AxisBacklash(Backlash):
 
     def parameters(self, coef, cov, nl, nl_sd, ch, base_coef):
         # resolved on the grid only: the sd is half a grid step
-        w = self.widths(nl)
-        sd = w * (BACKLASH_WIDTHS[1] / BACKLASH_WIDTHS[0] - 1.0) / 2.0
-        return {"half_width": (float(w[0]), float(sd[0])), "half_width_ie": (float(w[1]), float(sd[1]))}
+        step = (BACKLASH_WIDTHS[1] / BACKLASH_WIDTHS[0] - 1.0) / 2.0
+        return {k: (v, v * step) for k, v in self.nonlinear_values(nl).items()}
 
 
 class CableBacklash(Backlash):
@@ -840,8 +853,11 @@ class TautHardening(HardeningStiffness):
     def grid(self, ch):
         return Backlash().grid(ch)
 
+    def applies(self, ch):
+        return bool(self.grid(ch))
+
     def linked(self, other):
-        return isinstance(other, Backlash) and other.nonlinear == "half_width"     # one slack, not two
+        return isinstance(other, Backlash) and not isinstance(other, AxisBacklash)     # one slack, not two
 
     def exponent(self, nl):
         return 2.0
@@ -899,6 +915,7 @@ MIN_COGGING_PERIODS = 2.0
 #: the dead zones' half-widths searched, m of cable (:meth:`Backlash.grid`)
 BACKLASH_WIDTHS = np.geomspace(1e-5, 2e-3, 28)
 WIDTH_CODE = 100                   # AxisBacklash's pair code: DP index x WIDTH_CODE + IE index
+assert len(BACKLASH_WIDTHS) <= WIDTH_CODE
 AXIS_WIDTHS_SCORED = 3             # per axis, the widths whose pairs AxisBacklash scores
 SCALE_RANGE = (0.5, 2.0)           # plausible torque-constant calibration scales (true / configured)
 ENCODER_SCALE_RANGE = (0.8, 1.25)  # plausible motor / ankle encoder scale ratios

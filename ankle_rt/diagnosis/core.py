@@ -243,10 +243,11 @@ def _joint_angles_add_noise(chans: dict[str, Channel]) -> float | None:
     Each law is compared linear, beside the same linear filters of its angle
     (:meth:`CableChannel.history_columns`, in the load's baseline; without them a relaxing cable made any
     joint angles look like noise), and, where the linear laws say "noise", again in its best nonlinear form
-    (each side's best single candidate): a dead zone or a stiffening in the cable fits the linear cable law
-    badly with no noise at all, while the rig's softer spring in series hides it in the law of the motor
-    angles (generator E: a dead zone per axis on a 350 N m/rad rig, 12x closer without the joint angles,
-    fits 23x better than the load's law once the cable law has its dead zone)."""
+    (each side's best single candidate on its own baseline, the cable's without those filters: if anything
+    a lean toward the load): a dead zone or a stiffening in the cable fits the linear cable law badly with
+    no noise at all, while the rig's softer spring in series hides it in the law of the motor angles
+    (generator E: a dead zone per axis on a 350 N m/rad rig, 12x closer without the joint angles, fits 16x
+    better than the load's best form once the cable law has its dead zone)."""
     cable, load = chans["cable"], chans["load"]
     if cable.joint_step <= 0.0:
         return None
@@ -365,8 +366,7 @@ def candidate_table(results: list[ChannelResult], fits: dict[str, ChannelFit]) -
                     "rss_reduction": round(s.reduction, 5), "size": round(s.size, 5)}
             if (why := _why_not(s, chosen)) is not None:
                 item["dropped"] = why
-            if s.candidate.nonlinear:
-                item[s.candidate.nonlinear] = s.nl
+            item.update(s.candidate.nonlinear_values(s.nl))
             named.append(item)
         tail.append({"cause": "unknown", "channel": res.name, "score": round(res.catch_all_delta_ic, 2),
                      "rss_reduction": round(res.catch_all_reduction, 5), "size": round(res.catch_all_size, 5),

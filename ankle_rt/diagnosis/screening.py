@@ -123,11 +123,12 @@ def _held(x: np.ndarray, rail: np.ndarray, at_rest: np.ndarray | None = None,
 
 
 def _straight(y: np.ndarray, count: float) -> bool:
-    """Whether the samples ``y`` lie on a straight line of their index within one ``count`` (a float's
-    rounding where the readings lie on no lattice)."""
+    """Whether the samples ``y`` (of a uniform grid) lie on a straight line of their index within one
+    ``count``, or within a float's rounding of their span where the readings lie on no lattice."""
+    y = y - y[0]
     k = np.arange(len(y), dtype=float)
     line = np.polyval(np.polyfit(k, y, 1), k)
-    return bool(np.max(np.abs(y - line)) <= max(count, 1e-9 * max(float(np.max(np.abs(y))), 1.0)))
+    return bool(np.max(np.abs(y - line)) <= max(count, 1e-9 * float(np.ptp(y))))
 
 
 def _dead_encoder(rec: Recording, i: int, moving: np.ndarray) -> str | None:
@@ -309,7 +310,7 @@ def strain_gauge_offset(cable) -> np.ndarray | None:
     from ankle_rt.diagnosis.candidates import CABLE_CANDIDATES
     from ankle_rt.diagnosis.regression import effective_samples, fit
 
-    shapes = [c.design(cable, nl).X for c in CABLE_CANDIDATES for nl in OFFSET_SHAPES[c.cause]]
+    shapes = [c.design(cable, nl).X for c in CABLE_CANDIDATES for nl in OFFSET_SHAPES.get(c.nonlinear, ())]
     X = np.hstack([cable.baseline_design()] + shapes)
     f = fit(cable.target(), X)
     cov = f.covariance(effective_samples(f.residual, cable.m))
@@ -322,5 +323,7 @@ def strain_gauge_offset(cable) -> np.ndarray | None:
 
 
 #: the cable candidates' shapes that stand in for any cable effect (and an encoder scale mismatch) while
-#: an offset is measured: slack half-widths (m), stiffening exponents
-OFFSET_SHAPES = {"backlash": (1e-4, 4e-4, 1.5e-3), "stiffness_nonlinear": (2.0, 3.0), "encoder_scale": (0.0,)}
+#: an offset is measured, by the name of the form's nonlinear parameter: a shared slack half-width (m), a
+#: stiffening exponent, none (the scale columns); a form whose value is no such number (a pair of widths'
+#: code, a taut-stretch slack) takes no part
+OFFSET_SHAPES = {"half_width": (1e-4, 4e-4, 1.5e-3), "exponent": (2.0, 3.0), None: (0.0,)}

@@ -213,8 +213,8 @@ class ChannelModels:
         return out
 
     def k(self, terms: list[Term]) -> int:
-        return self.Xb.shape[1] + sum(t.design.X.shape[1] + (t.candidate.nonlinear_count if t.candidate.nonlinear else 0)
-                                      for t in terms)
+        nonlinear = sum(t.candidate.nonlinear_count for t in terms if t.candidate.nonlinear)
+        return self.Xb.shape[1] + sum(t.design.X.shape[1] for t in terms) + nonlinear
 
     def rss(self, terms: list[Term], shared: Projector | None = None) -> float:
         """RSS of the baseline extended by ``terms`` (cached); ``shared``: the factored columns of all but
@@ -398,7 +398,7 @@ def select_channel(name: str, ch: Channel, candidates: tuple[Candidate, ...], ca
             # angles (ratios of 7750 and -1280, generator E), refused only after it had kept the cable's
             # dead zone and stiffening out
             if term.candidate.calibration and (why := _calibration_refusal(models, chosen + [term], n_eff)):
-                refused.setdefault(term.cause, why)
+                refused[term.cause] = why
                 continue
             ok, _ = cv_wins(models, chosen, chosen + [term])
             if ok:

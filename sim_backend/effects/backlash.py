@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from ankle_rt.config import ConfigError, Field, Section, non_negative
 from ankle_rt.elementwise import clip
-from sim_backend.effects.base import PER_AXIS_OR_CABLE, CableStretchEffect, register_effect
+from sim_backend.effects.base import OPTIONAL_FLOAT, PER_AXIS_OR_CABLE, CableStretchEffect, register_effect
 
 
 @register_effect("backlash")
@@ -20,7 +20,7 @@ class Backlash(CableStretchEffect):
 
     PARAMS = Section({
         "half_width": non_negative("m of cable length, dead zone +/- half_width"),
-        "half_width_ie": Field((float, type(None)), "m of cable length, the IE axis' own dead zone (per: axis; "
+        "half_width_ie": Field(OPTIONAL_FLOAT, "m of cable length, the IE axis' own dead zone (per: axis; "
                                "absent: half_width)", default=None, low=0.0),
         "per": PER_AXIS_OR_CABLE,
     })
