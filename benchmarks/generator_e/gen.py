@@ -2,7 +2,7 @@
 """Generator E: an independent simulator of a two-motor Bowden-cable ankle prosthesis that writes
 identification / validation CSVs (interchange format) with known truth, for testing `ankle-rt diagnose`.
 
-Written from DESIGN.md's nominal model and the nominal parameters only.  Own effect forms:
+Written from the design brief's nominal model (docs/design.md) and the nominal parameters only.  Own effect forms:
   stribeck     tau = As * exp(-(|v|/vs)^delta) * tanh(v/ve)         (delta 0.7..2 per case)
   asymmetric   Coulomb kc+ != kc- per motor (smooth: mean*tanh + half-diff*|tanh|)
   load-dep.    mu * |cable torque on that motor| * tanh(v/ve)
@@ -19,7 +19,7 @@ scale, gauge clipping, held gauge samples, gauge drift, dropped cycles.
 Integration: vectorised RK4 over all runs of a batch, step H (control input held between ticks).
 Usage: python gen.py --out DIR [--only ID,ID] [--h 2e-4]
 
-Provenance (ankle-rt, issue 21): written on 2026-11-30 by a helper that read only DESIGN.md, the paper, the
+Provenance (ankle-rt, issue 21): written on 2026-11-30 by a helper that read only the design brief (docs/design.md), the paper, the
 nominal parameters, config/ and the README, never the diagnosis, its docs or the other generators; kept as
 its author wrote it (only the paths made relative to this checkout), so that the figures it gave can be
 measured again: docs/diagnosis.md, diag28.
