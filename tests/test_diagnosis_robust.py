@@ -16,14 +16,15 @@ import numpy as np
 import pytest
 
 from ankle_rt.diagnosis import diagnose
-from ankle_rt.diagnosis.candidates import Cogging, HardeningStiffness, catch_all_motor
+from ankle_rt.diagnosis.candidates import MOTOR_CANDIDATES, Cogging, HardeningStiffness, Stribeck, catch_all_motor
 from ankle_rt.diagnosis.model_fragment import fragment
 from ankle_rt.diagnosis.resample import to_uniform_grid
 from ankle_rt.diagnosis.screening import _pct, screen
-from ankle_rt.diagnosis.selection import replicates
+from ankle_rt.diagnosis.selection import _calibrations_in_place, replicates
 from ankle_rt.interchange import Recording
 from tests.diagnosis_cases import ENCODER_SCALE, SG_OFFSET_NM, make_case
 from tests.diagnosis_cases_b import draw_case_b, make_case_b
+from benchmarks.diagnosis_cases_c import draw_case_c, make_case_c
 from benchmarks.diagnosis_cases_d import draw_case_d, make_case_d
 
 PHYSICAL = {"stribeck", "asymmetric_friction", "load_dependent_friction", "backlash", "cogging", "delay",
@@ -345,6 +346,23 @@ def test_a_stribeck_term_is_named_only_where_it_shows_beyond_a_sharper_coulomb_t
     assert sorted(diag.causes) == list(case.causes), msg
     if named:
         assert any("chosen friction (coulomb_transition, stribeck)" in n for n in diag.notes), msg
+
+
+def test_a_stribeck_term_at_its_grid_edge_beside_the_chosen_effects_is_replaced_by_the_sharper_transition():
+    """The swap itself (method step 6), whatever the selection chose on this machine: generator C's seed 103
+    (a delay; its motors' Coulomb friction turns sharper than the config's smoothing). A Stribeck term at
+    its narrowest grid value put beside the chosen delay is replaced by the sharper-transition calibration,
+    which fits far better in its place and at values a calibration takes, and the note says so."""
+    case = make_case_c(**draw_case_c(103))
+    diag = diagnose(case.ident, case.valid, plant="ankle", cfg=case.nominal_cfg)
+    res = diag.detail["results"][0]
+    models = res.models
+    edge = models.term(Stribeck(), min(Stribeck().grid(res.channel)))
+    chosen = [ts.term for ts in res.terms if not ts.term.candidate.calibration] + [edge]
+    assert [t.cause for t in chosen] == ["delay", "stribeck"], diag.causes
+    swapped, _ = _calibrations_in_place(models, chosen, [0.0] * len(chosen), list(MOTOR_CANDIDATES), res.n_eff, res)
+    assert [t.cause for t in swapped] == ["delay", "coulomb_transition"]
+    assert any("better in the place of stribeck: stribeck replaced" in n for n in res.notes), res.notes
 
 
 def test_a_one_way_validation_file_does_not_keep_a_load_offset_from_being_named():
