@@ -55,7 +55,9 @@ class Candidate:
     mid_stroke: bool = False
 
     def applies(self, ch: Channel) -> bool:
-        return True
+        """Only where there is a value of the nonlinear parameter to search (coarse joint encoders leave a
+        dead zone's grid empty)."""
+        return bool(self.grid(ch))
 
     def grid(self, ch: Channel) -> list[float]:
         return [0.0]
@@ -611,10 +613,6 @@ class Backlash(Candidate):
         floor = ch.joint_step * float(np.max(ch.geometry.levers))
         return [float(v) for v in BACKLASH_WIDTHS if v >= floor]
 
-    def applies(self, ch):
-        """Only where a width on the grid is wider than a joint count (coarse joint encoders leave none)."""
-        return bool(self.grid(ch))
-
     def linked(self, other):
         return isinstance(other, TautHardening)
 
@@ -695,7 +693,7 @@ class AxisBacklash(Backlash):
         Q = np.linalg.qr(ch.baseline_design())[0]
         explained = np.zeros((2, len(index)))
         for k, i in enumerate(index):
-            X = Backlash.design(self, ch, float(WIDTH_CODE * i + i)).X      # both axes at width i
+            X = design(float(WIDTH_CODE * i + i)).X                       # both axes at width i
             X = X - Q @ (Q.T @ X)
             for a in range(2):
                 explained[a, k] = float(X[:, a] @ residual) ** 2 / max(float(X[:, a] @ X[:, a]), 1e-300)
@@ -852,9 +850,6 @@ class TautHardening(HardeningStiffness):
 
     def grid(self, ch):
         return Backlash().grid(ch)
-
-    def applies(self, ch):
-        return bool(self.grid(ch))
 
     def linked(self, other):
         return isinstance(other, Backlash) and not isinstance(other, AxisBacklash)     # one slack, not two
